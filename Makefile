@@ -1,0 +1,37 @@
+# The two set-up commands: `make demo` (the main job on the bundled sample recording) and `make test`.
+VENV    ?= .venv
+PYTHON  ?= python3
+PY      := $(VENV)/bin/python
+STAMP   := $(VENV)/.hac_installed
+
+# DDS never leaves this machine, and every run gets its own domain so runs never hear each other
+# (test fixtures pick a per-process domain on top of this).
+export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
+export ROS_DOMAIN_ID ?= $(shell echo $$(( $$$$ % 90 + 10 )))
+
+.PHONY: all install test demo bench bags clean
+
+all: test
+
+$(STAMP): setup.py setup.cfg package.xml
+	test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install -q --upgrade pip
+	$(PY) -m pip install -q -e '.[ros,dev]'
+	touch $(STAMP)
+
+install: $(STAMP)
+
+test: $(STAMP)
+	$(PY) -m pytest -q
+
+demo: $(STAMP)
+	$(PY) -m hac_ros.cli demo
+
+bench: $(STAMP)
+	$(PY) bench/accuracy.py
+	$(PY) bench/core_speed.py
+	$(PY) bench/replay_throughput.py
+	$(PY) bench/node_latency.py
+
+clean:
+	rm -rf out build install log .pytest_cache

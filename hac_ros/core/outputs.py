@@ -1,0 +1,118 @@
+"""What the :class:`~hac_ros.core.calibrator.Calibrator` hands back: plain numpy results.
+
+The node turns them into messages and publishes them; the replay turns them into the same messages
+and writes them at their ``stamp_ns``. Every ``stamp_ns`` is an input header stamp (int nanoseconds).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Union
+
+import numpy as np
+
+
+@dataclass
+class OdometryOut:
+    """The metric pose of the camera (or of ``base_frame``) at one SLAM pose stamp.
+
+    rotation_metric: (3, 3) float64, child frame to ``metric_frame``.
+    position_metric: (3,) float64, metres, ``metric_frame``.
+    covariance: (6, 6) float64, ROS order (x, y, z, rot x, rot y, rot z), metres² and rad².
+    linear_velocity: (3,) float64, m/s, child frame; angular_velocity: (3,) rad/s, child frame.
+    """
+
+    stamp_ns: int
+    child_frame_id: str
+    rotation_metric: np.ndarray
+    position_metric: np.ndarray
+    covariance: np.ndarray
+    linear_velocity: np.ndarray
+    angular_velocity: np.ndarray
+
+
+@dataclass
+class HumanJointsOut:
+    """The frame's joints in the metric world. joints_metric: (P, 24, 3) float64, metres, metric_frame."""
+
+    stamp_ns: int
+    joints_metric: np.ndarray
+
+
+@dataclass
+class ScaleOut:
+    """The current scale (metres per SLAM unit) after the frame of ``stamp_ns`` was processed."""
+
+    stamp_ns: int
+    scale: float
+    spread: float  # robust sigma of the window's samples (1.4826 MAD), metres per SLAM unit
+
+
+@dataclass
+class SampleOut:
+    """One per-person scale sample of one frame (for plots and analysis; not a ROS topic).
+
+    source: 'map' (ray query), 'ground' (ground-plane fallback) or the rejection reason.
+    """
+
+    stamp_ns: int
+    person: int
+    scale: float  # NaN when rejected
+    source: str
+    accepted: bool
+
+
+@dataclass
+class Status:
+    """A snapshot of the estimator for /diagnostics (and the replay summary)."""
+
+    stamp_ns: int
+    converged: bool
+    scale: float  # NaN before any sample
+    spread: float
+    samples: int
+    frames: int
+    people: int
+    map_hits: int
+    ground_fallbacks: int
+    resets: int
+    rejected: dict[str, int] = field(default_factory=dict)
+    map_points: int = 0
+    ground_normal_map: np.ndarray | None = None  # (3,) unit, SLAM map frame, points down
+    ground_offset_slam: float = float('nan')  # plane n·p = b, SLAM units
+
+    @property
+    def fallback_rate(self) -> float:
+        used = self.map_hits + self.ground_fallbacks
+        return self.ground_fallbacks / used if used else 0.0
+
+
+@dataclass
+class DiagnosticsOut:
+    """Emitted once per second of stamp time (the first input of each new second)."""
+
+    status: Status
+
+
+@dataclass
+class ResetOut:
+    """The estimator was reset (SLAM re-initialisation). cause: 'pose_jump', 'pose_frame', 'map_frame', 'map_overlap'."""
+
+    stamp_ns: int
+    cause: str
+
+
+@dataclass
+class NoticeOut:
+    """Something a human should read once: the first rejection of each cause, a reset, a relock.
+
+    The shells log it (the node with its logger, the replay on stderr) so that both log the same
+    things once per cause, not once per message.
+    """
+
+    stamp_ns: int
+    cause: str
+    text: str
+    level: str = 'warn'  # 'info' | 'warn' | 'error'
+
+
+Output = Union[OdometryOut, HumanJointsOut, ScaleOut, SampleOut, DiagnosticsOut, ResetOut, NoticeOut]

@@ -1,0 +1,232 @@
+"""The one parameter set of hac_ros: SPEC's table, defaults and validation.
+
+The node declares exactly these fields as ROS parameters (with the description and range given
+here) and ``hac replay --params`` reads the same YAML file (``hac_node: {ros__parameters: {...}}``).
+Every length threshold is metric (applied after the current scale) or relative to the scene, never
+a number of SLAM units (SPEC, conventions).
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Mapping
+
+from hac_ros.core.errors import ParameterError
+
+NODE_NAME = 'hac_node'
+
+CONTACT_MODES = ('lowest', 'max_ratio', 'lowest_gravity', 'feet', 'pelvis', 'head')
+REFERENCE_MODES = ('cone_median', 'nearest_to_ray')
+GROUND_MODES = ('hmr', 'slam_y', 'largest_plane', 'none')
+POSE_TYPES = ('PoseStamped', 'Odometry')
+CLOUD_MODES = ('replace', 'accumulate')
+INPUT_QOS = ('best_effort', 'reliable')
+CLOUD_QOS = ('transient_local', 'volatile')
+
+
+def _p(default: Any, description: str, *, choices: tuple[str, ...] | None = None,
+       low: float | None = None, high: float | None = None, length: int | None = None) -> Any:
+    """A dataclass field carrying its ROS parameter description and its allowed range."""
+    meta = {'description': description, 'choices': choices, 'low': low, 'high': high,
+            'length': length}
+    if isinstance(default, list):
+        return field(default_factory=lambda: list(default), metadata=meta)
+    return field(default=default, metadata=meta)
+
+
+@dataclass
+class HacParams:
+    """Every parameter of the node and the replay, with SPEC's names and defaults."""
+
+    # --- topics and types (SPEC: ROS 2 interface)
+    pose_topic: str = _p('/slam/pose', 'SLAM camera pose input (map frame, unknown scale)')
+    cloud_topic: str = _p('/slam/cloud', 'SLAM map points input (PointCloud2, map frame)')
+    joints_topic: str = _p('/hmr/joints', 'HMR joints input (PoseArray, camera optical frame, metres)')
+    camera_info_topic: str = _p('/camera/camera_info',
+                                'CameraInfo of the camera; "" turns it off')
+    pose_type: str = _p('PoseStamped', 'message type of pose_topic', choices=POSE_TYPES)
+    metric_frame: str = _p('map_metric', 'frame_id of the metric outputs')
+    camera_frame: str = _p('', 'camera optical frame; "" = from the inputs')
+
+    # --- method (SPEC: the method)
+    contact_mode: str = _p('lowest', 'how the contact joint is chosen', choices=CONTACT_MODES)
+    reference_mode: str = _p('cone_median', 'map ray query', choices=REFERENCE_MODES)
+    cone_angle_deg: float = _p(2.56, 'half angle of the ray cone (2.56 deg = authors cos 0.999)',
+                               low=0.05, high=20.0)
+    cone_min_points: int = _p(3, 'map points needed in the cone for a hit', low=1, high=1000)
+    ground_mode: str = _p('hmr', 'ground plane strategy', choices=GROUND_MODES)
+
+    # --- estimator
+    window_s: float = _p(30.0, 'rolling window length, stamp seconds', low=0.1, high=1e6)
+    window_max_samples: int = _p(2000, 'cap of samples in the window', low=1, high=10_000_000)
+    min_samples: int = _p(10, 'samples in the window before anything metric is published',
+                          low=1, high=100_000)
+
+    # --- synchronisation
+    sync_slop_s: float = _p(0.005, 'joints/pose stamp match tolerance, seconds', low=0.0, high=10.0)
+    pose_buffer: int = _p(600, 'SLAM poses kept for matching', low=2, high=1_000_000)
+
+    # --- map
+    cloud_mode: str = _p('replace', 'each cloud replaces the map or adds to it', choices=CLOUD_MODES)
+    cloud_max_points: int = _p(2_000_000, 'cap of map points (oldest leave first)',
+                               low=1, high=1_000_000_000)
+
+    # --- QoS (node only)
+    input_qos: str = _p('best_effort', 'QoS reliability of pose/joints subscriptions',
+                        choices=INPUT_QOS)
+    cloud_qos: str = _p('transient_local', 'QoS durability of the map subscription',
+                        choices=CLOUD_QOS)
+    publish_markers: bool = _p(True, 'publish /hac/markers for RViz')
+
+    # --- beyond SPEC's table: documented extras with metric or scene-relative units
+    interp_max_gap_s: float = _p(0.2, 'largest gap between two poses that a joints stamp may be '
+                                 'interpolated across, seconds', low=0.0, high=60.0)
+    plausibility_rel_tol: float = _p(0.35, 'a map hit is implausible when its metric distance '
+                                     'differs from the joint distance by more than this fraction',
+                                     low=0.01, high=10.0)
+    ray_window_rel: float = _p(0.6, 'once a scale exists, map points are searched along the ray '
+                               'within this fraction of the predicted distance', low=0.05, high=100.0)
+    gate_k: float = _p(5.0, 'a new sample is gated when further than gate_k robust sigmas from '
+                       'the median (once converged)', low=0.5, high=1000.0)
+    gate_min_rel: float = _p(0.15, 'the gate is never narrower than this fraction of the median',
+                             low=0.0, high=100.0)
+    ground_inlier_m: float = _p(0.05, 'RANSAC inlier distance of contact points, metres',
+                                low=1e-4, high=10.0)
+    ground_ransac_iters: int = _p(300, 'RANSAC iterations of the plane fits', low=1, high=100_000)
+    reset_jump_factor: float = _p(8.0, 'a pose step larger than this many times the recent median '
+                                  'step (and than reset_jump_min_rel of the map extent) is a jump',
+                                  low=1.5, high=1e6)
+    reset_jump_min_rel: float = _p(0.05, 'a jump is at least this fraction of the trajectory '
+                                   'extent so far', low=0.0, high=100.0)
+    reset_confirm_poses: int = _p(3, 'poses after a jump that must continue from it to make it '
+                                  'a SLAM re-initialisation', low=1, high=1000)
+    map_overlap_min: float = _p(0.1, 'a new map overlapping the previous one less than this '
+                                'fraction is a SLAM re-initialisation (0 disables)', low=0.0, high=1.0)
+    seed: int = _p(0, 'seed of the RANSAC sampling (reproducible output)', low=0, high=2**31 - 1)
+    base_frame: str = _p('', 'if set, /hac/odometry describes this frame instead of the camera')
+    base_to_camera: list = _p([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0],
+                              'camera pose in base_frame: x y z qx qy qz qw (metres)', length=7)
+    orientation_variance: float = _p(1e-4, 'variance reported for each orientation axis, rad^2',
+                                     low=0.0, high=1e6)
+    publish_tf: bool = _p(False, 'broadcast metric_frame -> camera/base on TF (needs tf2_ros)')
+
+    def __post_init__(self) -> None:
+        self.validate()
+
+    # ------------------------------------------------------------------ validation
+    def validate(self) -> None:
+        """Raise :class:`ParameterError` naming the first invalid field and why."""
+        for f in dataclasses.fields(self):
+            value = getattr(self, f.name)
+            _check(f, value)
+        if self.reference_mode == 'cone_median' and self.cone_min_points < 1:
+            raise ParameterError('cone_min_points: must be >= 1')
+        q = self.base_to_camera[3:]
+        if abs(math.sqrt(sum(x * x for x in q)) - 1.0) > 1e-3:
+            raise ParameterError('base_to_camera: the quaternion (last 4 values) must be unit')
+
+    def replace(self, **changes: Any) -> 'HacParams':
+        """A validated copy with ``changes`` applied (all or nothing)."""
+        unknown = set(changes) - set(names())
+        if unknown:
+            raise ParameterError(f'unknown parameter(s): {", ".join(sorted(unknown))}')
+        merged = {**dataclasses.asdict(self), **{k: _coerce(k, v) for k, v in changes.items()}}
+        return HacParams(**merged)
+
+    def as_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+    # ------------------------------------------------------------------ loading
+    @classmethod
+    def from_dict(cls, values: Mapping[str, Any]) -> 'HacParams':
+        """Parameters from a flat mapping; unknown names are an error (typos must not pass)."""
+        return cls().replace(**dict(values))
+
+    @classmethod
+    def from_yaml(cls, path: str | Path, node_name: str = NODE_NAME) -> 'HacParams':
+        """Read the ROS 2 parameters file: ``{node_name: {ros__parameters: {...}}}``.
+
+        A ``/**`` wildcard section is honoured too; a plain flat mapping is accepted.
+        """
+        import yaml
+
+        try:
+            data = yaml.safe_load(Path(path).read_text(encoding='utf-8')) or {}
+        except OSError as exc:
+            raise ParameterError(f'cannot read parameters file {path}: {exc}') from exc
+        except yaml.YAMLError as exc:
+            raise ParameterError(f'parameters file {path} is not valid YAML: {exc}') from exc
+        if not isinstance(data, dict):
+            raise ParameterError(f'parameters file {path}: expected a mapping at the top')
+        values: dict[str, Any] = {}
+        sections = [data.get('/**'), data.get(node_name), data.get('/' + node_name)]
+        found = False
+        for section in sections:
+            if isinstance(section, dict) and isinstance(section.get('ros__parameters'), dict):
+                values.update(section['ros__parameters'])
+                found = True
+        if not found:
+            if any(isinstance(v, dict) for v in data.values()):
+                raise ParameterError(
+                    f'parameters file {path}: no "{node_name}: ros__parameters:" section')
+            values = data
+        return cls.from_dict(values)
+
+
+def names() -> list[str]:
+    """Every parameter name, in declaration order."""
+    return [f.name for f in dataclasses.fields(HacParams)]
+
+
+def describe(name: str) -> dict[str, Any]:
+    """The description, default and range of one parameter (for ParameterDescriptors, docs)."""
+    for f in dataclasses.fields(HacParams):
+        if f.name == name:
+            default = f.default_factory() if f.default is dataclasses.MISSING else f.default
+            return {'name': name, 'default': default, **f.metadata}
+    raise ParameterError(f'unknown parameter: {name}')
+
+
+def _coerce(name: str, value: Any) -> Any:
+    """Accept what YAML and ROS hand us (ints for floats, tuples for lists)."""
+    ref = describe(name)['default']
+    if isinstance(ref, bool):
+        return value
+    if isinstance(ref, float) and isinstance(value, int) and not isinstance(value, bool):
+        return float(value)
+    if isinstance(ref, list) and isinstance(value, (tuple, list)) or (
+            isinstance(ref, list) and hasattr(value, 'tolist')):
+        return [float(v) for v in list(value)]
+    return value
+
+
+def _check(f: dataclasses.Field, value: Any) -> None:
+    meta = f.metadata
+    ref = f.default_factory() if f.default is dataclasses.MISSING else f.default
+    name = f.name
+    if isinstance(ref, bool):
+        if not isinstance(value, bool):
+            raise ParameterError(f'{name}: expected true or false, got {value!r}')
+        return
+    if isinstance(ref, str):
+        if not isinstance(value, str):
+            raise ParameterError(f'{name}: expected a string, got {value!r}')
+        if meta.get('choices') and value not in meta['choices']:
+            raise ParameterError(f'{name}: {value!r} is not one of {", ".join(meta["choices"])}')
+        return
+    if isinstance(ref, list):
+        if not isinstance(value, list) or len(value) != meta['length'] or not all(
+                isinstance(v, (int, float)) and math.isfinite(v) for v in value):
+            raise ParameterError(f'{name}: expected {meta["length"]} finite numbers, got {value!r}')
+        return
+    if isinstance(ref, int):
+        if not isinstance(value, int) or isinstance(value, bool):
+            raise ParameterError(f'{name}: expected an integer, got {value!r}')
+    elif isinstance(ref, float):
+        if not isinstance(value, (int, float)) or isinstance(value, bool) or not math.isfinite(value):
+            raise ParameterError(f'{name}: expected a finite number, got {value!r}')
+    low, high = meta.get('low'), meta.get('high')
+    if low is not None and value < low or high is not None and value > high:
+        raise ParameterError(f'{name}: {value!r} is outside [{low}, {high}]')

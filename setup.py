@@ -1,0 +1,53 @@
+"""ament_python package ``hac_ros``: installable with pip (``pip install .[ros]``) or colcon."""
+from glob import glob
+
+from setuptools import find_packages, setup
+
+PACKAGE = 'hac_ros'
+
+setup(
+    name=PACKAGE,
+    version='0.1.0',
+    description='Metric scale for monocular SLAM from the people in view (Humans as Checkerboards)',
+    long_description=open('README.md', encoding='utf-8').read(),
+    long_description_content_type='text/markdown',
+    license='MIT',
+    python_requires='>=3.10',
+    packages=find_packages(include=['hac_ros', 'hac_ros.*', 'msg_adapters', 'msg_adapters.*']),
+    package_data={'hac_ros': ['py.typed'], 'msg_adapters': ['py.typed']},
+    data_files=[
+        ('share/ament_index/resource_index/packages', ['resource/' + PACKAGE]),
+        ('share/' + PACKAGE, ['package.xml']),
+        ('share/' + PACKAGE + '/config', glob('config/*.yaml')),
+        ('share/' + PACKAGE + '/launch', glob('launch/*.launch.py')),
+        ('share/' + PACKAGE + '/rviz', glob('rviz/*.rviz')),
+    ],
+    install_requires=[
+        'numpy>=1.24',
+        'scipy>=1.10',
+        'rosbags>=0.11.9',
+        'sortedcontainers>=2.4',
+        'PyYAML>=6.0',
+        'tqdm>=4.60',
+        'matplotlib>=3.7',
+    ],
+    extras_require={
+        # A system ROS 2 install already provides rclpy and the messages: the wheels are opt-in.
+        'ros': ['ros-jazzy-rclpy[fastrtps]', 'ros-jazzy-common-interfaces'],
+        'dev': [
+            'pytest>=7',
+            'hypothesis>=6.80',
+            'evo>=1.20',
+            'colcon-core',
+            'colcon-ros',
+            'colcon-python-setup-py',
+        ],
+    },
+    zip_safe=True,
+    entry_points={
+        'console_scripts': [
+            'hac_node = hac_ros.node:main',
+            'hac = hac_ros.cli:main',
+        ],
+    },
+)
