@@ -1,0 +1,546 @@
+"""The Calibrator: SLAM poses, maps and HMR joints in (SPEC's processing order), metric results out.
+
+One object owns all the state; the node and the replay feed it the same inputs and get the same
+outputs, because everything is decided by header stamps, never by the wall clock:
+
+- Poses are the clock. A joints frame is processed once a pose at or after its stamp is known (or
+  at :meth:`flush`), matched to the pose of the same stamp (within ``sync_slop_s``) or interpolated
+  between its neighbours; frames are processed in stamp order, and one older than the last
+  processed frame is late (dropped, counted).
+- A frame uses the latest map whose stamp is not after the frame's stamp.
+- Odometry for the pose of stamp t uses the estimate from the frames before t; the joints and the
+  scale of frame t use the estimate including frame t. Nothing metric before convergence.
+- A SLAM re-initialisation (a pose jump that persists, a new map frame_id, a map that no longer
+  overlaps the previous one) resets the estimator and anchors the new map so that the camera's
+  metric pose is continuous; an isolated outlier pose (jump and back) is rejected.
+
+Every rejection is counted by reason and announced once per cause with a :class:`NoticeOut`.
+"""
+from __future__ import annotations
+
+import bisect
+import math
+from collections import Counter, deque
+from dataclasses import dataclass
+
+import numpy as np
+
+from hac_ros.core.contact import candidate_joints, combine_ratios, in_view
+from hac_ros.core.estimator import RollingScale
+from hac_ros.core.ground import GroundModel, Plane
+from hac_ros.core.outputs import (DiagnosticsOut, HumanJointsOut, NoticeOut, OdometryOut, Output,
+                                  ResetOut, SampleOut, ScaleOut, Status)
+from hac_ros.core.params import HacParams
+from hac_ros.core.reference import MapIndex
+from hac_ros.core.transforms import Anchor, interpolate_pose, is_rotation, rotation_log
+
+JOINTS_PER_PERSON = 24
+PENDING_MAPS_MAX = 8  # maps waiting for a frame of their stamp
+JUMP_HISTORY = 30  # recent pose steps whose median is the "normal" step
+JUMP_MIN_HISTORY = 5  # steps needed before a jump can be told from normal motion
+OVERLAP_SAMPLE = 256  # new-map points checked against the previous map
+OVERLAP_DISTANCE_REL = 0.02  # a point overlaps when this close (fraction of the old map's extent)
+MEDIAN_STD_ERROR = 1.2533  # standard error of a median = 1.2533 sigma / sqrt(n) (normal samples)
+POSITION_VARIANCE_FLOOR = 1e-6  # m², keeps the published covariance positive definite
+NS = 1_000_000_000
+
+# Human-readable text of each rejection cause (the first occurrence is logged).
+REASONS = {
+    'pose_nonfinite': 'SLAM pose with NaN/inf or an invalid rotation',
+    'pose_out_of_order': 'SLAM pose stamp not after the previous one (out of order or repeated)',
+    'pose_outlier': 'isolated SLAM pose jump (jump and back): pose ignored',
+    'late_frame': 'joints frame older than the last processed frame: dropped',
+    'joints_malformed': 'joints message is not P blocks of 24 joints',
+    'joints_wrong_frame': 'joints in a frame other than the camera frame',
+    'nonfinite_joints': 'a person with NaN/inf joints',
+    'behind_camera': 'a person entirely behind the camera',
+    'no_pose': 'no SLAM pose at (or around) the joints stamp',
+    'no_map': 'no map yet (or none since the last reset) and no ground plane',
+    'no_reference': 'no map hit and no usable ground plane for the contact joint',
+    'gated': 'scale sample far from the current estimate (outlier gate)',
+    'pending_overflow': 'joints waited too long for a SLAM pose: dropped',
+    'cloud_empty': 'map cloud with no valid point: previous map kept',
+    'cloud_malformed': 'map cloud that could not be decoded',
+    'cloud_wrong_frame': 'map cloud in a frame other than the SLAM pose frame',
+    'map_late': 'map cloud older than the map in use',
+    'camera_info_invalid': 'CameraInfo with invalid intrinsics',
+}
+
+
+@dataclass
+class _Pose:
+    stamp_ns: int
+    R_wc: np.ndarray  # (3, 3) camera to map
+    c_map: np.ndarray  # (3,) camera centre, SLAM units, map frame
+
+
+@dataclass
+class _Frame:
+    stamp_ns: int
+    joints_cam: np.ndarray  # (P, 24, 3) metres, camera optical frame
+
+
+class Calibrator:
+    """Feed it inputs with ``add_*``; each call returns the outputs it produced, in order."""
+
+    def __init__(self, params: HacParams | None = None) -> None:
+        self.params = params or HacParams()
+        p = self.params
+        self.estimator = RollingScale(p.window_s, p.window_max_samples, p.min_samples,
+                                      p.gate_k, p.gate_min_rel)
+        self.ground = GroundModel(p.ground_mode, p.ground_inlier_m, p.ground_ransac_iters, p.seed)
+        self._cos_min = math.cos(math.radians(p.cone_angle_deg))
+        self.rejected: Counter[str] = Counter()
+        self._noticed: set[str] = set()
+        self.frames = self.people = self.map_hits = self.ground_fallbacks = self.resets = 0
+        self._K: np.ndarray | None = None
+        self._image_size = (0, 0)
+        self._camera_frame = p.camera_frame
+        self._child_frame = p.camera_frame
+        self._map_frame: str | None = None
+        self._poses: deque[_Pose] = deque(maxlen=p.pose_buffer)
+        self._pending: list[_Frame] = []  # sorted by stamp
+        self._maps: list[MapIndex] = []  # pending maps, sorted by stamp
+        self._foreign_map: MapIndex | None = None  # a map in a frame the poses have not reached yet
+        self.map: MapIndex | None = None
+        self._expect_new_map = False
+        self._last_frame_ns = -1
+        self._steps: deque[float] = deque(maxlen=JUMP_HISTORY)
+        self._bbox_lo = self._bbox_hi = None
+        self._suspects: list[_Pose] = []
+        self.anchor = Anchor()
+        self._last_metric: tuple[int, np.ndarray, np.ndarray] | None = None  # camera, metric frame
+        self._diag_second: int | None = None
+        self._base_from_camera = _base_from_camera(p.base_to_camera) if p.base_frame else None
+
+    # ================================================================== inputs
+    def add_camera_info(self, K: np.ndarray, width: int, height: int, frame_id: str = '') -> list[Output]:
+        """Intrinsics of the camera: joints projecting outside the image go to the ground plane."""
+        K = np.asarray(K, dtype=float)
+        if K.shape != (3, 3) or not np.all(np.isfinite(K)) or K[0, 0] <= 0 or K[1, 1] <= 0 \
+                or width <= 0 or height <= 0:
+            return self.reject('camera_info_invalid', self._last_frame_ns)
+        self._K, self._image_size = K, (int(width), int(height))
+        return []
+
+    def add_pose(self, stamp_ns: int, R_wc: np.ndarray, c_map: np.ndarray, frame_id: str = '',
+                 child_frame_id: str = '') -> list[Output]:
+        """A SLAM pose: camera-to-map rotation (3, 3) and camera centre (3,), SLAM units, map frame."""
+        out: list[Output] = []
+        R_wc = np.asarray(R_wc, dtype=float)
+        c_map = np.asarray(c_map, dtype=float)
+        if not (is_rotation(R_wc, 1e-3) and c_map.shape == (3,) and np.all(np.isfinite(c_map))):
+            return self.reject('pose_nonfinite', stamp_ns)
+        last = self._suspects[-1] if self._suspects else (self._poses[-1] if self._poses else None)
+        if last is not None and stamp_ns <= last.stamp_ns:
+            return self.reject('pose_out_of_order', stamp_ns)
+        if child_frame_id and not self.params.camera_frame:
+            self._child_frame = child_frame_id
+        pose = _Pose(int(stamp_ns), R_wc, c_map)
+
+        if self._map_frame is None:
+            self._map_frame = frame_id
+        elif frame_id != self._map_frame:
+            out += self._reset(pose, 'map_frame', f'SLAM map frame changed {self._map_frame!r} -> '
+                               f'{frame_id!r}: SLAM re-initialised')
+            self._map_frame = frame_id
+            self._adopt_foreign_map(out)
+        elif self._suspects:
+            out += self._follow_suspects(pose)
+            if self._suspects:
+                return out + self._diagnostics(stamp_ns)
+        elif self._is_jump(pose):
+            self._suspects = [pose]
+            return out + self._diagnostics(stamp_ns)
+
+        out += self._accept_pose(pose)
+        return out + self._diagnostics(stamp_ns)
+
+    def add_map(self, stamp_ns: int, points_map: np.ndarray, frame_id: str = '') -> list[Output]:
+        """A map cloud: points (N, 3) SLAM units, map frame. Builds the index, then :meth:`add_map_index`."""
+        return self.add_map_index(MapIndex(points_map, frame_id, stamp_ns))
+
+    def add_map_index(self, index: MapIndex) -> list[Output]:
+        """A map already indexed (the node builds the index off the executor's thread)."""
+        if len(index) == 0:
+            return self.reject('cloud_empty', index.stamp_ns)
+        if self._map_frame is not None and index.frame_id != self._map_frame:
+            self._foreign_map = index
+            return self.reject('cloud_wrong_frame', index.stamp_ns)
+        if self.map is not None and index.stamp_ns <= self.map.stamp_ns:
+            return self.reject('map_late', index.stamp_ns)
+        stamps = [m.stamp_ns for m in self._maps]
+        pos = bisect.bisect_right(stamps, index.stamp_ns)
+        if pos and stamps[pos - 1] == index.stamp_ns:
+            self._maps[pos - 1] = index  # same stamp: the newer message wins
+        else:
+            self._maps.insert(pos, index)
+        while len(self._maps) > PENDING_MAPS_MAX:
+            self._maps.pop(0)
+        return []
+
+    def add_joints(self, stamp_ns: int, joints_cam: np.ndarray, frame_id: str = '') -> list[Output]:
+        """HMR joints of one image: (P, 24, 3) metres in the camera optical frame (or (P*24, 3))."""
+        joints_cam = np.asarray(joints_cam, dtype=float)
+        if joints_cam.ndim == 2 and joints_cam.shape[1] == 3 and len(joints_cam) % JOINTS_PER_PERSON == 0:
+            joints_cam = joints_cam.reshape(-1, JOINTS_PER_PERSON, 3)
+        if joints_cam.ndim != 3 or joints_cam.shape[1:] != (JOINTS_PER_PERSON, 3):
+            return self.reject('joints_malformed', stamp_ns)
+        if frame_id:
+            if not self._camera_frame:
+                self._camera_frame = frame_id
+                if not self._child_frame:
+                    self._child_frame = frame_id
+            elif frame_id != self._camera_frame:
+                return self.reject('joints_wrong_frame', stamp_ns)
+        if stamp_ns <= self._last_frame_ns:
+            return self.reject('late_frame', stamp_ns)
+        frame = _Frame(int(stamp_ns), joints_cam)
+        if self._poses and self._poses[-1].stamp_ns >= stamp_ns and not self._suspects:
+            return self._process(frame)
+        stamps = [f.stamp_ns for f in self._pending]
+        pos = bisect.bisect_right(stamps, frame.stamp_ns)
+        if pos and stamps[pos - 1] == frame.stamp_ns:
+            return self.reject('late_frame', stamp_ns)  # a repeated stamp
+        self._pending.insert(pos, frame)
+        out: list[Output] = []
+        while len(self._pending) > self.params.pose_buffer:
+            dropped = self._pending.pop(0)
+            out += self.reject('pending_overflow', dropped.stamp_ns)
+        return out
+
+    def flush(self) -> list[Output]:
+        """End of input: process the frames still waiting (matched within the slop, else dropped)."""
+        out: list[Output] = []
+        if self._suspects:  # an unconfirmed jump at the very end: its poses are outliers
+            for pose in self._suspects:
+                out += self.reject('pose_outlier', pose.stamp_ns)
+            self._suspects = []
+        while self._pending:
+            out += self._process(self._pending.pop(0))
+        return out
+
+    def reject(self, reason: str, stamp_ns: int = -1) -> list[Output]:
+        """Count a rejected input (shells use it for messages they could not decode)."""
+        self.rejected[reason] += 1
+        if reason in self._noticed:
+            return []
+        self._noticed.add(reason)
+        text = REASONS.get(reason, reason)
+        return [NoticeOut(int(stamp_ns), reason, f'rejected input ({reason}): {text}; '
+                          'further ones are counted in /diagnostics')]
+
+    def set_ground_plane(self, normal_map: np.ndarray | None, offset_slam: float = 0.0) -> None:
+        """Force a known ground plane (SLAM map frame, down-pointing unit normal, SLAM units)."""
+        if normal_map is None:
+            self.ground.set_known(None)
+        else:
+            n = np.asarray(normal_map, dtype=float)
+            self.ground.set_known(Plane(n / np.linalg.norm(n), float(offset_slam)))
+
+    # ================================================================== state
+    @property
+    def converged(self) -> bool:
+        return self.estimator.converged
+
+    @property
+    def scale(self) -> float:
+        return self.estimator.median()
+
+    def status(self, stamp_ns: int | None = None) -> Status:
+        plane = self.ground.plane(self.map) if self.map is not None else None
+        return Status(
+            stamp_ns=int(self._last_frame_ns if stamp_ns is None else stamp_ns),
+            converged=self.converged, scale=self.scale, spread=self.estimator.spread(),
+            samples=self.estimator.samples, frames=self.frames, people=self.people,
+            map_hits=self.map_hits, ground_fallbacks=self.ground_fallbacks, resets=self.resets,
+            rejected=dict(self.rejected), map_points=len(self.map) if self.map is not None else 0,
+            ground_normal_map=None if plane is None else plane.normal,
+            ground_offset_slam=float('nan') if plane is None else plane.offset)
+
+    @property
+    def child_frame_id(self) -> str:
+        return self.params.base_frame or self._child_frame
+
+    # ================================================================== poses
+    def _accept_pose(self, pose: _Pose) -> list[Output]:
+        out: list[Output] = []
+        if self._poses:
+            self._steps.append(float(np.linalg.norm(pose.c_map - self._poses[-1].c_map)))
+        self._poses.append(pose)
+        self._bbox_lo = pose.c_map if self._bbox_lo is None else np.minimum(self._bbox_lo, pose.c_map)
+        self._bbox_hi = pose.c_map if self._bbox_hi is None else np.maximum(self._bbox_hi, pose.c_map)
+        self.ground.add_camera(pose.R_wc)
+        # frames before this stamp first, then this pose's odometry, then the frame of this stamp
+        while self._pending and self._pending[0].stamp_ns < pose.stamp_ns:
+            out += self._process(self._pending.pop(0))
+        out += self._odometry(pose)
+        while self._pending and self._pending[0].stamp_ns <= pose.stamp_ns:
+            out += self._process(self._pending.pop(0))
+        return out
+
+    def _is_jump(self, pose: _Pose) -> bool:
+        """A step far larger than the recent ones and than a fraction of the trajectory's extent."""
+        if not self._poses or len(self._steps) < JUMP_MIN_HISTORY:
+            return False
+        step = float(np.linalg.norm(pose.c_map - self._poses[-1].c_map))
+        typical = float(np.median(self._steps))
+        extent = float(np.linalg.norm(self._bbox_hi - self._bbox_lo))
+        return step > self.params.reset_jump_factor * typical and \
+            step > self.params.reset_jump_min_rel * extent
+
+    def _follow_suspects(self, pose: _Pose) -> list[Output]:
+        """After a jump: back near the old trajectory (outlier) or continuing from the jump (reset)."""
+        good, suspect = self._poses[-1], self._suspects[-1]
+        if np.linalg.norm(pose.c_map - suspect.c_map) >= np.linalg.norm(pose.c_map - good.c_map):
+            out: list[Output] = []
+            for bad in self._suspects:
+                out += self.reject('pose_outlier', bad.stamp_ns)
+            self._suspects = []
+            return out
+        self._suspects.append(pose)
+        if len(self._suspects) <= self.params.reset_confirm_poses:
+            return []
+        first, rest = self._suspects[0], self._suspects[1:-1]
+        self._suspects = []
+        out = self._reset(first, 'pose_jump', 'SLAM pose jumped and stayed: SLAM re-initialised')
+        for p in [first, *rest]:
+            out += self._accept_pose(p)
+        return out  # the caller accepts ``pose`` itself
+
+    # ================================================================== reset
+    def _reset(self, first_pose: _Pose, cause: str, text: str) -> list[Output]:
+        """Forget the old map's scale and anchor the new map at ``first_pose``."""
+        self.estimator.reset()
+        self.ground.reset()
+        self.resets += 1
+        if self._last_metric is not None:
+            _, R_metric, p_metric = self._last_metric
+            self.anchor = Anchor.continuing(R_metric, p_metric, first_pose.R_wc, first_pose.c_map)
+        self._poses.clear()
+        self._steps.clear()
+        self._bbox_lo = self._bbox_hi = None
+        if cause != 'map_overlap':
+            self.map = None
+            self._maps.clear()
+            self._expect_new_map = True
+        # frames before the reset belong to the old map: their poses are gone
+        stale = [f for f in self._pending if f.stamp_ns < first_pose.stamp_ns]
+        self._pending = [f for f in self._pending if f.stamp_ns >= first_pose.stamp_ns]
+        out: list[Output] = [ResetOut(first_pose.stamp_ns, cause),
+                             NoticeOut(first_pose.stamp_ns, 'reset', f'estimator reset ({cause}): '
+                                       f'{text}', 'warn')]
+        for frame in stale:
+            out += self.reject('no_pose', frame.stamp_ns)
+        return out
+
+    def _adopt_foreign_map(self, out: list[Output]) -> None:
+        if self._foreign_map is not None and self._foreign_map.frame_id == self._map_frame:
+            out += self.add_map_index(self._foreign_map)
+        self._foreign_map = None
+
+    # ================================================================== frames
+    def _pose_at(self, stamp_ns: int) -> tuple[np.ndarray, np.ndarray] | None:
+        """The pose of a joints stamp: the nearest within the slop, else interpolated."""
+        poses = self._poses
+        if not poses:
+            return None
+        stamps = [p.stamp_ns for p in poses]
+        i = bisect.bisect_left(stamps, stamp_ns)
+        slop = int(self.params.sync_slop_s * NS)
+        best = None
+        for j in (i - 1, i):
+            if 0 <= j < len(stamps) and abs(stamps[j] - stamp_ns) <= slop:
+                if best is None or abs(stamps[j] - stamp_ns) < abs(stamps[best] - stamp_ns):
+                    best = j
+        if best is not None:
+            return poses[best].R_wc, poses[best].c_map
+        if 0 < i < len(stamps) and stamps[i] - stamps[i - 1] <= self.params.interp_max_gap_s * NS:
+            a, b = poses[i - 1], poses[i]
+            return interpolate_pose(stamp_ns, a.stamp_ns, a.R_wc, a.c_map, b.stamp_ns, b.R_wc, b.c_map)
+        return None
+
+    def _activate_map(self, stamp_ns: int) -> list[Output]:
+        """Make the latest map not after ``stamp_ns`` the current one (SPEC processing order)."""
+        out: list[Output] = []
+        chosen = None
+        while self._maps and self._maps[0].stamp_ns <= stamp_ns:
+            chosen = self._maps.pop(0)
+        if chosen is None:
+            return out
+        if self.params.cloud_mode == 'accumulate' and self.map is not None:
+            merged = np.vstack([self.map.points_map, chosen.points_map])
+            chosen = MapIndex(merged[-self.params.cloud_max_points:], chosen.frame_id, chosen.stamp_ns)
+        elif len(chosen) > self.params.cloud_max_points:
+            chosen = MapIndex(chosen.points_map[-self.params.cloud_max_points:], chosen.frame_id,
+                              chosen.stamp_ns)
+        if (self.map is not None and not self._expect_new_map and self.params.cloud_mode == 'replace'
+                and self.params.map_overlap_min > 0 and not _overlaps(self.map, chosen,
+                                                                      self.params.map_overlap_min)):
+            pose = self._poses[-1] if self._poses else None
+            if pose is not None:
+                out += self._reset(pose, 'map_overlap', 'the new map does not overlap the previous '
+                                   'one: SLAM re-initialised')
+                self._poses.append(pose)
+        self._expect_new_map = False
+        self.map = chosen
+        return out
+
+    def _process(self, frame: _Frame) -> list[Output]:
+        """One frame (SPEC steps 1–6) for every person in it."""
+        out: list[Output] = []
+        stamp = frame.stamp_ns
+        pose = self._pose_at(stamp)
+        if pose is None:
+            return self.reject('no_pose', stamp)
+        out += self._activate_map(stamp)
+        R_wc, c_map = pose
+        self._last_frame_ns = stamp
+        self.frames += 1
+        self.estimator.advance(stamp)
+        for person, joints in enumerate(frame.joints_cam):
+            out += self._person(stamp, person, R_wc, c_map, joints)
+        if self.converged:
+            scale = self.scale
+            out.append(HumanJointsOut(stamp, self.anchor.joints(R_wc, c_map, scale, frame.joints_cam)))
+            out.append(ScaleOut(stamp, scale, self.estimator.spread()))
+        return out
+
+    def _person(self, stamp: int, person: int, R_wc: np.ndarray, c_map: np.ndarray,
+                joints: np.ndarray) -> list[Output]:
+        """One person's scale sample (SPEC steps 1–5)."""
+        self.people += 1
+        if not np.all(np.isfinite(joints)):
+            return self._rejected_sample(stamp, person, 'nonfinite_joints')
+        if not np.any(joints[:, 2] > 0.0):
+            return self._rejected_sample(stamp, person, 'behind_camera')
+        self.ground.add_body(R_wc, joints)
+        scale_now = self.scale if self.converged else None
+        normal = self.ground.normal()
+        candidates = candidate_joints(self.params.contact_mode, joints, R_wc, normal)
+        if candidates.size == 0:
+            return self._rejected_sample(stamp, person, 'behind_camera')
+        visible = in_view(joints, self._K, *self._image_size)
+        plane = self.ground.plane(self.map)
+        ratios = np.full(len(candidates), np.nan)
+        from_map = np.zeros(len(candidates), dtype=bool)
+        for k, j in enumerate(candidates):
+            distance_metric = float(np.linalg.norm(joints[j]))
+            direction_map = R_wc @ (joints[j] / distance_metric)
+            plane_distance = plane.ray_distance(c_map, direction_map) if plane is not None else math.nan
+            if visible[j] and self.map is not None:
+                d_slam = self._map_distance(c_map, direction_map, distance_metric, scale_now)
+                if d_slam is not None and self._plausible(d_slam, distance_metric, plane_distance,
+                                                          scale_now):
+                    ratios[k], from_map[k] = distance_metric / d_slam, True
+                    continue
+            if math.isfinite(plane_distance):
+                ratios[k] = distance_metric / plane_distance
+        if not np.any(np.isfinite(ratios)):
+            reason = 'no_map' if self.map is None and plane is None else 'no_reference'
+            return self._rejected_sample(stamp, person, reason)
+        sample = combine_ratios(self.params.contact_mode, ratios)
+        chosen = int(np.nanargmax(ratios)) if self.params.contact_mode == 'max_ratio' else 0
+        source = 'map' if from_map[chosen] else 'ground'
+        if source == 'map':
+            self.map_hits += 1
+        else:
+            self.ground_fallbacks += 1
+        accepted = self.estimator.add(stamp, sample)
+        out: list[Output] = [SampleOut(stamp, person, sample, source, accepted)]
+        if not accepted:
+            out += self.reject('gated', stamp)
+        elif source == 'map' and self.converged:
+            contact_map = c_map + R_wc @ joints[candidates[chosen]] / self.scale
+            self.ground.add_contact(contact_map, self.scale)
+        return out
+
+    def _map_distance(self, c_map: np.ndarray, direction_map: np.ndarray, distance_metric: float,
+                      scale: float | None) -> float | None:
+        window = None
+        if scale is not None:
+            expected = distance_metric / scale
+            w = 1.0 + self.params.ray_window_rel
+            window = (expected / w, expected * w)
+        assert self.map is not None
+        hit = self.map.query(c_map, direction_map, mode=self.params.reference_mode,
+                             cos_min=self._cos_min, min_points=self.params.cone_min_points,
+                             window=window)
+        return None if hit is None else hit.distance
+
+    def _plausible(self, d_slam: float, distance_metric: float, plane_distance: float,
+                   scale: float | None) -> bool:
+        """Can this map hit be the surface the joint touches? (documented in docs/method.md)
+
+        1. Not beyond the ground plane: a ray cannot pass through the floor, so a hit further than
+           the ray's floor intersection (by more than ``plausibility_rel_tol``) is a far surface seen
+           past the person, or a wrong plane: fall back to the plane.
+        2. Once a scale exists: its metric distance must agree with the joint's own distance within
+           ``plausibility_rel_tol`` (an occluder in front of the foot is much nearer, a far wall
+           behind a gap much further).
+        """
+        tol = self.params.plausibility_rel_tol
+        if math.isfinite(plane_distance) and d_slam > plane_distance * (1.0 + tol):
+            return False
+        if scale is not None and abs(scale * d_slam - distance_metric) > tol * distance_metric:
+            return False
+        return True
+
+    def _rejected_sample(self, stamp: int, person: int, reason: str) -> list[Output]:
+        return [SampleOut(stamp, person, float('nan'), reason, False), *self.reject(reason, stamp)]
+
+    # ================================================================== outputs
+    def _odometry(self, pose: _Pose) -> list[Output]:
+        if not self.converged:
+            return []
+        scale = self.scale
+        R_metric, p_metric = self.anchor.camera(pose.R_wc, pose.c_map, scale)
+        last = self._last_metric
+        self._last_metric = (pose.stamp_ns, R_metric, p_metric)
+        R_out, p_out = R_metric, p_metric
+        if self._base_from_camera is not None:
+            R_cb, t_cb = self._base_from_camera  # base pose in the camera frame
+            R_out, p_out = R_metric @ R_cb, p_metric + R_metric @ t_cb
+        linear = np.zeros(3)
+        angular = np.zeros(3)
+        if last is not None and last[0] < pose.stamp_ns:
+            dt = (pose.stamp_ns - last[0]) / NS
+            R_prev, p_prev = last[1], last[2]
+            if self._base_from_camera is not None:
+                R_prev, p_prev = R_prev @ R_cb, p_prev + R_prev @ t_cb
+            linear = R_out.T @ (p_out - p_prev) / dt
+            angular = rotation_log(R_prev.T @ R_out) / dt
+        # position uncertainty from the scale's: sigma_s * |metric lever arm per unit scale|
+        n = max(self.estimator.samples, 1)
+        sigma_scale = MEDIAN_STD_ERROR * self.estimator.spread() / math.sqrt(n)
+        lever = self.anchor.rotation @ (pose.c_map - self.anchor.centre_slam)
+        cov = np.zeros((6, 6))
+        cov[:3, :3] = sigma_scale ** 2 * np.outer(lever, lever) + POSITION_VARIANCE_FLOOR * np.eye(3)
+        cov[3:, 3:] = self.params.orientation_variance * np.eye(3)
+        return [OdometryOut(pose.stamp_ns, self.child_frame_id, R_out, p_out, cov, linear, angular)]
+
+    def _diagnostics(self, stamp_ns: int) -> list[Output]:
+        second = stamp_ns // NS
+        if self._diag_second is not None and second <= self._diag_second:
+            return []
+        self._diag_second = second
+        return [DiagnosticsOut(self.status(stamp_ns))]
+
+
+def _overlaps(old: MapIndex, new: MapIndex, min_fraction: float) -> bool:
+    """Does ``new`` share at least ``min_fraction`` of its points with ``old`` (a scene-relative radius)?"""
+    if old.tree is None or len(new) == 0:
+        return True
+    step = max(1, len(new) // OVERLAP_SAMPLE)
+    sample = new.points_map[::step][:OVERLAP_SAMPLE]
+    dist, _ = old.tree.query(sample, k=1, distance_upper_bound=OVERLAP_DISTANCE_REL * old.extent)
+    return float(np.mean(np.isfinite(dist))) >= min_fraction
+
+
+def _base_from_camera(base_to_camera: list[float]) -> tuple[np.ndarray, np.ndarray]:
+    """The base's pose in the camera frame (R, t) from the camera's pose in the base frame."""
+    from scipy.spatial.transform import Rotation
+
+    t_bc = np.asarray(base_to_camera[:3], dtype=float)
+    R_bc = Rotation.from_quat(base_to_camera[3:]).as_matrix()
+    return R_bc.T, -R_bc.T @ t_bc

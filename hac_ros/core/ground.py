@@ -1,0 +1,262 @@
+"""The ground plane: the out-of-view fallback (SPEC, method step 4; paper Eq. 6).
+
+A plane is ``{p : n·p = b}`` in the SLAM map frame with ``n`` a unit normal pointing *down* (along
+gravity, like the camera's y axis) and ``b`` in SLAM units; a point with ``n·p > b`` is below it.
+
+``hmr`` (ours) finds ``n`` without the scale it is used to find: the body's up axis (pelvis → neck)
+of many frames rotated into the map (the principal axis of their scatter, so a handstand still
+gives the axis; the sign from the cameras' own down axis). Once a scale exists, the contact joints
+placed in the map refine it: RANSAC (3-point samples, a metric inlier distance), then a
+least-squares refit on the inliers. A person walking a straight line leaves contacts along a line,
+which fixes the normal only across the line: then the body normal is kept, made perpendicular to
+the line. The offset ``b`` comes from the map alone: the lowest dense segment of the points along
+``n`` (a histogram, not the single lowest point).
+
+Ablations: ``slam_y`` (the SLAM map's y axis as the normal), ``largest_plane`` (RANSAC's largest
+plane of the map), ``none``; and a known plane (``set_known``) for the upper bound.
+"""
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+from hac_ros.core.reference import MapIndex
+
+COS_MIN_RAY_PLANE = np.cos(np.deg2rad(87.0))  # rays within 3° of parallel to the plane: no answer
+BODY_MIN_FRAMES = 5  # body up axes needed before the hmr normal is trusted
+BODY_MIN_ANISOTROPY = 3.0  # largest / second eigenvalue of the up-axis scatter: a clear axis
+CONTACT_MIN_POINTS = 30  # contact joints needed before refining the normal
+CONTACT_REFIT_EVERY = 30  # refit the contact plane every this many new contacts
+CONTACT_BUFFER = 3000  # contact joints kept for the refinement
+CONTACT_MAX_TILT_DEG = 25.0  # a contact plane tilted further than this from the body normal is refused
+CONTACT_LINE_RATIO = 0.15  # second/first singular value below this: the contacts form a line
+OFFSET_BINS = 100  # histogram bins over the map's robust range along n
+OFFSET_DENSE_FACTOR = 4.0  # a dense bin holds this many times the median non-empty bin
+OFFSET_MIN_COUNT = 5
+LARGEST_PLANE_INLIER_REL = 0.005  # largest_plane: inlier distance as a fraction of the map extent
+LARGEST_PLANE_SAMPLE = 5000  # map points used by the largest_plane RANSAC
+
+
+@dataclass
+class Plane:
+    """normal: (3,) unit, SLAM map frame, pointing down; offset: SLAM units (n·p = offset)."""
+
+    normal: np.ndarray
+    offset: float
+
+    def ray_distance(self, origin_map: np.ndarray, direction_map: np.ndarray) -> float:
+        """Distance (SLAM units) from the camera centre to the ray's intersection, NaN if none.
+
+        None when the ray is (nearly) parallel to the plane, points away from it, or the camera is
+        below the plane (the plane would be above or behind the camera).
+        """
+        n_dot_d = float(self.normal @ direction_map)
+        height = self.offset - float(self.normal @ origin_map)  # > 0: camera above the plane
+        if n_dot_d <= COS_MIN_RAY_PLANE or height <= 0.0:
+            return float('nan')
+        return height / n_dot_d
+
+
+def fit_plane_lsq(points: np.ndarray) -> tuple[np.ndarray, float, np.ndarray]:
+    """Least-squares plane of (N, 3) points: (unit normal, offset, singular values)."""
+    centroid = points.mean(axis=0)
+    _, sing, vt = np.linalg.svd(points - centroid, full_matrices=False)
+    normal = vt[-1]
+    return normal, float(normal @ centroid), sing
+
+
+def ransac_plane(points: np.ndarray, inlier_distance: float, iterations: int,
+                 rng: np.random.Generator) -> np.ndarray | None:
+    """Inlier mask of the plane with the most inliers among 3-point samples (the authors' RANSAC).
+
+    points: (N, 3); inlier_distance in the points' unit. Vectorised over all samples at once.
+    """
+    n = len(points)
+    if n < 3:
+        return None
+    picks = rng.integers(0, n, size=(iterations, 3))
+    a, b, c = points[picks[:, 0]], points[picks[:, 1]], points[picks[:, 2]]
+    normals = np.cross(b - a, c - a)
+    norms = np.linalg.norm(normals, axis=1)
+    valid = norms > 1e-12 * max(float(np.ptp(points)), 1e-300) ** 2
+    if not valid.any():
+        return None
+    normals = normals[valid] / norms[valid, None]
+    offsets = np.einsum('ij,ij->i', normals, a[valid])
+    best_mask, best_count = None, -1
+    # chunks keep memory bounded: (chunk x N) distances at a time
+    chunk = max(1, 2_000_000 // max(n, 1))
+    for start in range(0, len(normals), chunk):
+        dist = np.abs(points @ normals[start:start + chunk].T - offsets[start:start + chunk])
+        counts = (dist <= inlier_distance).sum(axis=0)
+        k = int(np.argmax(counts))
+        if counts[k] > best_count:
+            best_count = int(counts[k])
+            best_mask = dist[:, k] <= inlier_distance
+    return best_mask
+
+
+def lowest_segment_offset(points_map: np.ndarray, normal: np.ndarray) -> float:
+    """Offset b of the floor along the down-pointing ``normal``: the lowest dense segment of the map.
+
+    A histogram of n·p over the map's robust range (0.5–99.5 %); walking up from the bottom, the
+    first bin holding OFFSET_DENSE_FACTOR times the median non-empty bin (and OFFSET_MIN_COUNT
+    points) is the floor, and b is the median of the points in it and its two neighbours. Isolated
+    points below the floor do not make a dense bin. Without a dense bin: the 0.99 quantile (the
+    authors' code). SLAM units.
+    """
+    h = np.asarray(points_map) @ np.asarray(normal)
+    if h.size == 0:
+        return float('nan')
+    lo, hi = np.quantile(h, [0.005, 0.995])
+    if not hi > lo:
+        return float(np.median(h))
+    counts, edges = np.histogram(h, bins=OFFSET_BINS, range=(lo, hi))
+    nonempty = counts[counts > 0]
+    threshold = max(OFFSET_MIN_COUNT, OFFSET_DENSE_FACTOR * float(np.median(nonempty)))
+    dense = np.flatnonzero(counts >= threshold)
+    if dense.size == 0:
+        return float(np.quantile(h, 0.99))
+    k = int(dense[-1])  # n points down: the largest n·p is the lowest
+    a, b = edges[max(k - 1, 0)], edges[min(k + 2, OFFSET_BINS)]
+    seg = h[(h >= a) & (h <= b)]
+    return float(np.median(seg))
+
+
+class GroundModel:
+    """Owns the ground-plane state of one SLAM map (reset with the estimator)."""
+
+    def __init__(self, mode: str, inlier_m: float, ransac_iters: int, seed: int = 0) -> None:
+        self.mode = mode
+        self.inlier_m = inlier_m
+        self.ransac_iters = ransac_iters
+        self._rng = np.random.default_rng(seed)
+        self._seed = seed
+        self.reset()
+
+    def reset(self) -> None:
+        self._scatter = np.zeros((3, 3))
+        self._camera_down = np.zeros(3)
+        self._body_up_sum = np.zeros(3)
+        self._body_frames = 0
+        self._contacts: deque[np.ndarray] = deque(maxlen=CONTACT_BUFFER)
+        self._contacts_since_fit = 0
+        self._contact_normal: np.ndarray | None = None
+        self._known: Plane | None = None
+        self._plane_cache: tuple[MapIndex, bytes, Plane | None] | None = None
+        self._rng = np.random.default_rng(self._seed)
+
+    # ------------------------------------------------------------------ evidence
+    def add_camera(self, R_wc: np.ndarray) -> None:
+        """The camera's down axis (its y axis) in the map: the sign of the normal."""
+        self._camera_down += R_wc[:, 1]
+
+    def add_body(self, R_wc: np.ndarray, joints_cam: np.ndarray) -> None:
+        """One person's up axis (pelvis → neck), joints_cam (24, 3) metres, camera optical frame."""
+        up_cam = joints_cam[12] - joints_cam[0]
+        norm = float(np.linalg.norm(up_cam))
+        if not np.isfinite(norm) or norm <= 0.0:
+            return
+        up_map = R_wc @ (up_cam / norm)
+        self._scatter += np.outer(up_map, up_map)
+        self._body_up_sum += up_map
+        self._body_frames += 1
+
+    def add_contact(self, contact_map: np.ndarray, scale: float) -> None:
+        """A contact joint placed in the map with the current scale (SLAM units, map frame)."""
+        if self.mode != 'hmr' or not np.all(np.isfinite(contact_map)):
+            return
+        self._contacts.append(np.asarray(contact_map, dtype=float))
+        self._contacts_since_fit += 1
+        if len(self._contacts) >= CONTACT_MIN_POINTS and self._contacts_since_fit >= CONTACT_REFIT_EVERY:
+            self._contacts_since_fit = 0
+            self._refine_with_contacts(self.inlier_m / scale)
+
+    def set_known(self, plane: Plane | None) -> None:
+        """Use a known plane (SLAM map frame, SLAM units): the upper bound of the ablation."""
+        self._known = plane
+        self._plane_cache = None
+
+    # ------------------------------------------------------------------ queries
+    def normal(self) -> np.ndarray | None:
+        """The current down-pointing unit normal in the map frame, or None (not enough evidence)."""
+        if self._known is not None:
+            return self._known.normal
+        if self.mode == 'slam_y':
+            return np.array([0.0, 1.0, 0.0])
+        if self.mode in ('hmr', 'largest_plane'):
+            if self.mode == 'hmr' and self._contact_normal is not None:
+                return self._contact_normal
+            return self._body_normal()
+        return None
+
+    def plane(self, map_index: MapIndex | None) -> Plane | None:
+        """The current plane for this map, cached per (map, normal)."""
+        if self._known is not None:
+            return self._known
+        if self.mode == 'none' or map_index is None or len(map_index) < 3:
+            return None
+        normal = None if self.mode == 'largest_plane' else self.normal()
+        if self.mode != 'largest_plane' and normal is None:
+            return None
+        key = b'' if normal is None else normal.tobytes()
+        cache = self._plane_cache
+        if cache is not None and cache[0] is map_index and cache[1] == key:
+            return cache[2]
+        if self.mode == 'largest_plane':
+            plane = self._largest_plane(map_index)
+        else:
+            plane = Plane(normal, lowest_segment_offset(map_index.points_map, normal))
+        self._plane_cache = (map_index, key, plane)
+        return plane
+
+    # ------------------------------------------------------------------ internals
+    def _orient_down(self, normal: np.ndarray) -> np.ndarray:
+        """Flip ``normal`` to point down: along the cameras' mean y axis, else against the bodies' up."""
+        down = self._camera_down
+        if np.linalg.norm(down) > 0 and abs(normal @ down) > 0.3 * np.linalg.norm(down):
+            return normal if normal @ down > 0 else -normal
+        return normal if normal @ self._body_up_sum <= 0 else -normal
+
+    def _body_normal(self) -> np.ndarray | None:
+        if self._body_frames < BODY_MIN_FRAMES:
+            return None
+        eigval, eigvec = np.linalg.eigh(self._scatter)
+        if eigval[-1] < BODY_MIN_ANISOTROPY * max(eigval[-2], 1e-12):
+            return None
+        return self._orient_down(eigvec[:, -1])
+
+    def _refine_with_contacts(self, inlier_distance: float) -> None:
+        body = self._body_normal()
+        if body is None:
+            return
+        points = np.array(self._contacts)
+        mask = ransac_plane(points, inlier_distance, self.ransac_iters, self._rng)
+        if mask is None or mask.sum() < CONTACT_MIN_POINTS:
+            return
+        normal, _, sing = fit_plane_lsq(points[mask])
+        if sing[1] < CONTACT_LINE_RATIO * sing[0]:
+            # contacts along a line: trust only the line's direction; the body normal across it
+            centred = points[mask] - points[mask].mean(axis=0)
+            line = np.linalg.svd(centred, full_matrices=False)[2][0]
+            normal = body - (body @ line) * line
+            normal /= np.linalg.norm(normal)
+        normal = self._orient_down(normal)
+        if np.degrees(np.arccos(np.clip(normal @ body, -1, 1))) <= CONTACT_MAX_TILT_DEG:
+            self._contact_normal = normal
+
+    def _largest_plane(self, map_index: MapIndex) -> Plane | None:
+        points = map_index.points_map
+        if len(points) > LARGEST_PLANE_SAMPLE:
+            points = points[self._rng.choice(len(points), LARGEST_PLANE_SAMPLE, replace=False)]
+        mask = ransac_plane(points, LARGEST_PLANE_INLIER_REL * map_index.extent,
+                            self.ransac_iters, self._rng)
+        if mask is None or mask.sum() < 3:
+            return None
+        normal, offset, _ = fit_plane_lsq(points[mask])
+        oriented = self._orient_down(normal)
+        if oriented @ normal < 0:
+            offset = -offset
+        return Plane(oriented, offset)
