@@ -249,6 +249,12 @@ class Calibrator:
 
     def status(self, stamp_ns: int | None = None) -> Status:
         plane = self.ground.plane(self.map) if self.map is not None else None
+        normal_metric = point_metric = None
+        if plane is not None and self.converged and self._poses:
+            c_map = self._poses[-1].c_map
+            foot_map = c_map + (plane.offset - plane.normal @ c_map) * plane.normal
+            normal_metric = self.anchor.rotation @ plane.normal
+            point_metric = self.anchor.camera(np.eye(3), foot_map, self.scale)[1]
         return Status(
             stamp_ns=int(self._last_frame_ns if stamp_ns is None else stamp_ns),
             converged=self.converged, scale=self.scale, spread=self.estimator.spread(),
@@ -256,7 +262,8 @@ class Calibrator:
             map_hits=self.map_hits, ground_fallbacks=self.ground_fallbacks, resets=self.resets,
             rejected=dict(self.rejected), map_points=len(self.map) if self.map is not None else 0,
             ground_normal_map=None if plane is None else plane.normal,
-            ground_offset_slam=float('nan') if plane is None else plane.offset)
+            ground_offset_slam=float('nan') if plane is None else plane.offset,
+            ground_normal_metric=normal_metric, ground_point_metric=point_metric)
 
     @property
     def child_frame_id(self) -> str:

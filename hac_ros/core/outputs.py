@@ -79,6 +79,8 @@ class Status:
     map_points: int = 0
     ground_normal_map: np.ndarray | None = None  # (3,) unit, SLAM map frame, points down
     ground_offset_slam: float = float('nan')  # plane n·p = b, SLAM units
+    ground_normal_metric: np.ndarray | None = None  # (3,) unit, metric frame, points down
+    ground_point_metric: np.ndarray | None = None  # (3,) metres, metric frame: the plane below the camera
 
     @property
     def fallback_rate(self) -> float:
