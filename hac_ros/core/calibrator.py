@@ -22,6 +22,7 @@ import bisect
 import math
 from collections import Counter, deque
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
@@ -112,6 +113,9 @@ class Calibrator:
         self._last_metric: tuple[int, np.ndarray, np.ndarray] | None = None  # camera, metric frame
         self._diag_second: int | None = None
         self._base_from_camera = _base_from_camera(p.base_to_camera) if p.base_frame else None
+        # Offline mode: the scale of every published output at a stamp, decided from the whole
+        # recording (see hac_ros.core.offline); None = the online rolling estimate.
+        self.output_scale: Callable[[int], float] | None = None
 
     # ================================================================== inputs
     def add_camera_info(self, K: np.ndarray, width: int, height: int, frame_id: str = '') -> list[Output]:
@@ -407,8 +411,8 @@ class Calibrator:
         self.estimator.advance(stamp)
         for person, joints in enumerate(frame.joints_cam):
             out += self._person(stamp, person, R_wc, c_map, joints)
-        if self.converged:
-            scale = self.scale
+        scale = self._published_scale(stamp)
+        if scale is not None:
             out.append(HumanJointsOut(stamp, self.anchor.joints(R_wc, c_map, scale, frame.joints_cam)))
             out.append(ScaleOut(stamp, scale, self.estimator.spread()))
         return out
@@ -498,9 +502,9 @@ class Calibrator:
 
     # ================================================================== outputs
     def _odometry(self, pose: _Pose) -> list[Output]:
-        if not self.converged:
+        scale = self._published_scale(pose.stamp_ns)
+        if scale is None:
             return []
-        scale = self.scale
         R_metric, p_metric = self.anchor.camera(pose.R_wc, pose.c_map, scale)
         last = self._last_metric
         self._last_metric = (pose.stamp_ns, R_metric, p_metric)
@@ -525,6 +529,13 @@ class Calibrator:
         cov[:3, :3] = sigma_scale ** 2 * np.outer(lever, lever) + POSITION_VARIANCE_FLOOR * np.eye(3)
         cov[3:, 3:] = self.params.orientation_variance * np.eye(3)
         return [OdometryOut(pose.stamp_ns, self.child_frame_id, R_out, p_out, cov, linear, angular)]
+
+    def _published_scale(self, stamp_ns: int) -> float | None:
+        """The scale metric outputs use at ``stamp_ns`` (None: nothing metric yet)."""
+        if self.output_scale is not None:
+            value = float(self.output_scale(stamp_ns))
+            return value if math.isfinite(value) and value > 0.0 else None
+        return self.scale if self.converged else None
 
     def _diagnostics(self, stamp_ns: int) -> list[Output]:
         second = stamp_ns // NS
