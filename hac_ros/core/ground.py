@@ -111,7 +111,7 @@ def lowest_segment_offset(points_map: np.ndarray, normal: np.ndarray) -> float:
     if h.size == 0:
         return float('nan')
     lo, hi = np.quantile(h, [0.005, 0.995])
-    if not hi > lo:
+    if not hi - lo > 1e-9 * max(abs(lo), abs(hi), 1e-300):  # flat to rounding: one segment
         return float(np.median(h))
     counts, edges = np.histogram(h, bins=OFFSET_BINS, range=(lo, hi))
     nonempty = counts[counts > 0]

@@ -83,10 +83,10 @@ class HacParams:
     # --- beyond SPEC's table: documented extras with metric or scene-relative units
     interp_max_gap_s: float = _p(0.2, 'largest gap between two poses that a joints stamp may be '
                                  'interpolated across, seconds', low=0.0, high=60.0)
-    plausibility_rel_tol: float = _p(0.35, 'a map hit is implausible when its metric distance '
+    plausibility_rel_tol: float = _p(0.2, 'a map hit is implausible when its metric distance '
                                      'differs from the joint distance by more than this fraction',
                                      low=0.01, high=10.0)
-    ray_window_rel: float = _p(0.6, 'once a scale exists, map points are searched along the ray '
+    ray_window_rel: float = _p(0.5, 'once a scale exists, map points are searched along the ray '
                                'within this fraction of the predicted distance', low=0.05, high=100.0)
     gate_k: float = _p(5.0, 'a new sample is gated when further than gate_k robust sigmas from '
                        'the median (once converged)', low=0.5, high=1000.0)
