@@ -100,6 +100,7 @@ class Calibrator:
         self._child_frame = p.camera_frame
         self._map_frame: str | None = None
         self._poses: deque[_Pose] = deque(maxlen=p.pose_buffer)
+        self._pose_stamps: deque[int] = deque(maxlen=p.pose_buffer)  # parallel to _poses
         self._pending: list[_Frame] = []  # sorted by stamp
         self._maps: list[MapIndex] = []  # pending maps, sorted by stamp
         self._foreign_map: MapIndex | None = None  # a map in a frame the poses have not reached yet
@@ -279,6 +280,7 @@ class Calibrator:
         if self._poses:
             self._steps.append(float(np.linalg.norm(pose.c_map - self._poses[-1].c_map)))
         self._poses.append(pose)
+        self._pose_stamps.append(pose.stamp_ns)
         self._bbox_lo = pose.c_map if self._bbox_lo is None else np.minimum(self._bbox_lo, pose.c_map)
         self._bbox_hi = pose.c_map if self._bbox_hi is None else np.maximum(self._bbox_hi, pose.c_map)
         self.ground.add_camera(pose.R_wc)
@@ -329,6 +331,7 @@ class Calibrator:
             _, R_metric, p_metric = self._last_metric
             self.anchor = Anchor.continuing(R_metric, p_metric, first_pose.R_wc, first_pose.c_map)
         self._poses.clear()
+        self._pose_stamps.clear()
         self._steps.clear()
         self._bbox_lo = self._bbox_hi = None
         if cause != 'map_overlap':
@@ -353,10 +356,9 @@ class Calibrator:
     # ================================================================== frames
     def _pose_at(self, stamp_ns: int) -> tuple[np.ndarray, np.ndarray] | None:
         """The pose of a joints stamp: the nearest within the slop, else interpolated."""
-        poses = self._poses
+        poses, stamps = self._poses, self._pose_stamps
         if not poses:
             return None
-        stamps = [p.stamp_ns for p in poses]
         i = bisect.bisect_left(stamps, stamp_ns)
         slop = int(self.params.sync_slop_s * NS)
         best = None
@@ -393,6 +395,7 @@ class Calibrator:
                 out += self._reset(pose, 'map_overlap', 'the new map does not overlap the previous '
                                    'one: SLAM re-initialised')
                 self._poses.append(pose)
+                self._pose_stamps.append(pose.stamp_ns)
         self._expect_new_map = False
         self.map = chosen
         return out

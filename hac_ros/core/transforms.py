@@ -72,8 +72,15 @@ def rotation_angle(R_a: np.ndarray, R_b: np.ndarray) -> float:
 
 
 def rotation_log(R: np.ndarray) -> np.ndarray:
-    """Rotation vector (3,) rad of R."""
-    return Rotation.from_matrix(R).as_rotvec()
+    """Rotation vector (3,) rad of R (closed form; scipy beyond 3 rad where it is ill-conditioned)."""
+    cos = (np.trace(R) - 1.0) * 0.5
+    angle = float(np.arccos(min(max(cos, -1.0), 1.0)))
+    skew = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+    if angle < 1e-8:
+        return 0.5 * skew
+    if angle > 3.0:
+        return Rotation.from_matrix(R).as_rotvec()
+    return skew * (angle / (2.0 * np.sin(angle)))
 
 
 def quat_to_matrix(q_xyzw: np.ndarray) -> np.ndarray:
@@ -82,5 +89,9 @@ def quat_to_matrix(q_xyzw: np.ndarray) -> np.ndarray:
 
 def is_rotation(R: np.ndarray, tol: float = 1e-6) -> bool:
     R = np.asarray(R, dtype=float)
-    return (R.shape == (3, 3) and bool(np.all(np.isfinite(R)))
-            and np.allclose(R.T @ R, np.eye(3), atol=tol) and np.linalg.det(R) > 0)
+    if R.shape != (3, 3) or not np.isfinite(R).all():
+        return False
+    return float(np.abs(R.T @ R - _EYE).max()) <= tol and float(np.linalg.det(R)) > 0.0
+
+
+_EYE = np.eye(3)
