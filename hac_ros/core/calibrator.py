@@ -163,7 +163,11 @@ class Calibrator:
 
     def add_map(self, stamp_ns: int, points_map: np.ndarray, frame_id: str = '') -> list[Output]:
         """A map cloud: points (N, 3) SLAM units, map frame. Builds the index, then :meth:`add_map_index`."""
-        return self.add_map_index(MapIndex(points_map, frame_id, stamp_ns))
+        return self.add_map_index(self.build_index(stamp_ns, points_map, frame_id))
+
+    def build_index(self, stamp_ns: int, points_map: np.ndarray, frame_id: str = '') -> MapIndex:
+        """The map index with this calibrator's parameters (thread-safe: touches no state)."""
+        return MapIndex(points_map, frame_id, stamp_ns, self.params.index_max_points)
 
     def add_map_index(self, index: MapIndex) -> list[Output]:
         """A map already indexed (the node builds the index off the executor's thread)."""
@@ -383,10 +387,11 @@ class Calibrator:
             return out
         if self.params.cloud_mode == 'accumulate' and self.map is not None:
             merged = np.vstack([self.map.points_map, chosen.points_map])
-            chosen = MapIndex(merged[-self.params.cloud_max_points:], chosen.frame_id, chosen.stamp_ns)
+            chosen = self.build_index(chosen.stamp_ns, merged[-self.params.cloud_max_points:],
+                                      chosen.frame_id)
         elif len(chosen) > self.params.cloud_max_points:
-            chosen = MapIndex(chosen.points_map[-self.params.cloud_max_points:], chosen.frame_id,
-                              chosen.stamp_ns)
+            chosen = self.build_index(chosen.stamp_ns, chosen.points_map[-self.params.cloud_max_points:],
+                                      chosen.frame_id)
         if (self.map is not None and not self._expect_new_map and self.params.cloud_mode == 'replace'
                 and self.params.map_overlap_min > 0 and not _overlaps(self.map, chosen,
                                                                       self.params.map_overlap_min)):

@@ -46,6 +46,7 @@ class RollingScale:
         self._sorted: SortedList = SortedList()
         self._gated_run: list[tuple[int, float]] = []
         self.relocks = 0
+        self._mad_cache: float | None = None  # valid until the window changes
 
     # ------------------------------------------------------------------ updates
     def add(self, stamp_ns: int, scale: float) -> bool:
@@ -64,6 +65,7 @@ class RollingScale:
         self._gated_run.clear()
         self._fifo.append((stamp_ns, scale))
         self._sorted.add(scale)
+        self._mad_cache = None
         if len(self._fifo) > self.max_samples:
             self._drop_oldest()
         return True
@@ -77,6 +79,7 @@ class RollingScale:
         self._fifo.clear()
         self._sorted.clear()
         self._gated_run.clear()
+        self._mad_cache = None
 
     # ------------------------------------------------------------------ queries
     @property
@@ -97,6 +100,11 @@ class RollingScale:
 
     def mad(self) -> float:
         """Median absolute deviation from the median, O(log² n), without copying the window."""
+        if self._mad_cache is None:
+            self._mad_cache = self._mad()
+        return self._mad_cache
+
+    def _mad(self) -> float:
         n = len(self._sorted)
         if n == 0:
             return float('nan')
@@ -135,6 +143,7 @@ class RollingScale:
     def _drop_oldest(self) -> None:
         _, value = self._fifo.popleft()
         self._sorted.remove(value)
+        self._mad_cache = None
 
     def _relock(self) -> None:
         run = self._gated_run
@@ -143,6 +152,7 @@ class RollingScale:
         for stamp_ns, value in run:
             self._fifo.append((stamp_ns, value))
             self._sorted.add(value)
+        self._mad_cache = None
 
 
 def _kth_deviation(values: SortedList, split: int, med: float, k: int) -> float:

@@ -208,7 +208,7 @@ class GroundModel:
         if self.mode == 'largest_plane':
             plane = self._largest_plane(map_index)
         else:
-            plane = Plane(normal, lowest_segment_offset(map_index.points_map, normal))
+            plane = Plane(normal, lowest_segment_offset(map_index.sample, normal))
         self._plane_cache = (map_index, key, plane)
         return plane
 
@@ -248,7 +248,7 @@ class GroundModel:
             self._contact_normal = normal
 
     def _largest_plane(self, map_index: MapIndex) -> Plane | None:
-        points = map_index.points_map
+        points = map_index.sample
         if len(points) > LARGEST_PLANE_SAMPLE:
             points = points[self._rng.choice(len(points), LARGEST_PLANE_SAMPLE, replace=False)]
         mask = ransac_plane(points, LARGEST_PLANE_INLIER_REL * map_index.extent,

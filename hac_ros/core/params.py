@@ -104,6 +104,9 @@ class HacParams:
                                   'a SLAM re-initialisation', low=1, high=1000)
     map_overlap_min: float = _p(0.1, 'a new map overlapping the previous one less than this '
                                 'fraction is a SLAM re-initialisation (0 disables)', low=0.0, high=1.0)
+    index_max_points: int = _p(262_144, 'maps larger than this are thinned uniformly at random '
+                               'before indexing (bounds the per-frame cost)', low=1000,
+                               high=1_000_000_000)
     seed: int = _p(0, 'seed of the RANSAC sampling (reproducible output)', low=0, high=2**31 - 1)
     base_frame: str = _p('', 'if set, /hac/odometry describes this frame instead of the camera')
     base_to_camera: list = _p([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0],
