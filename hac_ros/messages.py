@@ -154,15 +154,15 @@ class OutputMessages:
 
 
 # ---------------------------------------------------------------------- message construction
-def new_message(types: Any, name: str, **fields: Any) -> Any:
-    """A message of type ``name`` from ``types`` with ``fields``; the rest get ROS defaults.
+def new_message(types: Any, msgtype: str, /, **fields: Any) -> Any:
+    """A message of type ``msgtype`` from ``types`` with ``fields``; the rest get ROS defaults.
 
     rclpy classes have defaults; rosbags dataclasses need every field, so the missing ones are
     filled from the Jazzy type definitions (zeros, empty strings and sequences, nested defaults).
     """
-    cls = types.get(name)
+    cls = types.get(msgtype)
     if dataclasses.is_dataclass(cls):
-        defs = dict(_fielddefs(name))
+        defs = dict(_fielddefs(msgtype))
         for f in dataclasses.fields(cls):
             if f.name not in fields and f.name in defs:
                 fields[f.name] = _default(types, defs[f.name])
@@ -181,7 +181,7 @@ _NUMPY = {'bool': np.bool_, 'byte': np.uint8, 'char': np.uint8, 'int8': np.int8,
 
 
 def _default(types: Any, fielddef: tuple) -> Any:
-    from rosbags.typesys.msg import Nodetype
+    from rosbags.interfaces import Nodetype
 
     kind, spec = fielddef
     if kind == Nodetype.BASE:

@@ -477,7 +477,7 @@ class Calibrator:
     def _map_distance(self, c_map: np.ndarray, direction_map: np.ndarray, distance_metric: float,
                       scale: float | None) -> float | None:
         window = None
-        if scale is not None:
+        if scale is not None and self.params.ray_window_rel > 0.0:
             expected = distance_metric / scale
             w = 1.0 + self.params.ray_window_rel
             window = (expected / w, expected * w)

@@ -87,7 +87,8 @@ class HacParams:
                                      'differs from the joint distance by more than this fraction',
                                      low=0.01, high=10.0)
     ray_window_rel: float = _p(0.5, 'once a scale exists, map points are searched along the ray '
-                               'within this fraction of the predicted distance', low=0.05, high=100.0)
+                               'within this fraction of the predicted distance; 0 = every point '
+                               '(the literal authors method)', low=0.0, high=100.0)
     gate_k: float = _p(5.0, 'a new sample is gated when further than gate_k robust sigmas from '
                        'the median (once converged)', low=0.5, high=1000.0)
     gate_min_rel: float = _p(0.15, 'the gate is never narrower than this fraction of the median',
