@@ -1,0 +1,157 @@
+"""Alignment and the field's metrics (SPEC, "Metrics"), pure numpy.
+
+Umeyama follows evo's ``core/geometry.py::umeyama_alignment`` (Umeyama 1991). The human metrics
+follow the evaluation code of TRAM/WHAM, which takes them from SLAHMR: ``first_align_joints``
+(W-MPJPE), ``global_align_joints`` (WA-MPJPE), ``compute_rte`` (RTE) and the per-frame Procrustes
+of ``batch_compute_similarity_transform`` (PA-MPJPE). Positions in metres in; errors out in the
+unit each function names.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from hac_ros.core.errors import InputError
+
+M_TO_MM = 1000.0
+CHUNK_FRAMES = 100  # TRAM/WHAM: W-MPJPE and WA-MPJPE over 100-frame chunks
+
+
+def umeyama(src: np.ndarray, dst: np.ndarray, with_scale: bool = True) -> tuple[float, np.ndarray, np.ndarray]:
+    """The similarity (s, R, t) minimising ‖dst − (s R src + t)‖² (Umeyama 1991).
+
+    src, dst: (N, 3) corresponding points. Without scale, s = 1 (an SE(3) fit).
+    """
+    src = np.asarray(src, dtype=float)
+    dst = np.asarray(dst, dtype=float)
+    if src.shape != dst.shape or src.ndim != 2 or src.shape[1] != 3:
+        raise InputError(f'umeyama: expected two (N, 3) arrays, got {src.shape} and {dst.shape}')
+    if len(src) < 3:
+        raise InputError(f'umeyama: needs at least 3 point pairs, got {len(src)}')
+    mean_src, mean_dst = src.mean(axis=0), dst.mean(axis=0)  # eq. 34 and 35
+    src_c, dst_c = src - mean_src, dst - mean_dst
+    var_src = float(np.mean(np.sum(src_c ** 2, axis=1)))  # eq. 36
+    if not var_src > 0.0:
+        raise InputError('umeyama: the source points are all equal (degenerate)')
+    cov = dst_c.T @ src_c / len(src)  # eq. 38
+    U, D, Vt = np.linalg.svd(cov)
+    S = np.eye(3)
+    if np.linalg.det(U) * np.linalg.det(Vt) < 0.0:  # eq. 39: a reflection
+        S[2, 2] = -1.0
+    R = U @ S @ Vt  # eq. 40
+    s = float(np.trace(np.diag(D) @ S) / var_src) if with_scale else 1.0  # eq. 42
+    t = mean_dst - s * R @ mean_src  # eq. 41
+    return s, R, t
+
+
+def apply_sim3(s: float, R: np.ndarray, t: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """s R p + t for points (..., 3)."""
+    return s * np.asarray(points) @ np.asarray(R).T + t
+
+
+def associate_stamps(stamps_a: np.ndarray, stamps_b: np.ndarray, max_diff_ns: int) -> tuple[np.ndarray, np.ndarray]:
+    """Indices (idx_a, idx_b) pairing each stamp of ``a`` with the nearest of ``b`` within max_diff.
+
+    Like evo's ``sync.associate_trajectories`` for the common case of a sparse estimate against a
+    dense reference. Stamps are int nanoseconds; ``b`` must be sorted.
+    """
+    a = np.asarray(stamps_a, dtype=np.int64)
+    b = np.asarray(stamps_b, dtype=np.int64)
+    if b.size == 0 or a.size == 0:
+        return np.empty(0, dtype=int), np.empty(0, dtype=int)
+    pos = np.clip(np.searchsorted(b, a), 1, len(b) - 1) if len(b) > 1 else np.zeros(len(a), int)
+    left = np.clip(pos - 1, 0, len(b) - 1)
+    nearest = np.where(np.abs(b[left] - a) <= np.abs(b[pos] - a), left, pos)
+    keep = np.abs(b[nearest] - a) <= max_diff_ns
+    return np.flatnonzero(keep), nearest[keep]
+
+
+def ate(est_positions: np.ndarray, gt_positions: np.ndarray, with_scale: bool = True) -> float:
+    """Mean (not RMSE, like evo's ``stats['mean']``) camera-centre error in metres after aligning
+    the estimate onto the truth with Umeyama: Sim(3) ("ATE") or SE(3) ("ATE-S")."""
+    s, R, t = umeyama(est_positions, gt_positions, with_scale)
+    aligned = apply_sim3(s, R, t, est_positions)
+    return float(np.mean(np.linalg.norm(aligned - gt_positions, axis=1)))
+
+
+def ate_s(est_positions: np.ndarray, gt_positions: np.ndarray) -> float:
+    """ATE after an SE(3) alignment (no scale): a wrong scale shows."""
+    return ate(est_positions, gt_positions, with_scale=False)
+
+
+def _align_chunk(pred: np.ndarray, gt: np.ndarray, frames: slice) -> np.ndarray:
+    """pred (T, J, 3) aligned by the Sim(3) fitted on the joints of ``frames`` (pred onto gt)."""
+    s, R, t = umeyama(pred[frames].reshape(-1, 3), gt[frames].reshape(-1, 3), with_scale=True)
+    return apply_sim3(s, R, t, pred)
+
+
+def _chunks(n: int, chunk: int) -> list[tuple[int, int]]:
+    """TRAM's chunking: starts every ``chunk`` frames; the last chunk runs to the sequence's end
+    (minus one frame, as TRAM does) when another full chunk would not fit. A sequence of at most one
+    chunk is evaluated as one chunk (TRAM would skip it)."""
+    if n <= chunk:
+        return [(0, n)]
+    out = []
+    for start in range(0, n - chunk, chunk):
+        end = start + chunk
+        if start + 2 * chunk > n:
+            end = n - 1
+        out.append((start, end))
+    return out
+
+
+def _check_joints(pred: np.ndarray, gt: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    pred = np.asarray(pred, dtype=float)
+    gt = np.asarray(gt, dtype=float)
+    if pred.shape != gt.shape or pred.ndim != 3 or pred.shape[2] != 3:
+        raise InputError(f'expected two (T, J, 3) arrays of one person, got {pred.shape} and {gt.shape}')
+    return pred, gt
+
+
+def w_mpjpe(pred: np.ndarray, gt: np.ndarray, chunk: int = CHUNK_FRAMES) -> float:
+    """World MPJPE (mm): each chunk aligned by the Sim(3) of its first two frames' joints.
+
+    pred, gt: (T, J, 3) one person's joints in metres (world frames may differ). Per-frame errors
+    of every chunk are concatenated and averaged (TRAM). For several people, call once per track.
+    """
+    pred, gt = _check_joints(pred, gt)
+    errors = []
+    for a, b in _chunks(len(pred), chunk):
+        aligned = _align_chunk(pred[a:b], gt[a:b], slice(0, 2))
+        errors.append(np.linalg.norm(aligned - gt[a:b], axis=2).mean(axis=1))
+    return float(np.concatenate(errors).mean() * M_TO_MM)
+
+
+def wa_mpjpe(pred: np.ndarray, gt: np.ndarray, chunk: int = CHUNK_FRAMES) -> float:
+    """World-aligned MPJPE (mm): each chunk aligned by the Sim(3) fitted on the whole chunk."""
+    pred, gt = _check_joints(pred, gt)
+    errors = []
+    for a, b in _chunks(len(pred), chunk):
+        aligned = _align_chunk(pred[a:b], gt[a:b], slice(None))
+        errors.append(np.linalg.norm(aligned - gt[a:b], axis=2).mean(axis=1))
+    return float(np.concatenate(errors).mean() * M_TO_MM)
+
+
+def rte(pred_root: np.ndarray, gt_root: np.ndarray) -> float:
+    """Root translation error (%): a rigid (SE(3)) alignment of the whole root trajectory, each
+    frame's error divided by the ground truth's path length, averaged, × 100 (TRAM compute_rte)."""
+    pred_root = np.asarray(pred_root, dtype=float)
+    gt_root = np.asarray(gt_root, dtype=float)
+    s, R, t = umeyama(pred_root, gt_root, with_scale=False)
+    aligned = apply_sim3(s, R, t, pred_root)
+    path = float(np.sum(np.linalg.norm(np.diff(gt_root, axis=0), axis=1)))
+    if not path > 0.0:
+        raise InputError('rte: the ground-truth root does not move (path length 0)')
+    return float(np.mean(np.linalg.norm(aligned - gt_root, axis=1)) / path * 100.0)
+
+
+def pa_mpjpe(pred: np.ndarray, gt: np.ndarray) -> float:
+    """Procrustes-aligned MPJPE (mm): every frame aligned by its own Sim(3)."""
+    pred, gt = _check_joints(pred, gt)
+    errors = [np.linalg.norm(apply_sim3(*umeyama(p, g, True), p) - g, axis=1).mean()
+              for p, g in zip(pred, gt)]
+    return float(np.mean(errors) * M_TO_MM)
+
+
+def scale_error(est: np.ndarray | float, true: np.ndarray | float) -> np.ndarray:
+    """|est / true − 1| × 100, elementwise (percent)."""
+    return np.abs(np.asarray(est, dtype=float) / np.asarray(true, dtype=float) - 1.0) * 100.0

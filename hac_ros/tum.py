@@ -1,0 +1,58 @@
+"""TUM trajectory files: ``timestamp tx ty tz qx qy qz qw`` per line (evo reads and writes them).
+
+Poses are of the camera in the world (camera-to-world: position = camera centre). Stamps are int
+nanoseconds in memory and seconds with 9 decimals in the file.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from hac_ros.core.errors import HacError
+
+
+def read_tum(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(stamps_ns (N,) int64, positions (N, 3), quats_xyzw (N, 4)); '#' lines and blanks skipped."""
+    stamps, rows = [], []
+    try:
+        lines = Path(path).read_text().splitlines()
+    except OSError as exc:
+        raise HacError(f'cannot read TUM file {path}: {exc}') from exc
+    for number, line in enumerate(lines, 1):
+        text = line.strip()
+        if not text or text.startswith('#'):
+            continue
+        parts = text.replace(',', ' ').split()
+        if len(parts) != 8:
+            raise HacError(f'{path}:{number}: expected 8 values (t tx ty tz qx qy qz qw), '
+                           f'got {len(parts)}')
+        try:
+            sec, _, frac = parts[0].partition('.')
+            stamps.append(int(sec) * 1_000_000_000 + int((frac + '000000000')[:9]))
+            rows.append([float(v) for v in parts[1:]])
+        except ValueError as exc:
+            raise HacError(f'{path}:{number}: not a number ({exc})') from exc
+    data = np.array(rows, dtype=float).reshape(-1, 7)
+    return np.array(stamps, dtype=np.int64), data[:, :3], data[:, 3:]
+
+
+def write_tum(path: str | Path, stamps_ns: np.ndarray, positions: np.ndarray,
+              quats_xyzw: np.ndarray) -> None:
+    """Write a TUM file (stamps int ns; positions (N, 3); quaternions (N, 4) x, y, z, w)."""
+    lines = []
+    for stamp, p, q in zip(np.asarray(stamps_ns, dtype=np.int64), positions, quats_xyzw):
+        sec, ns = divmod(int(stamp), 1_000_000_000)
+        lines.append(f'{sec}.{ns:09d} ' + ' '.join(f'{v:.9f}' for v in (*p, *q)))
+    Path(path).write_text('\n'.join(lines) + ('\n' if lines else ''))
+
+
+def rotations_to_quats(R: np.ndarray) -> np.ndarray:
+    """(N, 3, 3) rotations → (N, 4) quaternions x, y, z, w."""
+    return Rotation.from_matrix(np.asarray(R).reshape(-1, 3, 3)).as_quat()
+
+
+def quats_to_rotations(q: np.ndarray) -> np.ndarray:
+    """(N, 4) quaternions x, y, z, w → (N, 3, 3) rotations."""
+    return Rotation.from_quat(np.asarray(q).reshape(-1, 4)).as_matrix()
