@@ -37,7 +37,7 @@ from hac_ros.core.transforms import Anchor, interpolate_pose, is_rotation, rotat
 
 JOINTS_PER_PERSON = 24
 PENDING_MAPS_MAX = 8  # maps waiting for a frame of their stamp
-JUMP_HISTORY = 30  # recent pose steps whose median is the "normal" step
+JUMP_HISTORY = 30  # recent pose speeds whose median is the "normal" speed
 JUMP_MIN_HISTORY = 5  # steps needed before a jump can be told from normal motion
 OVERLAP_SAMPLE = 256  # new-map points checked against the previous map
 OVERLAP_DISTANCE_REL = 0.02  # a point overlaps when this close (fraction of the old map's extent)
@@ -282,7 +282,9 @@ class Calibrator:
     def _accept_pose(self, pose: _Pose) -> list[Output]:
         out: list[Output] = []
         if self._poses:
-            self._steps.append(float(np.linalg.norm(pose.c_map - self._poses[-1].c_map)))
+            last = self._poses[-1]
+            step = float(np.linalg.norm(pose.c_map - last.c_map))
+            self._steps.append(step / max(pose.stamp_ns - last.stamp_ns, 1))  # speed per ns
         self._poses.append(pose)
         self._pose_stamps.append(pose.stamp_ns)
         self._bbox_lo = pose.c_map if self._bbox_lo is None else np.minimum(self._bbox_lo, pose.c_map)
@@ -297,13 +299,19 @@ class Calibrator:
         return out
 
     def _is_jump(self, pose: _Pose) -> bool:
-        """A step far larger than the recent ones and than a fraction of the trajectory's extent."""
+        """A speed far above the recent ones, over a step that is a fraction of the trajectory.
+
+        Speeds (SLAM units per stamp second), not steps: keyframe-rate SLAMs publish irregularly,
+        and a long gap between two poses is not a jump.
+        """
         if not self._poses or len(self._steps) < JUMP_MIN_HISTORY:
             return False
-        step = float(np.linalg.norm(pose.c_map - self._poses[-1].c_map))
+        last = self._poses[-1]
+        step = float(np.linalg.norm(pose.c_map - last.c_map))
+        speed = step / max(pose.stamp_ns - last.stamp_ns, 1)
         typical = float(np.median(self._steps))
         extent = float(np.linalg.norm(self._bbox_hi - self._bbox_lo))
-        return step > self.params.reset_jump_factor * typical and \
+        return speed > self.params.reset_jump_factor * typical and \
             step > self.params.reset_jump_min_rel * extent
 
     def _follow_suspects(self, pose: _Pose) -> list[Output]:
