@@ -35,6 +35,7 @@ CONTACT_LINE_RATIO = 0.15  # second/first singular value below this: the contact
 OFFSET_BINS = 100  # histogram bins over the map's robust range along n
 OFFSET_DENSE_FACTOR = 4.0  # a dense bin holds this many times the median non-empty bin
 OFFSET_MIN_COUNT = 5
+OFFSET_WINDOW_BINS = 3  # half width of the floor segment around its peak, in bins
 LARGEST_PLANE_INLIER_REL = 0.005  # largest_plane: inlier distance as a fraction of the map extent
 LARGEST_PLANE_SAMPLE = 5000  # map points used by the largest_plane RANSAC
 
@@ -103,9 +104,11 @@ def lowest_segment_offset(points_map: np.ndarray, normal: np.ndarray) -> float:
 
     A histogram of n·p over the map's robust range (0.5–99.5 %); walking up from the bottom, the
     first bin holding OFFSET_DENSE_FACTOR times the median non-empty bin (and OFFSET_MIN_COUNT
-    points) is the floor, and b is the median of the points in it and its two neighbours. Isolated
-    points below the floor do not make a dense bin. Without a dense bin: the 0.99 quantile (the
-    authors' code). SLAM units.
+    points) belongs to the floor. Isolated points below the floor do not make a dense bin. The first
+    dense bin is the floor's lower noise tail, not its middle: climb to the segment's peak, then b is
+    the median of the points within OFFSET_WINDOW_BINS of it, re-centred once on that median (a
+    symmetric window around a symmetric noise gives an unbiased middle). Without a dense bin: the
+    0.99 quantile (the authors' code). SLAM units.
     """
     h = np.asarray(points_map) @ np.asarray(normal)
     if h.size == 0:
@@ -120,9 +123,19 @@ def lowest_segment_offset(points_map: np.ndarray, normal: np.ndarray) -> float:
     if dense.size == 0:
         return float(np.quantile(h, 0.99))
     k = int(dense[-1])  # n points down: the largest n·p is the lowest
-    a, b = edges[max(k - 1, 0)], edges[min(k + 2, OFFSET_BINS)]
-    seg = h[(h >= a) & (h <= b)]
-    return float(np.median(seg))
+    for _ in range(OFFSET_WINDOW_BINS):  # climb to the peak of the floor's segment
+        if k > 0 and counts[k - 1] >= counts[k]:
+            k -= 1
+        else:
+            break
+    width = edges[1] - edges[0]
+    centre = 0.5 * (edges[k] + edges[k + 1])
+    for _ in range(2):
+        seg = h[np.abs(h - centre) <= OFFSET_WINDOW_BINS * width]
+        if seg.size == 0:
+            break
+        centre = float(np.median(seg))
+    return float(centre)
 
 
 class GroundModel:

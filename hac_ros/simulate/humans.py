@@ -1,0 +1,172 @@
+"""People: a procedural gait with correct foot contacts, a handstand, a skater, or real motion.
+
+Every function returns joints (T, 24, 3) in metres, world frame (z up), SMPL-24 order. In the gait
+the stance foot stays where it landed, its foot joint exactly on the walking surface (the lowest
+joint of the body), the swing foot travels in an arc to the next footprint, the knees follow by
+two-bone inverse kinematics (thigh 0.41 m, shank 0.39 m), and the pelvis bobs 2 cm per step.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from hac_ros.simulate.world import World
+
+THIGH_M, SHANK_M = 0.41, 0.39
+STEP_PERIOD_S = 0.55  # one step (half a gait cycle)
+SWING_HEIGHT_M = 0.10
+PELVIS_BOB_M = 0.02
+FOOT_LATERAL_M = 0.11
+ANKLE_ABOVE_FOOT = np.array([-0.11, 0.0, 0.08])  # ankle relative to the foot joint (fwd, left, up)
+
+# Standing template: (forward, left, up) metres, feet on the floor.
+STANDING = np.array([
+    [0.00, 0.00, 0.93], [0.00, 0.09, 0.86], [0.00, -0.09, 0.86], [-0.01, 0.00, 1.05],
+    [0.02, 0.10, 0.47], [0.02, -0.10, 0.47], [-0.01, 0.00, 1.18], [-0.01, 0.11, 0.08],
+    [-0.01, -0.11, 0.08], [-0.01, 0.00, 1.26], [0.10, 0.11, 0.00], [0.10, -0.11, 0.00],
+    [0.00, 0.00, 1.45], [0.00, 0.07, 1.38], [0.00, -0.07, 1.38], [0.03, 0.00, 1.62],
+    [0.00, 0.18, 1.40], [0.00, -0.18, 1.40], [0.00, 0.22, 1.12], [0.00, -0.22, 1.12],
+    [0.03, 0.24, 0.86], [0.03, -0.24, 0.86], [0.05, 0.25, 0.78], [0.05, -0.25, 0.78]])
+UPPER = [3, 6, 9, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23]
+
+Path2D = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]  # t (T,) -> xy (T, 2), heading (T,)
+
+
+def circle_path(centre: tuple[float, float], radius: float, speed: float, phase: float = 0.0) -> Path2D:
+    """Walking a circle counter-clockwise at ``speed`` m/s."""
+    def path(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        angle = phase + speed * np.asarray(t) / radius
+        xy = np.c_[centre[0] + radius * np.cos(angle), centre[1] + radius * np.sin(angle)]
+        return xy, angle + np.pi / 2
+    return path
+
+
+def shuttle_path(start: tuple[float, float], end: tuple[float, float], speed: float) -> Path2D:
+    """Back and forth on a line (turning at the ends)."""
+    a, b = np.asarray(start, float), np.asarray(end, float)
+    length = float(np.linalg.norm(b - a))
+    heading = float(np.arctan2(*(b - a)[::-1]))
+
+    def path(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        s = (speed * np.asarray(t)) % (2 * length)
+        forward = s < length
+        d = np.where(forward, s, 2 * length - s)
+        xy = a + d[:, None] * (b - a) / length
+        return xy, np.where(forward, heading, heading + np.pi)
+    return path
+
+
+def _frame(heading: float) -> np.ndarray:
+    """Columns: forward, left, up of a person with this heading (world frame)."""
+    c, s = np.cos(heading), np.sin(heading)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def _knee(hip: np.ndarray, ankle: np.ndarray, forward: np.ndarray) -> np.ndarray:
+    """Two-bone IK: the knee bends forward; a leg that is too long is straight."""
+    v = ankle - hip
+    d = min(float(np.linalg.norm(v)), THIGH_M + SHANK_M - 1e-4)
+    u = v / max(np.linalg.norm(v), 1e-9)
+    cos_a = (THIGH_M ** 2 + d ** 2 - SHANK_M ** 2) / (2 * THIGH_M * d)
+    sin_a = np.sqrt(max(0.0, 1 - cos_a ** 2))
+    f = forward - (forward @ u) * u
+    f /= max(np.linalg.norm(f), 1e-9)
+    return hip + THIGH_M * (cos_a * u + sin_a * f)
+
+
+def gait(t: np.ndarray, path: Path2D, world: World, phase_s: float = 0.0) -> np.ndarray:
+    """A walker following ``path`` over the world's walkable surfaces (floor, stair steps)."""
+    t = np.asarray(t, dtype=float)
+    tk = t + phase_s
+    k = np.floor(tk / STEP_PERIOD_S).astype(int)
+    step_phase = tk / STEP_PERIOD_S - k  # 0..1 within the step
+    kmin, kmax = int(k.min()) - 2, int(k.max()) + 2
+    steps = np.arange(kmin, kmax + 1)
+    # footprint of step j: where the pelvis will be mid-stance, to the side of the foot that lands
+    land_xy, land_heading = path(steps * STEP_PERIOD_S + 0.5 * STEP_PERIOD_S - phase_s)
+    side = np.where(steps % 2 == 0, 1.0, -1.0)  # even steps: left foot
+    lateral = np.c_[-np.sin(land_heading), np.cos(land_heading)] * (side * FOOT_LATERAL_M)[:, None]
+    forward = np.c_[np.cos(land_heading), np.sin(land_heading)] * 0.10
+    prints_xy = land_xy + lateral + forward
+    prints_z = world.height_at(prints_xy)
+    prints = np.c_[prints_xy, prints_z]
+    xy, heading = path(t)
+    out = np.empty((len(t), 24, 3))
+    for i in range(len(t)):
+        j = k[i] - kmin
+        stance, swing_from, swing_to = prints[j], prints[j - 1], prints[j + 1]
+        ph = step_phase[i]
+        swing = swing_from + (swing_to - swing_from) * (0.5 - 0.5 * np.cos(np.pi * ph))
+        swing[2] += SWING_HEIGHT_M * np.sin(np.pi * ph)
+        left_is_stance = steps[j] % 2 == 0
+        feet = {10: stance if left_is_stance else swing, 11: swing if left_is_stance else stance}
+        R = _frame(heading[i])
+        ground = 0.5 * (stance[2] + min(swing_from[2], swing_to[2]))
+        pelvis = np.r_[xy[i], ground + STANDING[0, 2] - PELVIS_BOB_M * np.sin(np.pi * ph)]
+        body = pelvis + (STANDING - STANDING[0]) @ R.T
+        arm = 0.15 * np.sin(np.pi * (k[i] + ph))  # arms swing against the legs
+        for jnt, sgn in ((18, 1), (20, 1), (22, 1), (19, -1), (21, -1), (23, -1)):
+            body[jnt] += R[:, 0] * (sgn * arm * (0.5 if jnt in (18, 19) else 1.0))
+        for foot, ankle, hip, knee in ((10, 7, 1, 4), (11, 8, 2, 5)):
+            body[foot] = feet[foot]
+            body[ankle] = feet[foot] + R @ ANKLE_ABOVE_FOOT
+            body[knee] = _knee(body[hip], body[ankle], R[:, 0])
+        out[i] = body
+    return out
+
+
+def skate(t: np.ndarray, path: Path2D) -> np.ndarray:
+    """A standing pose gliding along ``path``: both feet on the floor, no steps."""
+    xy, heading = path(np.asarray(t, dtype=float))
+    out = np.empty((len(xy), 24, 3))
+    for i in range(len(xy)):
+        out[i] = np.r_[xy[i], 0.0] + STANDING @ _frame(heading[i]).T
+    return out
+
+
+def handstand(t: np.ndarray, path: Path2D, world: World) -> np.ndarray:
+    """Walking on the hands: the hands take the feet's footprints, the body upside down above them."""
+    walker = gait(t, path, world)
+    xy, heading = path(np.asarray(t, dtype=float))
+    arms_up = STANDING.copy()
+    arms_up[[18, 19], 2], arms_up[[20, 21], 2], arms_up[[22, 23], 2] = 1.70, 1.96, 2.04
+    arms_up[[18, 20, 22], 1] = [0.20, 0.21, 0.21]
+    arms_up[[19, 21, 23], 1] = [-0.20, -0.21, -0.21]
+    arms_up[18:24, 0] = 0.0
+    flipped = arms_up.copy()
+    flipped[:, 2] = 2.04 - arms_up[:, 2]  # hands at 0, feet at 2.04 m
+    flipped[:, 1] = -arms_up[:, 1]  # a half turn about the forward axis swaps left and right
+    out = np.empty_like(walker)
+    for i in range(len(xy)):
+        R = _frame(heading[i])
+        body = np.r_[xy[i], 0.0] + flipped @ R.T
+        bob = walker[i, 0, 2] - STANDING[0, 2]
+        body[:, 2] += bob
+        for hand, wrist, elbow, shoulder, foot in ((22, 20, 18, 16, 10), (23, 21, 19, 17, 11)):
+            body[hand] = walker[i, foot]
+            body[wrist] = walker[i, foot] + np.array([0.0, 0.0, 0.08])
+            body[elbow] = 0.5 * (body[wrist] + body[shoulder])
+        out[i] = body
+    return out
+
+
+def load_motion(path: str | Path, t: np.ndarray) -> np.ndarray:
+    """Real motion (a ``cmu_mocap`` npz: joints (T, 24, 3) y-up, floor y = 0, metres) at stamps t,
+    z-up, played forwards then backwards to fill ``t``, its mean root over the origin."""
+    data = np.load(path)
+    joints = np.asarray(data['joints'], dtype=float)
+    fps = float(data['fps'])
+    joints = np.stack([joints[..., 0], -joints[..., 2], joints[..., 1]], axis=-1)
+    n = len(joints)
+    frame = np.asarray(t, dtype=float) * fps
+    cycle = 2 * (n - 1)
+    f = np.mod(frame, cycle)
+    f = np.where(f <= n - 1, f, cycle - f)
+    lo = np.floor(f).astype(int)
+    hi = np.minimum(lo + 1, n - 1)
+    w = (f - lo)[:, None, None]
+    out = (1 - w) * joints[lo] + w * joints[hi]
+    centre = joints[:, 0].mean(axis=0) * [1, 1, 0]
+    return out - centre

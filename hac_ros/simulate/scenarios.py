@@ -1,0 +1,225 @@
+"""The scenarios: a world, people, a camera rig, a SLAM and an HMR model, with ground truth.
+
+``make_scenario(name, seed, ...)`` is pure computation (no I/O) and deterministic for a seed; the
+recording writer and the benchmarks use the same :class:`Scenario`.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from hac_ros.core.errors import HacError
+from hac_ros.simulate import camera as rigs
+from hac_ros.simulate import humans
+from hac_ros.simulate.hmr import draw_bias, in_view, predict
+from hac_ros.simulate.slam import MapMessage, run_slam
+from hac_ros.simulate.world import Box, World, room
+
+SCALE_RANGE = (0.2, 5.0)  # the true scale is drawn log-uniformly from this range
+LANDMARK_DENSITY = 60.0  # textured landmarks per m² of surface (times each surface's texture)
+START_NS = 1_700_000_000_000_000_000  # recordings start at a fixed, plausible wall-clock stamp
+DRIFT_TOTAL = 0.30  # the drift scenario's scale drifts by 30 % over the run
+
+
+@dataclass
+class Scenario:
+    """Everything a recording holds, as arrays. Frames and units in every name.
+
+    Poses at every stamp: ``slam_R_wc`` (T, 3, 3) camera-to-map and ``slam_c`` (T, 3) SLAM units
+    (what /slam/pose carries, map frame ``slam_frame_ids[i]``); ``gt_R_wc``, ``gt_c`` (metres) the
+    true camera in the fixed world frame; ``true_scale`` (T,) metres per SLAM unit.
+    Humans at ``joints_stamps_ns`` (F,) (the stamps with someone in view): ``joints_cam[k]``
+    (P, 24, 3) the HMR prediction, metres, camera optical frame; ``gt_joints_world[k]`` the truth,
+    world frame; ``person_ids[k]`` which people.
+    """
+
+    name: str
+    seed: int
+    rate: float
+    camera_frame: str
+    K: np.ndarray
+    width: int
+    height: int
+    pose_stamps_ns: np.ndarray
+    slam_R_wc: np.ndarray
+    slam_c: np.ndarray
+    slam_frame_ids: list[str]
+    gt_R_wc: np.ndarray
+    gt_c: np.ndarray
+    true_scale: np.ndarray
+    maps: list[MapMessage]
+    joints_stamps_ns: np.ndarray
+    joints_cam: list[np.ndarray]
+    gt_joints_world: list[np.ndarray]
+    person_ids: list[np.ndarray]
+    hmr_bias: float
+    outlier_frames: np.ndarray
+    segment_starts: list[int]
+    world: World = field(repr=False)
+    world_frame: str = 'world'
+
+    def segment_start(self, i: int) -> int:
+        return max(s for s in self.segment_starts if s <= i)
+
+    def true_ground_plane_slam(self, i: int) -> tuple[np.ndarray, float]:
+        """The floor (z = 0) in the SLAM map frame of pose i: (normal (3,) unit, pointing down; offset).
+
+        Plane ``{p : normal·p = offset}`` in SLAM units, with the scale of pose i (exact for a
+        constant scale).
+        """
+        s0 = self.segment_start(i)
+        R0 = self.gt_R_wc[s0]
+        down_world = np.array([0.0, 0.0, -1.0])
+        normal = R0.T @ down_world
+        offset = float(normal @ self.slam_c[i] + self.gt_c[i, 2] / self.true_scale[i])
+        return normal, offset
+
+    @property
+    def duration_s(self) -> float:
+        return float(self.pose_stamps_ns[-1] - self.pose_stamps_ns[0]) / 1e9
+
+
+# name -> (default duration s, description)
+SCENARIOS: dict[str, tuple[float, str]] = {
+    'walk': (30.0, 'handheld camera following a walker, feet mostly in view (EMDB-like)'),
+    'ego': (30.0, 'head-mounted camera, a partner in view, feet mostly out of view, sparse floor'),
+    'stairs': (30.0, 'a walker crossing a flight of stairs up and down'),
+    'handstand': (20.0, 'walking on the hands: the hands are the contact'),
+    'skate': (20.0, 'a standing pose gliding across the world'),
+    'occluded': (30.0, 'tables between the camera and the feet'),
+    'crowd': (30.0, 'three people'),
+    'drift': (60.0, 'the SLAM scale drifts by 30 % over the run'),
+    'reset': (40.0, 'the SLAM re-initialises mid-run: new map frame, new scale'),
+    'static': (20.0, 'a camera that does not move'),
+}
+
+
+def _furniture(world: World) -> None:
+    """A few textured boxes along the walls (shelves, a cabinet, a sofa)."""
+    world.boxes += [Box(np.array([-6.9, -2.0, 0.0]), np.array([-6.3, 2.0, 1.8]), 1.5),
+                    Box(np.array([4.0, 6.2, 0.0]), np.array([6.5, 6.9, 0.9]), 1.5),
+                    Box(np.array([-3.0, -6.9, 0.0]), np.array([0.5, -6.2, 0.8]), 1.5)]
+
+
+def _stairs(world: World) -> None:
+    """Three steps up, a landing, three steps down, across x in [-1.75, 1.75], y in [-1.2, 1.2]."""
+    rise, run = 0.17, 0.35
+    for k in range(3):
+        h = rise * (k + 1)
+        world.boxes.append(Box(np.array([-1.75 + run * k, -1.2, 0.0]),
+                               np.array([-1.75 + run * (k + 1), 1.2, h]), 1.2))
+        world.boxes.append(Box(np.array([1.75 - run * (k + 1), -1.2, 0.0]),
+                               np.array([1.75 - run * k, 1.2, h]), 1.2))
+    world.boxes.append(Box(np.array([-0.7, -1.2, 0.0]), np.array([0.7, 1.2, 3 * rise]), 1.2))
+
+
+def make_scenario(name: str, seed: int = 0, duration: float | None = None, rate: float = 30.0,
+                  hmr_bias: float | None = None, motion: str | None = None) -> Scenario:
+    """Build one scenario (deterministic for ``seed``)."""
+    if name not in SCENARIOS:
+        raise HacError(f'unknown scenario {name!r}; one of: {", ".join(SCENARIOS)}')
+    if rate <= 0 or (duration is not None and duration <= 0):
+        raise HacError('rate and duration must be positive')
+    rng = np.random.default_rng([seed, sorted(SCENARIOS).index(name)])
+    duration = SCENARIOS[name][0] if duration is None else float(duration)
+    T = max(2, int(round(duration * rate)) + 1)
+    t = np.arange(T) / rate
+    stamps = START_NS + np.round(t * 1e9).astype(np.int64)
+    world = room()
+    _furniture(world)
+    scale0 = float(np.exp(rng.uniform(math.log(SCALE_RANGE[0]), math.log(SCALE_RANGE[1]))))
+    bias = draw_bias(rng) if hmr_bias is None else float(hmr_bias)
+
+    # --- people (world joints per frame) and the camera
+    people: list[np.ndarray]
+    if name == 'stairs':
+        _stairs(world)
+        people = [humans.gait(t, humans.shuttle_path((-4.0, 0.0), (4.0, 0.0), 1.0), world)]
+    elif name == 'handstand':
+        people = [humans.handstand(t, humans.circle_path((0.0, 0.0), 2.5, 0.5), world)]
+    elif name == 'skate':
+        people = [humans.skate(t, humans.circle_path((0.0, 0.0), 3.0, 1.5))]
+    elif name == 'occluded':
+        for k in range(4):  # a row of tables between the camera and the walker
+            x0 = -5.0 + 2.6 * k
+            world.boxes.append(Box(np.array([x0, -0.3, 0.0]), np.array([x0 + 2.0, 0.9, 0.75]), 1.5))
+        people = [humans.gait(t, humans.shuttle_path((-4.5, 1.6), (4.5, 1.6), 1.0), world)]
+    elif name == 'crowd':
+        people = [humans.gait(t, humans.circle_path((0.0, 0.0), 3.0, 1.1), world),
+                  humans.gait(t, humans.circle_path((0.0, 0.0), 1.8, 0.9, phase=2.0), world, 0.2),
+                  humans.gait(t, humans.shuttle_path((-4.0, -4.0), (4.0, -1.0), 1.2), world, 0.35)]
+    elif name == 'ego':
+        world.floor_texture = 0.08  # a plain floor: sparsely mapped
+        people = [humans.gait(t, humans.circle_path((0.0, 0.0), 3.2, 1.0), world)]
+    else:  # walk, drift, reset, static
+        people = [humans.gait(t, humans.circle_path((0.0, 0.0), 3.0, 1.1), world)]
+    if motion is not None:
+        people[0] = humans.load_motion(motion, t)
+
+    root = people[0][:, 0]
+    if name == 'ego':
+        R_world, c_world = rigs.head_mounted(root, t, rng)
+    elif name == 'static':
+        R_world, c_world = rigs.static(np.array([0.0, 0.0, 0.8]), t, np.array([0.0, -6.2, 1.6]))
+    elif name == 'occluded':
+        centre = np.c_[root[:, 0] * 0.8, np.full(T, -3.2), np.full(T, 1.5)]
+        R_world = np.stack([rigs.look_at(centre[i], np.r_[root[i, :2], 0.5]) for i in range(T)])
+        c_world = centre
+    else:
+        R_world, c_world = rigs.follow(root, t, rng, distance=4.5 if name == 'crowd' else 3.5)
+
+    # --- SLAM
+    if name == 'drift':
+        def scale_fn(i: int) -> float:
+            return scale0 * (1.0 + DRIFT_TOTAL * i / (T - 1))
+        segments = [0]
+    elif name == 'reset':
+        reset_at = T // 2
+        scale1 = scale0 * float(np.exp(rng.uniform(math.log(0.4), math.log(2.5))))
+
+        def scale_fn(i: int) -> float:
+            return scale0 if i < reset_at else scale1
+        segments = [0, reset_at]
+    else:
+        def scale_fn(i: int) -> float:
+            return scale0
+        segments = [0]
+    K = rigs.K_DEFAULT.copy()
+    landmarks = world.sample_landmarks(LANDMARK_DENSITY, rng)
+    people_per_frame = [np.stack([p[i] for p in people]) for i in range(T)]
+    slam = run_slam(world, landmarks, stamps, R_world, c_world, people_per_frame, K,
+                    (rigs.WIDTH, rigs.HEIGHT), scale_fn, segments, rng)
+
+    # --- HMR
+    j_stamps, j_cam, j_world, ids, outliers = [], [], [], [], []
+    for i in range(T):
+        preds, truths, who = [], [], []
+        for pid, person in enumerate(people):
+            cam = (person[i] - c_world[i]) @ R_world[i]
+            if not in_view(cam, K, rigs.WIDTH, rigs.HEIGHT):
+                continue
+            pred, outlier = predict(person[i], R_world[i], c_world[i], bias, rng)
+            preds.append(pred)
+            truths.append(person[i])
+            who.append(pid)
+            if outlier:
+                outliers.append(i)
+        if preds:
+            j_stamps.append(stamps[i])
+            j_cam.append(np.stack(preds))
+            j_world.append(np.stack(truths))
+            ids.append(np.array(who))
+    return Scenario(
+        name=name, seed=seed, rate=rate, camera_frame='camera_optical', K=K, width=rigs.WIDTH,
+        height=rigs.HEIGHT, pose_stamps_ns=stamps, slam_R_wc=slam.R_wc, slam_c=slam.c,
+        slam_frame_ids=slam.frame_ids, gt_R_wc=R_world, gt_c=c_world, true_scale=slam.scale,
+        maps=slam.maps, joints_stamps_ns=np.array(j_stamps, dtype=np.int64), joints_cam=j_cam,
+        gt_joints_world=j_world, person_ids=ids, hmr_bias=bias,
+        outlier_frames=np.array(sorted(set(outliers)), dtype=int), segment_starts=segments,
+        world=world)
+
+
+ScaleFunction = Callable[[int], float]
