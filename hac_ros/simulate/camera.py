@@ -74,6 +74,18 @@ def head_mounted(partner_root: np.ndarray, t: np.ndarray, rng: np.random.Generat
     return out, centre
 
 
+def side(root: np.ndarray, t: np.ndarray, offset_y: float, height: float = 1.5,
+         follow: float = 0.8) -> tuple[np.ndarray, np.ndarray]:
+    """A camera walking beside a person's line at ``offset_y`` metres, looking at their shins.
+
+    For walkers that turn on the spot (shuttles), where a follower would swing round them.
+    """
+    centre = np.c_[root[:, 0] * follow, root[:, 1] + offset_y, np.full(len(t), height)]
+    centre = _smooth(centre, 15)
+    R = np.stack([look_at(centre[i], np.r_[root[i, :2], 0.5]) for i in range(len(t))])
+    return R, centre
+
+
 def static(target: np.ndarray, t: np.ndarray, position: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """A camera that does not move, looking at ``target``."""
     R = look_at(np.asarray(position, float), np.asarray(target, float))

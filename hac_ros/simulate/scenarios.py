@@ -165,9 +165,9 @@ def make_scenario(name: str, seed: int = 0, duration: float | None = None, rate:
     elif name == 'static':
         R_world, c_world = rigs.static(np.array([0.0, 0.0, 0.8]), t, np.array([0.0, -6.2, 1.6]))
     elif name == 'occluded':
-        centre = np.c_[root[:, 0] * 0.8, np.full(T, -3.2), np.full(T, 1.5)]
-        R_world = np.stack([rigs.look_at(centre[i], np.r_[root[i, :2], 0.5]) for i in range(T)])
-        c_world = centre
+        R_world, c_world = rigs.side(root, t, offset_y=-4.8)
+    elif name == 'stairs':
+        R_world, c_world = rigs.side(root, t, offset_y=-4.5)
     else:
         R_world, c_world = rigs.follow(root, t, rng, distance=4.5 if name == 'crowd' else 3.5)
 
