@@ -193,6 +193,11 @@ class GroundModel:
         self._plane_cache = None
 
     # ------------------------------------------------------------------ queries
+    @property
+    def refined(self) -> bool:
+        """Whether the normal comes from contact joints (or is known), not the body axis alone."""
+        return self._known is not None or self._contact_normal is not None
+
     def normal(self) -> np.ndarray | None:
         """The current down-pointing unit normal in the map frame, or None (not enough evidence)."""
         if self._known is not None:
