@@ -36,7 +36,8 @@ def test_fast_path_gives_the_literal_scales(name):
 
 
 def test_thinning_a_dense_map_keeps_the_cone_median():
-    """Maps above index_max_points are thinned at random: the cone median moves by less than 1 %."""
+    """Maps above index_max_points are thinned at random: per ray the cone median moves by the
+    noise of a median of fewer points (a few %); on average it does not move (no bias)."""
     rng = np.random.default_rng(0)
     floor = np.c_[rng.uniform(-6, 6, (600_000, 2)), rng.normal(0, 0.005, 600_000)]
     origin = np.array([0.0, -4.0, 1.5])
@@ -44,11 +45,15 @@ def test_thinning_a_dense_map_keeps_the_cone_median():
     thin = MapIndex(floor, max_points=100_000)
     assert len(thin) < 110_000 and thin.received == 600_000
     cos_min = np.cos(np.radians(2.56))
-    for x in np.linspace(-2, 2, 9):
+    ratios = []
+    for x in np.linspace(-3, 3, 41):
         d = np.array([x, 4.0, -1.5])
         d /= np.linalg.norm(d)
         literal = literal_cone_median(floor, origin, d, cos_min, 3)
         assert full.query(origin, d, mode='cone_median', cos_min=cos_min, min_points=3).distance == \
             pytest.approx(literal, rel=1e-12)
-        assert thin.query(origin, d, mode='cone_median', cos_min=cos_min,
-                          min_points=3).distance == pytest.approx(literal, rel=0.01)
+        ratios.append(thin.query(origin, d, mode='cone_median', cos_min=cos_min,
+                                 min_points=3).distance / literal)
+    ratios = np.array(ratios)
+    assert np.max(np.abs(ratios - 1)) < 0.03
+    assert abs(np.mean(ratios) - 1) < 0.003
