@@ -7,7 +7,9 @@
 - Map points are the world's textured landmarks, created when a keyframe first sees them (in the
   image, within range, not occluded by the world, not on a person — masked), placed with the pose
   and scale of that moment and a depth-proportional noise; the whole map so far is republished every
-  ``map_period_s``.
+  ``map_period_s``. When the scale drifts, landmarks seen again are re-placed in the scale of the
+  moment (tracking keeps the local map consistent with the current pose; old, unseen parts keep
+  the old scale).
 """
 from __future__ import annotations
 
@@ -95,14 +97,17 @@ def run_slam(world: World, landmarks: np.ndarray, stamps_ns: np.ndarray, R_world
     maps: list[MapMessage] = []
     next_map = stamps_ns[0] + int(0.3e9)
     points_slam = np.zeros((L, 3))
-    seg_created = np.full(L, -1)
+    placed_scale = np.zeros(L)
     for i in range(T):
         if i in starts and i > 0:
             created[:] = -1  # a re-initialised SLAM starts an empty map
             next_map = stamps_ns[i] + int(0.3e9)
         if i in keyframes:
-            new = _visible(world, landmarks, R_world[i], c_world[i], people_world[i], K, width,
-                           height) & (created < 0)
+            seen = _visible(world, landmarks, R_world[i], c_world[i], people_world[i], K, width,
+                            height)
+            # new landmarks, and (scale drift) landmarks seen again since the scale moved: a SLAM's
+            # local map follows the scale its tracking drifts to
+            new = seen & ((created < 0) | (np.abs(placed_scale / scale[i] - 1.0) > 1e-9))
             if new.any():
                 s0 = starts[seg_of[i]]
                 R0 = R_world[s0]
@@ -111,8 +116,8 @@ def run_slam(world: World, landmarks: np.ndarray, stamps_ns: np.ndarray, R_world
                 metric = landmarks[new] + point_noise[new] * sigma[:, None]
                 # placed relative to the (drifted) SLAM camera of this moment, in its SLAM units
                 points_slam[new] = c_slam[i] + (drift[i] + metric - c_world[i]) @ R0 / scale[i]
-                created[new] = i
-                seg_created[new] = seg_of[i]
+                created[new] = np.where(created[new] < 0, i, created[new])
+                placed_scale[new] = scale[i]
         if stamps_ns[i] >= next_map:
             have = created >= 0
             if have.any():
