@@ -505,17 +505,19 @@ class Calibrator:
         2. Once a scale exists: its metric distance must agree with the joint's own distance within
            ``plausibility_rel_tol`` (an occluder in front of the foot is much nearer, a far wall
            behind a gap much further).
-        3. Before a scale exists (e.g. after a reset), once the floor's normal has been refined by
-           contact joints, a hit much nearer than the floor is suspect too (an occluder, or a stair
-           step): the floor decides until rule 2 can tell them apart. The body-axis normal alone is
-           too rough for this (a forward lean of a few degrees moves a grazing ray's floor point a lot).
+        3. Before a scale exists (after a reset), once the floor's normal has been refined by
+           contact joints, a hit much nearer than the floor is suspect too (an occluder, a stair
+           step): the floor decides until rule 2 can judge. The body-axis floor alone is too rough
+           for this: a forward lean of a few degrees moves a grazing ray's floor point a lot (on the
+           real-data composite, using it here took the scale error from 4.7 % to 43 %).
         """
         tol = self.params.plausibility_rel_tol
         if math.isfinite(plane_distance):
             if d_slam > plane_distance * (1.0 + tol):
                 return False
+            # before a scale: a hit well above a trusted floor may be an occluder
             if scale is None and self.ground.refined and d_slam * (1.0 + tol) < plane_distance:
-                return False  # before a scale: a hit well above a trusted floor may be an occluder
+                return False
         if scale is not None and abs(scale * d_slam - distance_metric) > tol * distance_metric:
             return False
         return True

@@ -7,8 +7,9 @@ The robust spread is the median absolute deviation (MAD), found in O(log² n) by
 smallest of the two sorted runs of deviations on either side of the median.
 
 Once converged (``min_samples``), a sample further than ``gate_k`` robust sigmas from the median
-(and than ``gate_min_rel`` of it) is gated out. If ``min_samples`` gated samples come in a row the
-window was wrong (it locked on a bad start) and the estimator re-locks on the new samples.
+(and than ``gate_min_rel`` of it) is gated out. If gated samples keep coming in a row for a third
+of the window (and at least ``min_samples``), consistent among themselves, the window was wrong
+(it locked on a bad start) and the estimator re-locks on them.
 """
 from __future__ import annotations
 
@@ -59,7 +60,7 @@ class RollingScale:
         self._evict(stamp_ns)
         if self.converged and not self._within_gate(scale):
             self._gated_run.append((stamp_ns, scale))
-            if len(self._gated_run) >= self.min_samples:
+            if self._run_says_window_is_wrong():
                 self._relock()
             return False
         self._gated_run.clear()
@@ -132,6 +133,19 @@ class RollingScale:
         med = self.median()
         band = max(self.gate_k * self.spread(), self.gate_min_rel * med)
         return abs(scale - med) <= band
+
+    def _run_says_window_is_wrong(self) -> bool:
+        """A run of gated samples long enough (``min_samples`` and a third of the window in stamp
+        time) and consistent enough (robust spread within half the gate's relative floor) to say
+        the window locked on a bad start, not that a passing disturbance (an occluder, a step) is
+        gated as it should be."""
+        run = self._gated_run
+        if len(run) < self.min_samples or run[-1][0] - run[0][0] < self.window_ns // 3:
+            return False
+        values = np.array([v for _, v in run])
+        med = float(np.median(values))
+        spread = MAD_TO_SIGMA * float(np.median(np.abs(values - med)))
+        return spread <= 0.5 * max(self.gate_min_rel, 1e-3) * med
 
     def _evict(self, stamp_ns: int) -> None:
         horizon = stamp_ns - self.window_ns
