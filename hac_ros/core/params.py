@@ -51,7 +51,7 @@ class HacParams:
     camera_frame: str = _p('', 'camera optical frame; "" = from the inputs')
 
     # --- method (SPEC: the method)
-    contact_mode: str = _p('lowest', 'how the contact joint is chosen', choices=CONTACT_MODES)
+    contact_mode: str = _p('lowest_gravity', 'how the contact joint is chosen', choices=CONTACT_MODES)
     reference_mode: str = _p('cone_median', 'map ray query', choices=REFERENCE_MODES)
     cone_angle_deg: float = _p(2.56, 'half angle of the ray cone (2.56 deg = authors cos 0.999)',
                                low=0.05, high=20.0)
