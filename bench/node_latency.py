@@ -1,0 +1,394 @@
+#!/usr/bin/env python3
+"""Node latency: joints in → world joints out over DDS, with a large map republished at 1 Hz.
+
+    python bench/node_latency.py [--map-points 100000] [--duration 20]
+
+``hac_node`` runs in a subprocess with the installed defaults (config/hac.yaml: best-effort
+pose/joints, transient-local map, markers on). This process plays the simulator's ``walk`` live at
+30 Hz (SLAM pose, then the HMR joints of the same stamp, stamped with the wall clock) and
+republishes a map of N points every second (the walk's map resampled to N points, pre-serialized
+once, its stamp patched into the CDR bytes). Measured after a warm-up:
+
+- latency: from just before a joints message is published to the arrival of the
+  ``/hac/human_joints`` of the same stamp (p50, p99, max), both ends in this process;
+- frames dropped: joints published without world joints back (and the node's own counts of
+  rejected frames, from /diagnostics);
+- the node's CPU share (user + system time of the node process from /proc/<pid>/stat over the
+  measurement, in % of one core);
+- map ingestion on the node's builder thread, measured here on the same bytes: the CDR header
+  (parse_cloud_cdr), rclpy's deserialize_message for comparison, the point decoding and the index.
+
+Sets ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST and a domain of its own. Prints a table, merges the
+run into bench/results/node_latency.json (one entry per map size) and writes the
+``node_latency`` section of docs/benchmarks.md.
+"""
+from __future__ import annotations
+
+import os
+
+# before rclpy is imported: DDS stays on this machine, on a domain no test or user shares
+os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+os.environ.pop('ROS_STATIC_PEERS', None)
+os.environ['ROS_DOMAIN_ID'] = str(10 + (os.getpid() + 45) % 90)
+
+import argparse  # noqa: E402
+import json  # noqa: E402
+import signal  # noqa: E402
+import struct  # noqa: E402
+import subprocess  # noqa: E402
+import sys  # noqa: E402
+import tempfile  # noqa: E402
+import threading  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+from typing import Any  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _report import RESULTS, machine, machine_line, table, write_json, write_section  # noqa: E402
+
+import rclpy  # noqa: E402
+from rclpy.executors import SingleThreadedExecutor  # noqa: E402
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
+from rclpy.serialization import deserialize_message, serialize_message  # noqa: E402
+
+from hac_ros.core.calibrator import Calibrator  # noqa: E402
+from hac_ros.core.params import HacParams  # noqa: E402
+from hac_ros.node import cloud_points, parse_cloud_cdr  # noqa: E402
+from hac_ros.simulate import make_scenario  # noqa: E402
+from msg_adapters import (joints_to_pose_array, rclpy_types, rt_to_pose_stamped,  # noqa: E402
+                          stamp_to_ns, xyz_to_cloud)
+
+REPO = Path(__file__).resolve().parents[1]
+NAME = 'node_latency'
+RATE_HZ = 30.0  # camera rate: one SLAM pose and one joints message per frame
+MAP_PERIOD_S = 1.0  # map republished at 1 Hz
+WARMUP_S = 4.0  # first map, convergence (min_samples frames) and DDS warm-up: not measured
+DRAIN_S = 2.0  # after the last frame: wait for the last outputs
+STARTUP_S = 30.0
+NEAR_MAP_S = 0.3  # a frame sent within this long after a map publish is "near a map"
+TAKE_SETTLE_S = 0.3  # a published map is in the subscriber's queue after this long
+MAP_JITTER_REL = 1e-3  # resampled map points move by this fraction of the map's extent
+TYPES = rclpy_types()
+CLK_TCK = os.sysconf('SC_CLK_TCK')
+LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
+OUTPUT_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+INPUT_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+
+
+def resample_map(points_map: np.ndarray, count: int, seed: int = 0) -> np.ndarray:
+    """``count`` points on the same surfaces: a subset, or copies jittered by MAP_JITTER_REL."""
+    rng = np.random.default_rng(seed)
+    if count <= len(points_map):
+        return points_map[rng.choice(len(points_map), count, replace=False)]
+    extent = float(np.linalg.norm(np.ptp(points_map, axis=0)))
+    picks = points_map[rng.integers(0, len(points_map), count - len(points_map))]
+    jitter = rng.normal(scale=MAP_JITTER_REL * extent, size=picks.shape)
+    return np.vstack([points_map, picks + jitter])
+
+
+def set_cdr_stamp(raw: bytearray, stamp_ns: int) -> None:
+    """Patch header.stamp (the first 8 payload bytes of a little-endian CDR message)."""
+    sec, nanosec = divmod(stamp_ns, 1_000_000_000)
+    struct.pack_into('<iI', raw, 4, sec, nanosec)
+
+
+def cpu_seconds(pid: int) -> float:
+    """User + system CPU time of a process (fields 14 and 15 of /proc/<pid>/stat)."""
+    stat = Path(f'/proc/{pid}/stat').read_text()
+    fields = stat[stat.rindex(')') + 2:].split()
+    return (int(fields[11]) + int(fields[12])) / CLK_TCK
+
+
+def ingest_costs(raw: bytes, repeats: int = 5) -> dict[str, float]:
+    """What the node does with one map message, timed here on the same bytes (ms, median of n)."""
+    calibrator = Calibrator(HacParams())
+    times: dict[str, list[float]] = {}
+
+    def timed(key: str, fn: Any) -> Any:
+        start = time.perf_counter()
+        value = fn()
+        times.setdefault(key, []).append((time.perf_counter() - start) * 1e3)
+        return value
+
+    for _ in range(repeats):
+        cloud = timed('cdr_header_ms', lambda: parse_cloud_cdr(raw))
+        timed('deserialize_message_ms',
+              lambda: deserialize_message(raw, TYPES.get('sensor_msgs/msg/PointCloud2')))
+        points = timed('decode_points_ms', lambda: cloud_points(cloud))
+        timed('index_build_ms', lambda: calibrator.build_index(cloud.stamp_ns, points,
+                                                               cloud.frame_id))
+    return {key: float(np.median(values)) for key, values in times.items()}
+
+
+def executor_take_costs(raw: bytes, repeats: int = 5) -> dict[str, float]:
+    """Executor time to take one map message (ms, median): raw bytes vs a deserialized message.
+
+    What each kind of subscription costs the executor's thread before any callback work: the
+    node's raw subscription copies the serialized bytes; a typed one deserializes them.
+    """
+    cloud_type = TYPES.get('sensor_msgs/msg/PointCloud2')
+    qos = QoSProfile(depth=2, reliability=ReliabilityPolicy.RELIABLE)
+    node = rclpy.create_node('hac_latency_take')
+    publisher = node.create_publisher(cloud_type, '/hac_bench/take', qos)
+    costs: dict[str, float] = {}
+    for raw_subscription in (True, False):
+        received: list[int] = []
+        subscription = node.create_subscription(cloud_type, '/hac_bench/take',
+                                                lambda _: received.append(1), qos,
+                                                raw=raw_subscription)
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        deadline = time.monotonic() + 10.0
+        while publisher.get_subscription_count() == 0 and time.monotonic() < deadline:
+            time.sleep(0.01)
+        times = []
+        for _ in range(repeats):
+            count = len(received)
+            publisher.publish(raw)
+            time.sleep(TAKE_SETTLE_S)  # delivered into the subscription's queue, not yet taken
+            start = time.perf_counter()
+            executor.spin_once(timeout_sec=1.0)
+            times.append((time.perf_counter() - start) * 1e3)
+            if len(received) != count + 1:
+                raise RuntimeError('the map message was not taken in one spin')
+        costs['take_raw_ms' if raw_subscription else 'take_deserialized_ms'] = float(
+            np.median(times))
+        executor.remove_node(node)
+        executor.shutdown()
+        node.destroy_subscription(subscription)
+    node.destroy_node()
+    return costs
+
+
+class Bench:
+    """The playing and recording side, in this process."""
+
+    def __init__(self, scenario: Any, map_raw: bytearray) -> None:
+        rclpy.init()
+        self.node = rclpy.create_node('hac_latency_bench')
+        self.pose_pub = self.node.create_publisher(TYPES.get('geometry_msgs/msg/PoseStamped'),
+                                                   '/slam/pose', INPUT_QOS)
+        self.joints_pub = self.node.create_publisher(TYPES.get('geometry_msgs/msg/PoseArray'),
+                                                     '/hmr/joints', INPUT_QOS)
+        self.map_pub = self.node.create_publisher(TYPES.get('sensor_msgs/msg/PointCloud2'),
+                                                  '/slam/cloud', LATCHED)
+        self.sent: dict[int, int] = {}  # joints stamp -> perf_counter_ns just before publishing
+        self.received: dict[int, int] = {}  # joints stamp -> perf_counter_ns of the world joints
+        self.diagnostics: dict[str, str] = {}
+        self.node.create_subscription(TYPES.get('geometry_msgs/msg/PoseArray'), '/hac/human_joints',
+                                      self._on_joints, OUTPUT_QOS)
+        self.node.create_subscription(TYPES.get('diagnostic_msgs/msg/DiagnosticArray'),
+                                      '/diagnostics', self._on_diagnostics, OUTPUT_QOS)
+        self.executor = SingleThreadedExecutor()
+        self.executor.add_node(self.node)
+        self.spinner = threading.Thread(target=self.executor.spin, daemon=True)
+        self.spinner.start()
+        self.scenario = scenario
+        self.map_raw = map_raw
+        self.map_frame = scenario.slam_frame_ids[0]
+        self.stop = threading.Event()
+        self.maps_sent = 0
+        self.map_times: list[int] = []  # perf_counter_ns just before each map publish
+
+    def _on_joints(self, msg: Any) -> None:
+        self.received.setdefault(stamp_to_ns(msg.header.stamp), time.perf_counter_ns())
+
+    def _on_diagnostics(self, msg: Any) -> None:
+        self.diagnostics = {kv.key: kv.value for kv in msg.status[0].values}
+
+    def node_is_up(self) -> bool:
+        return (self.pose_pub.get_subscription_count() > 0 and
+                self.joints_pub.get_subscription_count() > 0 and
+                self.map_pub.get_subscription_count() > 0 and
+                self.node.count_publishers('/hac/human_joints') > 0)
+
+    def publish_map(self) -> None:
+        set_cdr_stamp(self.map_raw, time.time_ns())
+        self.map_times.append(time.perf_counter_ns())
+        self.map_pub.publish(bytes(self.map_raw))
+        self.maps_sent += 1
+
+    def map_loop(self) -> None:
+        while not self.stop.wait(MAP_PERIOD_S):
+            self.publish_map()
+
+    def play(self, seconds: float) -> tuple[int, int]:
+        """Frames at RATE_HZ for ``seconds`` of wall time; returns (first, end) perf_counter_ns."""
+        sc = self.scenario
+        frames = min(len(sc.pose_stamps_ns), len(sc.joints_stamps_ns), int(seconds * RATE_HZ))
+        poses = [rt_to_pose_stamped(sc.slam_R_wc[i], sc.slam_c[i], 0, self.map_frame, TYPES)
+                 for i in range(frames)]
+        joints = [joints_to_pose_array(np.asarray(sc.joints_cam[i]), 0, sc.camera_frame, TYPES)
+                  for i in range(frames)]
+        start = time.perf_counter()
+        begin = time.perf_counter_ns()
+        for i in range(frames):
+            delay = start + i / RATE_HZ - time.perf_counter()
+            if delay > 0:
+                time.sleep(delay)
+            sec, nanosec = divmod(time.time_ns(), 1_000_000_000)
+            for msg in (poses[i], joints[i]):
+                msg.header.stamp.sec, msg.header.stamp.nanosec = sec, nanosec
+            self.pose_pub.publish(poses[i])
+            stamp = sec * 1_000_000_000 + nanosec
+            self.sent[stamp] = time.perf_counter_ns()
+            self.joints_pub.publish(joints[i])
+        return begin, time.perf_counter_ns()
+
+    def close(self) -> None:
+        self.stop.set()
+        self.executor.shutdown(timeout_sec=2.0)
+        self.node.destroy_node()
+        rclpy.try_shutdown()
+
+
+def run(map_points: int, duration: float) -> dict[str, Any]:
+    total = WARMUP_S + duration
+    sc = make_scenario('walk', seed=0, duration=total + 1.0, hmr_bias=0.0)
+    base_map = max(sc.maps, key=lambda m: len(m.points_slam))
+    points = resample_map(np.asarray(base_map.points_slam, dtype=float), map_points)
+    map_raw = bytearray(serialize_message(xyz_to_cloud(points, 0, base_map.frame_id, TYPES)))
+    costs = ingest_costs(bytes(map_raw))
+    bench = Bench(sc, map_raw)
+    costs.update(executor_take_costs(bytes(map_raw)))
+
+    params = REPO / 'config' / 'hac.yaml'
+    env = {**os.environ, 'PYTHONUNBUFFERED': '1', 'RCUTILS_COLORIZED_OUTPUT': '0'}
+    node = subprocess.Popen([sys.executable, '-m', 'hac_ros.node', '--ros-args', '--params-file',
+                             str(params)], cwd=REPO, env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + STARTUP_S
+        while not bench.node_is_up():
+            if time.monotonic() > deadline or node.poll() is not None:
+                raise RuntimeError('hac_node did not come up: ' + ' '.join(_stop(node)[1:]))
+            time.sleep(0.05)
+        bench.publish_map()
+        mapper = threading.Thread(target=bench.map_loop, daemon=True)
+        mapper.start()
+        t_cpu0 = w_cpu0 = None
+        measure_from = [0]
+
+        def start_measuring() -> None:
+            nonlocal t_cpu0, w_cpu0
+            measure_from[0] = time.perf_counter_ns()
+            t_cpu0, w_cpu0 = cpu_seconds(node.pid), time.perf_counter()
+
+        timer = threading.Timer(WARMUP_S, start_measuring)
+        timer.start()
+        own0 = time.process_time()
+        _, end = bench.play(total)
+        node_cpu = cpu_seconds(node.pid) - t_cpu0
+        wall = time.perf_counter() - w_cpu0
+        own_cpu = (time.process_time() - own0) / total
+        time.sleep(DRAIN_S)
+    finally:
+        bench.close()
+        code, out, err = _stop(node)
+    measured = {s: t for s, t in bench.sent.items() if t >= measure_from[0]}
+    answered = [(s, t) for s, t in measured.items() if s in bench.received]
+    latencies = np.array([(bench.received[s] - t) / 1e6 for s, t in answered])
+    # frames sent while a map is in flight or being ingested vs the others
+    map_times = np.array(bench.map_times, dtype=np.int64)
+    since_map = np.array([(t - map_times[np.searchsorted(map_times, t) - 1]) / 1e9
+                          if np.searchsorted(map_times, t) else np.inf for _, t in answered])
+    near_map = since_map < NEAR_MAP_S
+    rejected = {k.split('.', 1)[1]: int(v) for k, v in bench.diagnostics.items()
+                if k.startswith('rejected.')}
+    result = {
+        'map_points': map_points, 'duration_s': duration, 'rate_hz': RATE_HZ,
+        'frames_sent': len(measured), 'frames_answered': int(latencies.size),
+        'frames_dropped': len(measured) - int(latencies.size),
+        'dropped_at_s': [round((t - measure_from[0]) / 1e9, 3) for s, t in measured.items()
+                         if s not in bench.received],
+        'latency_ms': {'p50': _pct(latencies, 50), 'p90': _pct(latencies, 90),
+                       'p99': _pct(latencies, 99),
+                       'max': float(latencies.max()) if latencies.size else float('nan'),
+                       'p99_near_map': _pct(latencies[near_map], 99),
+                       'p99_away_from_map': _pct(latencies[~near_map], 99),
+                       'frames_near_map': int(near_map.sum())},
+        'node_cpu_percent_of_one_core': 100.0 * node_cpu / wall,
+        'bench_cpu_percent_of_one_core': 100.0 * own_cpu,
+        'maps_sent': bench.maps_sent,
+        'node_rejected': rejected,
+        'node_map_points_indexed': int(bench.diagnostics.get('map_points', 0)),
+        'node_exit_code': code,
+        'ingest_ms': costs,
+    }
+    if code != 0 or 'Traceback' in err:
+        result['node_log_tail'] = err[-2000:]
+    return result
+
+
+def _pct(values: np.ndarray, q: float) -> float:
+    return float(np.percentile(values, q)) if values.size else float('nan')
+
+
+def _stop(node: subprocess.Popen) -> tuple[int | None, str, str]:
+    if node.poll() is None:
+        node.send_signal(signal.SIGINT)
+    try:
+        out, err = node.communicate(timeout=10.0)
+    except subprocess.TimeoutExpired:
+        node.kill()
+        out, err = node.communicate()
+    return node.returncode, out, err
+
+
+def report(runs: dict[str, dict[str, Any]], info: dict[str, Any]) -> str:
+    rows = []
+    for key in sorted(runs, key=int):
+        r = runs[key]
+        lat, ing = r['latency_ms'], r['ingest_ms']
+        rows.append([f"{r['map_points']:,}", f"{r['duration_s']:.0f}", r['frames_sent'],
+                     r['frames_dropped'], lat['p50'], lat['p99'], lat['max'],
+                     lat['p99_near_map'], lat['p99_away_from_map'],
+                     r['node_cpu_percent_of_one_core'],
+                     ing['decode_points_ms'], ing['index_build_ms'],
+                     ing['take_raw_ms'] + ing['cdr_header_ms'], ing['take_deserialized_ms'],
+                     ing['deserialize_message_ms']])
+    headers = ['map points', 'seconds', 'frames', 'dropped', 'p50 ms', 'p99 ms', 'max ms',
+               f'p99 ms, < {NEAR_MAP_S:g} s after a map', 'p99 ms, other frames',
+               'node CPU % of a core', 'builder: decode ms', 'builder: thin+index ms',
+               'executor: raw take + header ms', 'executor: typed take ms (not used)',
+               'deserialize_message ms (not used)']
+    return '\n'.join([
+        '## Node latency (`bench/node_latency.py`)', '',
+        f'`hac_node` in its own process with config/hac.yaml; joints → `/hac/human_joints` latency '
+        f'over DDS (localhost) at {RATE_HZ:.0f} Hz, the map republished every '
+        f'{MAP_PERIOD_S:.0f} s; the first {WARMUP_S:.0f} s are not measured. "dropped" = joints '
+        'sent without world joints back (best-effort input: a frame lost in transport counts). '
+        'Map ingestion, timed in the benchmark process on the same bytes (median of 5): the '
+        'executor thread only takes the raw message and reads its header; the builder thread '
+        'decodes the points and thins and indexes them (`index_max_points`). For comparison, '
+        'what a typed subscription would cost the executor (rclpy deserializes while taking) '
+        'and `rclpy.serialization.deserialize_message` on the same bytes.', '',
+        table(headers, rows), '',
+        machine_line(info),
+        'Re-run: `python bench/node_latency.py --map-points 100000` and `--map-points 1000000`.',
+    ])
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument('--map-points', type=int, default=100_000)
+    parser.add_argument('--duration', type=float, default=20.0, help='measured seconds')
+    args = parser.parse_args(argv)
+    result = run(args.map_points, args.duration)
+    info = machine()
+    path = RESULTS / f'{NAME}.json'
+    previous = json.loads(path.read_text()) if path.exists() else {}
+    runs = {**previous.get('runs', {}), str(args.map_points): result}
+    write_json(NAME, {'machine': info, 'runs': runs})
+    markdown = report(runs, info)
+    write_section(NAME, markdown)
+    print(json.dumps(result, indent=2, default=float))
+    print(markdown)
+    return 0 if result['node_exit_code'] == 0 else 1
+
+
+if __name__ == '__main__':
+    sys.exit(main())

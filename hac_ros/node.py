@@ -1,0 +1,661 @@
+"""``hac_node``: the ROS 2 node, a thin shell around :class:`~hac_ros.core.calibrator.Calibrator`.
+
+It subscribes to the SLAM pose, the SLAM map cloud, the HMR joints and (optionally) the CameraInfo,
+forwards every message to the calibrator with its header stamp, and publishes exactly the messages
+:class:`~hac_ros.messages.OutputMessages` makes of the calibrator's outputs (the same messages
+``hac replay`` writes). It has no estimation logic of its own; SPEC, "ROS 2 interface" and
+"Processing order", and ``docs/node.md``.
+
+Threads. Everything that touches the calibrator runs on the executor's thread. The only other
+thread is the map builder: a map cloud arrives as raw CDR bytes, its header is read on the executor
+thread (microseconds), and decoding the points and building the :class:`MapIndex` (k-d tree) happen
+on the builder thread, so a 1M-point map does not stall the frames. The finished index is handed to
+the calibrator on the executor's thread (a guard condition wakes it). **While a map is being built,
+frames use the latest map already handed over** (the previous one); the new map is used from the
+first frame processed after it is ready whose stamp is not before the map's stamp. This is the one
+place where the node may differ from ``hac replay``, which always has the map at its stamp.
+
+Run: ``ros2 run hac_ros hac_node --ros-args --params-file config/hac.yaml`` or
+``python -m hac_ros.node --ros-args ...``.
+"""
+from __future__ import annotations
+
+import struct
+import sys
+import threading
+import time
+import traceback
+from collections import Counter, deque
+from dataclasses import dataclass
+from typing import Any, Callable, NamedTuple, Sequence
+
+import rclpy
+from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
+                                ParameterType, SetParametersResult)
+from rclpy.event_handler import SubscriptionEventCallbacks
+from rclpy.exceptions import (InvalidParameterTypeException, InvalidParameterValueException,
+                              ParameterException)
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy,
+                       qos_policy_name_from_kind)
+
+from hac_ros.core.calibrator import Calibrator
+from hac_ros.core.errors import ParameterError
+from hac_ros.core.outputs import NoticeOut, OdometryOut, Output, ResetOut
+from hac_ros.core.params import NODE_NAME, HacParams, describe, names
+from hac_ros.core.reference import MapIndex
+from hac_ros.messages import OUTPUT_TOPICS, OutputMessages
+from msg_adapters import (MessageError, camera_info_to_intrinsics, pose_array_to_joints,
+                          pose_msg_to_rt, rclpy_types, stamp_to_ns, xyz_from_buffer)
+
+TYPES = rclpy_types()  # rclpy's message classes by ROS name
+
+# ---------------------------------------------------------------------------------------- QoS
+INPUT_DEPTH = 100  # pose/joints/camera_info kept per subscription: > 3 s at 30 Hz, absorbs bursts
+CLOUD_DEPTH = 2  # only the newest map matters; 2 lets one arrive while the previous is read
+OUTPUT_DEPTH = 100  # odometry/joints/scale/markers: 3 s at 30 Hz for slow subscribers
+DIAGNOSTICS_DEPTH = 10
+
+# ---------------------------------------------------------------------------------------- maps
+MAPS_WAITING_MAX = 8  # accumulate mode: clouds waiting for the builder (older ones are dropped)
+BUILDER_JOIN_S = 5.0  # how long shutdown waits for a map being built
+
+# ---------------------------------------------------------------------------------------- parameters
+# ROS types `window_s: 30` (YAML, `ros2 param set`) as an integer and would refuse it for a double;
+# dynamic typing lets it through, and HacParams converts integers and rejects anything else
+# (also the range, which ROS checks only for double values).
+INTEGERS_FOR_DOUBLES = True
+ROS_OWN_PARAMETERS = frozenset({'use_sim_time', 'start_type_description_service'})  # every node's
+
+# What a runtime change does (docs/node.md, "Parameters at runtime"):
+# - these re-create the named subscriptions (topics and QoS cannot change on a live subscription);
+RESUBSCRIBE: dict[str, tuple[str, ...]] = {
+    'pose_topic': ('pose',), 'pose_type': ('pose',), 'joints_topic': ('joints',),
+    'camera_info_topic': ('camera_info',), 'cloud_topic': ('cloud',), 'cloud_qos': ('cloud',),
+    'input_qos': ('pose', 'joints', 'camera_info'),
+}
+# - these only change what the shell publishes (the calibrator does not read them);
+SHELL_ONLY = frozenset({'metric_frame', 'publish_markers', 'publish_tf'})
+# - every other parameter is an estimator parameter: the calibrator is rebuilt with the new values
+#   (its estimate restarts; the current map and CameraInfo are handed to the new one).
+RUNTIME_NOTE = {**{name: 're-subscribes' for name in RESUBSCRIBE},
+                **{name: 'takes effect at once' for name in SHELL_ONLY}}
+ESTIMATOR_NOTE = 'rebuilds the estimator (estimate restarts)'
+
+
+def runtime_effect(name: str) -> str:
+    """What changing parameter ``name`` at runtime does (for descriptors and docs)."""
+    return RUNTIME_NOTE.get(name, ESTIMATOR_NOTE)
+
+
+def parameter_descriptor(name: str) -> ParameterDescriptor:
+    """The ParameterDescriptor of one HacParams field: type, description, range or choices."""
+    info = describe(name)
+    default = info['default']
+    descriptor = ParameterDescriptor(
+        name=name, description=f"{info['description']} [at runtime: {runtime_effect(name)}]")
+    if isinstance(default, bool):
+        descriptor.type = ParameterType.PARAMETER_BOOL
+    elif isinstance(default, int):
+        descriptor.type = ParameterType.PARAMETER_INTEGER
+        if info['low'] is not None and info['high'] is not None:
+            descriptor.integer_range = [IntegerRange(from_value=int(info['low']),
+                                                     to_value=int(info['high']), step=1)]
+    elif isinstance(default, float):
+        descriptor.type = ParameterType.PARAMETER_DOUBLE
+        descriptor.dynamic_typing = INTEGERS_FOR_DOUBLES
+        if info['low'] is not None and info['high'] is not None:
+            descriptor.floating_point_range = [FloatingPointRange(
+                from_value=float(info['low']), to_value=float(info['high']), step=0.0)]
+    elif isinstance(default, list):
+        descriptor.type = ParameterType.PARAMETER_DOUBLE_ARRAY
+        descriptor.dynamic_typing = INTEGERS_FOR_DOUBLES
+        descriptor.additional_constraints = f"exactly {info['length']} finite numbers"
+    else:
+        descriptor.type = ParameterType.PARAMETER_STRING
+    if info['choices']:
+        descriptor.additional_constraints = 'one of: ' + ', '.join(info['choices'])
+    return descriptor
+
+
+def parameter_table() -> str:
+    """The README-style markdown table of every parameter (docs/node.md holds exactly this)."""
+    def shown(value: Any) -> str:
+        if isinstance(value, bool):
+            return '`true`' if value else '`false`'
+        if isinstance(value, list):
+            return '`[' + ', '.join(f'{v:g}' for v in value) + ']`'
+        return '`""`' if value == '' else f'`{value}`'
+
+    rows = ['| name | default | allowed | at runtime | meaning |', '|---|---|---|---|---|']
+    for name in names():
+        info = describe(name)
+        if info['choices']:
+            allowed = ', '.join(f'`{c}`' for c in info['choices'])
+        elif info['low'] is not None:
+            allowed = f"{info['low']:g} … {info['high']:g}"
+        elif info['length']:
+            allowed = f"{info['length']} numbers"
+        elif isinstance(info['default'], bool):
+            allowed = '`true`, `false`'
+        else:
+            allowed = 'a string'
+        meaning = info['description'].replace('|', '/')
+        rows.append(f"| `{name}` | {shown(info['default'])} | {allowed} | {runtime_effect(name)} "
+                    f"| {meaning} |")
+    return '\n'.join(rows)
+
+
+def input_qos(params: HacParams) -> QoSProfile:
+    """Pose, joints and CameraInfo: best effort (matches every publisher) or reliable."""
+    reliability = (ReliabilityPolicy.RELIABLE if params.input_qos == 'reliable'
+                   else ReliabilityPolicy.BEST_EFFORT)
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=INPUT_DEPTH, reliability=reliability,
+                      durability=DurabilityPolicy.VOLATILE)
+
+
+def cloud_qos(params: HacParams) -> QoSProfile:
+    """The map: reliable; transient_local receives a map latched before the node started."""
+    durability = (DurabilityPolicy.TRANSIENT_LOCAL if params.cloud_qos == 'transient_local'
+                  else DurabilityPolicy.VOLATILE)
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=CLOUD_DEPTH,
+                      reliability=ReliabilityPolicy.RELIABLE, durability=durability)
+
+
+def qos_hint(kind: str, policy: str) -> str:
+    """What the user can change when a publisher's QoS does not match subscription ``kind``."""
+    if kind == 'cloud' and policy == 'DURABILITY':
+        return ("the map publisher is volatile: set parameter cloud_qos to 'volatile' "
+                '(or latch the map with transient_local on the publisher)')
+    if kind == 'cloud' and policy == 'RELIABILITY':
+        return 'the map publisher is best effort: hac_node needs a reliable map publisher'
+    if policy == 'RELIABILITY':
+        return "the publisher is best effort: set parameter input_qos to 'best_effort'"
+    return f'change the publisher\'s {policy} policy (input_qos/cloud_qos cannot match it)'
+
+
+# ---------------------------------------------------------------------------------------- raw cloud
+class PointFieldSpec(NamedTuple):
+    """One sensor_msgs/PointField as read from the CDR bytes."""
+
+    name: str
+    offset: int
+    datatype: int
+    count: int
+
+
+@dataclass
+class RawCloud:
+    """The fields of a serialized sensor_msgs/PointCloud2, with ``data`` a view into the CDR bytes."""
+
+    stamp_ns: int
+    frame_id: str
+    height: int
+    width: int
+    fields: list[PointFieldSpec]
+    is_bigendian: bool
+    point_step: int
+    row_step: int
+    data: memoryview  # point bytes, not copied
+
+
+class _CdrReader:
+    """Reads XCDR1 (ROS 2's plain CDR) primitives; alignment is relative to the payload start."""
+
+    ENCAPSULATION = 4  # representation id + options before the payload
+
+    def __init__(self, data: bytes | memoryview) -> None:
+        self.view = memoryview(data)
+        if len(self.view) < self.ENCAPSULATION:
+            raise MessageError('PointCloud2: serialized message shorter than its CDR header')
+        representation = bytes(self.view[:2])
+        if representation in (b'\x00\x01', b'\x00\x03'):  # CDR_LE, PL_CDR_LE
+            self.order = '<'
+        elif representation in (b'\x00\x00', b'\x00\x02'):  # CDR_BE, PL_CDR_BE
+            self.order = '>'
+        else:
+            raise MessageError(f'PointCloud2: unknown CDR representation {representation.hex()}')
+        self.pos = self.ENCAPSULATION
+
+    def _align(self, size: int) -> None:
+        offset = self.pos - self.ENCAPSULATION
+        self.pos += (-offset) % size
+
+    def _take(self, size: int) -> memoryview:
+        if self.pos + size > len(self.view):
+            raise MessageError('PointCloud2: serialized message is truncated')
+        chunk = self.view[self.pos:self.pos + size]
+        self.pos += size
+        return chunk
+
+    def u8(self) -> int:
+        return self._take(1)[0]
+
+    def u32(self) -> int:
+        self._align(4)
+        return struct.unpack(self.order + 'I', self._take(4))[0]
+
+    def i32(self) -> int:
+        self._align(4)
+        return struct.unpack(self.order + 'i', self._take(4))[0]
+
+    def string(self) -> str:
+        length = self.u32()  # includes the terminating NUL
+        raw = bytes(self._take(length))
+        return raw[:-1].decode('utf-8', errors='replace') if length else ''
+
+    def u8_sequence(self) -> memoryview:
+        return self._take(self.u32())
+
+
+def parse_cloud_cdr(data: bytes | memoryview) -> RawCloud:
+    """The header fields of a serialized PointCloud2 and a zero-copy view of its point data.
+
+    Field order: sensor_msgs/msg/PointCloud2 (header, height, width, fields, is_bigendian,
+    point_step, row_step, data, is_dense). Raises :class:`MessageError` on truncated bytes.
+    """
+    reader = _CdrReader(data)
+    sec, nanosec = reader.i32(), reader.u32()
+    frame_id = reader.string()
+    height, width = reader.u32(), reader.u32()
+    fields = []
+    for _ in range(reader.u32()):
+        name = reader.string()
+        offset = reader.u32()
+        datatype = reader.u8()
+        count = reader.u32()
+        fields.append(PointFieldSpec(name, offset, datatype, count))
+    is_bigendian = bool(reader.u8())
+    point_step, row_step = reader.u32(), reader.u32()
+    points = reader.u8_sequence()
+    return RawCloud(sec * 1_000_000_000 + nanosec, frame_id, height, width, fields, is_bigendian,
+                    point_step, row_step, points)
+
+
+def cloud_points(cloud: RawCloud) -> Any:
+    """Points of a raw cloud: (N, 3) float64, SLAM units, ``cloud.frame_id`` (the adapter's rules)."""
+    return xyz_from_buffer(cloud.data, cloud.fields, cloud.point_step, cloud.width, cloud.height,
+                           cloud.row_step, cloud.is_bigendian)
+
+
+# ---------------------------------------------------------------------------------------- map builder
+# Calibrator.build_index: (stamp_ns, points_map (N, 3) SLAM units, frame_id) -> MapIndex
+IndexBuilder = Callable[[int, Any, str], MapIndex]
+
+@dataclass
+class MapBuilt:
+    """A map index ready for the calibrator, or the reason its cloud could not be decoded."""
+
+    stamp_ns: int
+    index: MapIndex | None
+    error: str
+    build_s: float  # wall seconds spent decoding and indexing
+
+
+class MapBuilder:
+    """Decodes map clouds and builds their :class:`MapIndex` on one worker thread.
+
+    ``submit`` is called on the executor's thread; ``on_ready`` is called from the worker when a
+    result is waiting (the node triggers a guard condition with it) and ``take`` hands the results
+    over on the executor's thread. In ``replace`` mode only the newest waiting cloud is built (an
+    older one waiting is superseded: it would be replaced anyway); in ``accumulate`` mode every cloud
+    is built in order (up to :data:`MAPS_WAITING_MAX` waiting).
+    """
+
+    def __init__(self, on_ready: Callable[[], None]) -> None:
+        self._on_ready = on_ready
+        self._cond = threading.Condition()
+        self._waiting: deque[tuple[RawCloud, IndexBuilder]] = deque()
+        self._ready: deque[MapBuilt] = deque()
+        self._closed = False
+        self.superseded = 0
+        self._thread = threading.Thread(target=self._run, name='hac_map_builder', daemon=True)
+        self._thread.start()
+
+    def submit(self, cloud: RawCloud, build_index: IndexBuilder, keep_all: bool) -> None:
+        with self._cond:
+            if not keep_all:
+                self.superseded += len(self._waiting)
+                self._waiting.clear()
+            elif len(self._waiting) >= MAPS_WAITING_MAX:
+                self._waiting.popleft()
+                self.superseded += 1
+            self._waiting.append((cloud, build_index))
+            self._cond.notify()
+
+    def take(self) -> list[MapBuilt]:
+        with self._cond:
+            ready = list(self._ready)
+            self._ready.clear()
+        return ready
+
+    def close(self) -> None:
+        with self._cond:
+            self._closed = True
+            self._waiting.clear()
+            self._cond.notify()
+        self._thread.join(BUILDER_JOIN_S)
+
+    def _run(self) -> None:
+        while True:
+            with self._cond:
+                while not self._waiting and not self._closed:
+                    self._cond.wait()
+                if self._closed:
+                    return
+                cloud, build_index = self._waiting.popleft()
+            result = build_map(cloud, build_index)
+            with self._cond:
+                if self._closed:
+                    return
+                self._ready.append(result)
+            self._on_ready()
+
+
+def build_map(cloud: RawCloud, build_index: IndexBuilder) -> MapBuilt:
+    """Decode and index one cloud (worker thread) with the calibrator's own (thread-safe) builder."""
+    start = time.perf_counter()
+    try:
+        points_map = cloud_points(cloud)
+    except MessageError as exc:
+        return MapBuilt(cloud.stamp_ns, None, str(exc), time.perf_counter() - start)
+    index = build_index(cloud.stamp_ns, points_map, cloud.frame_id)
+    return MapBuilt(cloud.stamp_ns, index, '', time.perf_counter() - start)
+
+
+# ---------------------------------------------------------------------------------------- the node
+class HacNode(Node):
+    """Subscribes to the inputs, feeds the calibrator, publishes its outputs (SPEC's topics)."""
+
+    def __init__(self, node_name: str = NODE_NAME, **kwargs: Any) -> None:
+        super().__init__(node_name, **kwargs)
+        for name in names():
+            self.declare_parameter(name, describe(name)['default'], parameter_descriptor(name))
+        self._warn_unknown_overrides()
+        values = {name: self.get_parameter(name).value for name in names()}
+        self.params = HacParams().replace(**values)  # raises ParameterError with the reason
+        self.calibrator = Calibrator(self.params)
+        self.outputs = OutputMessages(self.params, TYPES)
+        self.notices: Counter[str] = Counter()  # causes of the NoticeOut logged (once each)
+        self.qos_incompatible: Counter[str] = Counter()  # topics with an incompatible publisher
+        self.clouds_received = 0
+        self.maps_indexed = 0  # map indexes handed to the calibrator
+        self._clouds_rejected = 0  # undecodable clouds
+        self.map_build_s: deque[float] = deque(maxlen=100)  # recent decode+index durations
+        self._camera_info: tuple[Any, int, int] | None = None  # (K, width, height) last valid
+        self._map_index: MapIndex | None = None  # the last index handed to the calibrator
+        self._last_cloud: RawCloud | None = None  # the last cloud received (its bytes are kept)
+        self._failed_callbacks: set[str] = set()
+
+        self._output_publishers = {}
+        for topic, msgtype in OUTPUT_TOPICS:
+            depth = DIAGNOSTICS_DEPTH if topic == '/diagnostics' else OUTPUT_DEPTH
+            self._output_publishers[topic] = self.create_publisher(TYPES.get(msgtype), topic, depth)
+        self._map_ready = self.create_guard_condition(self._on_maps_ready)
+        self._builder = MapBuilder(self._map_ready.trigger)
+        self._subscriptions_by_kind: dict[str, Any] = {}
+        for kind in ('pose', 'joints', 'camera_info', 'cloud'):
+            self._subscribe(kind)
+        self.tf = None
+        self._update_tf()
+        self.add_on_set_parameters_callback(self._validate_parameters)
+        self.add_post_set_parameters_callback(self._apply_parameters)
+        self.get_logger().info(
+            f'hac_node: {self.params.pose_topic} ({self.params.pose_type}) + '
+            f'{self.params.joints_topic} + {self.params.cloud_topic} -> /hac/* in '
+            f'{self.params.metric_frame!r} (contact_mode {self.params.contact_mode}, '
+            f'input_qos {self.params.input_qos}, cloud_qos {self.params.cloud_qos})')
+
+    def _warn_unknown_overrides(self) -> None:
+        """A parameters file with a misspelt name would otherwise be silently ignored by ROS."""
+        overrides = getattr(self, '_parameter_overrides', {})  # rclpy keeps them on the node
+        unknown = sorted(name for name in overrides if name not in names()
+                         and name not in ROS_OWN_PARAMETERS and not name.startswith('qos_overrides.'))
+        if unknown:
+            self.get_logger().warning(f'unknown parameter(s) ignored: {", ".join(unknown)} '
+                                      '(see config/hac.yaml for the names)')
+
+    # ------------------------------------------------------------------ subscriptions
+    def _subscribe(self, kind: str) -> None:
+        """(Re-)create the subscription of ``kind`` from the current parameters."""
+        old = self._subscriptions_by_kind.pop(kind, None)
+        if old is not None:
+            self.destroy_subscription(old)
+        p = self.params
+        topic, msg_type, qos, raw = {
+            'pose': (p.pose_topic, TYPES.get('nav_msgs/msg/Odometry' if p.pose_type == 'Odometry'
+                                                   else 'geometry_msgs/msg/PoseStamped'),
+                     input_qos(p), False),
+            'joints': (p.joints_topic, TYPES.get('geometry_msgs/msg/PoseArray'), input_qos(p),
+                       False),
+            'camera_info': (p.camera_info_topic, TYPES.get('sensor_msgs/msg/CameraInfo'),
+                            input_qos(p), False),
+            'cloud': (p.cloud_topic, TYPES.get('sensor_msgs/msg/PointCloud2'), cloud_qos(p),
+                      True),
+        }[kind]
+        if not topic:
+            return  # camera_info_topic "" turns it off
+        callback = {'pose': self._on_pose, 'joints': self._on_joints,
+                    'camera_info': self._on_camera_info, 'cloud': self._on_cloud}[kind]
+        events = SubscriptionEventCallbacks(
+            incompatible_qos=lambda info, kind=kind, topic=topic: self._on_incompatible_qos(
+                kind, topic, info))
+        self._subscriptions_by_kind[kind] = self.create_subscription(
+            msg_type, topic, self._guarded(kind, callback), qos, event_callbacks=events, raw=raw)
+
+    def _on_incompatible_qos(self, kind: str, topic: str, info: Any) -> None:
+        policy = qos_policy_name_from_kind(info.last_policy_kind)
+        self.qos_incompatible[topic] += 1
+        self.get_logger().warning(
+            f'QoS mismatch on {topic}: a publisher offers an incompatible {policy} policy, so no '
+            f'messages from it will arrive; {qos_hint(kind, policy)}')
+
+    def _guarded(self, kind: str, callback: Callable[[Any], None]) -> Callable[[Any], None]:
+        """The node never dies on input: an unexpected error is logged once and counted."""
+        def run(msg: Any) -> None:
+            try:
+                callback(msg)
+            except Exception:  # noqa: BLE001 - the node must stay up; the error is reported
+                self._emit(self.calibrator.reject('internal_error', -1))
+                if kind not in self._failed_callbacks:
+                    self._failed_callbacks.add(kind)
+                    self.get_logger().error(f'error handling a {kind} message (further ones are '
+                                            f'counted as rejected.internal_error):\n'
+                                            f'{traceback.format_exc()}')
+        return run
+
+    # ------------------------------------------------------------------ inputs
+    # A message that cannot be decoded (msg_adapters.MessageError, an invalid stamp included) is
+    # rejected with its kind's reason: pose_nonfinite, joints_malformed, camera_info_invalid.
+    def _on_pose(self, msg: Any) -> None:
+        stamp = -1
+        try:
+            stamp = stamp_to_ns(msg.header.stamp)
+            R_wc, c_map = pose_msg_to_rt(msg)
+        except MessageError:
+            self._emit(self.calibrator.reject('pose_nonfinite', stamp))
+            return
+        child = getattr(msg, 'child_frame_id', '')
+        self._emit(self.calibrator.add_pose(stamp, R_wc, c_map, msg.header.frame_id, child))
+
+    def _on_joints(self, msg: Any) -> None:
+        stamp = -1
+        try:
+            stamp = stamp_to_ns(msg.header.stamp)
+            joints_cam = pose_array_to_joints(msg)
+        except MessageError:
+            self._emit(self.calibrator.reject('joints_malformed', stamp))
+            return
+        self._emit(self.calibrator.add_joints(stamp, joints_cam, msg.header.frame_id))
+
+    def _on_camera_info(self, msg: Any) -> None:
+        stamp = -1
+        try:
+            stamp = stamp_to_ns(msg.header.stamp)
+            K, width, height = camera_info_to_intrinsics(msg)
+        except MessageError:
+            self._emit(self.calibrator.reject('camera_info_invalid', stamp))
+            return
+        self._camera_info = (K, width, height)
+        self._emit(self.calibrator.add_camera_info(K, width, height, msg.header.frame_id))
+
+    def _on_cloud(self, data: bytes) -> None:
+        """Raw CDR bytes: read the header here, decode and index on the builder thread."""
+        self.clouds_received += 1
+        try:
+            cloud = parse_cloud_cdr(data)
+        except MessageError:
+            self._clouds_rejected += 1
+            self._emit(self.calibrator.reject('cloud_malformed', -1))
+            return
+        self._last_cloud = cloud
+        self._builder.submit(cloud, self.calibrator.build_index,
+                             keep_all=self.params.cloud_mode == 'accumulate')
+
+    def _on_maps_ready(self) -> None:
+        """Executor thread: hand the maps the builder finished to the calibrator, in order."""
+        for built in self._builder.take():
+            self.map_build_s.append(built.build_s)
+            if built.index is None:
+                self._clouds_rejected += 1
+                self._emit(self.calibrator.reject('cloud_malformed', built.stamp_ns))
+                continue
+            self.maps_indexed += 1
+            self._map_index = built.index
+            self._emit(self.calibrator.add_map_index(built.index))
+
+    @property
+    def clouds_done(self) -> int:
+        """Clouds received and finished with: indexed, rejected, or superseded by a newer one."""
+        return self.maps_indexed + self._clouds_rejected + self._builder.superseded
+
+    # ------------------------------------------------------------------ outputs
+    def _emit(self, outputs: Sequence[Output]) -> None:
+        """Log notices, publish the messages of every other output (exactly OutputMessages')."""
+        for output in outputs:
+            if isinstance(output, NoticeOut):
+                self.notices[output.cause] += 1
+                log = {'info': self.get_logger().info, 'error': self.get_logger().error}.get(
+                    output.level, self.get_logger().warning)
+                log(output.text)
+                continue
+            if isinstance(output, ResetOut):
+                continue  # announced by the NoticeOut that comes with it; counted in diagnostics
+            if isinstance(output, OdometryOut) and self.tf is not None:
+                self.tf.send(output, self.params.metric_frame)
+            for message in self.outputs.convert(output):
+                self._output_publishers[message.topic].publish(message.msg)
+
+    # ------------------------------------------------------------------ parameters
+    def _changes(self, parameters: list[Parameter]) -> dict[str, Any]:
+        ours = set(names())
+        return {p.name: p.value for p in parameters if p.name in ours}
+
+    def _validate_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
+        """All or nothing: the whole set is checked by HacParams.replace before anything changes."""
+        try:
+            self.params.replace(**self._changes(parameters))
+        except ParameterError as exc:
+            return SetParametersResult(successful=False, reason=str(exc))
+        return SetParametersResult(successful=True)
+
+    def _apply_parameters(self, parameters: list[Parameter]) -> None:
+        changes = self._changes(parameters)
+        if not changes:
+            return
+        new = self.params.replace(**changes)  # validated in _validate_parameters
+        changed = {k for k in changes if getattr(new, k) != getattr(self.params, k)}
+        if not changed:
+            return
+        self.params = new
+        self.outputs.params = new
+        for kind in sorted({kind for name in changed for kind in RESUBSCRIBE.get(name, ())}):
+            self._subscribe(kind)
+        if 'publish_tf' in changed:
+            self._update_tf()
+        estimator = sorted(changed - SHELL_ONLY - set(RESUBSCRIBE))
+        if estimator:
+            self._rebuild_calibrator(estimator)
+        else:
+            self.calibrator.params = new  # fields the calibrator does not read: kept consistent
+        self.get_logger().info('parameters changed: ' + ', '.join(
+            f'{k}={getattr(new, k)!r}' for k in sorted(changed)))
+
+    def _rebuild_calibrator(self, changed: list[str]) -> None:
+        """Estimator parameters: a new calibrator, given the current map and CameraInfo.
+
+        The map handed over is the old calibrator's map in use (in ``accumulate`` mode, everything
+        accumulated), else the last one the node handed to it. When the thinning
+        (``index_max_points``) changed, the last cloud received is indexed again as well.
+        """
+        old = self.calibrator
+        self.calibrator = Calibrator(self.params)
+        if self._camera_info is not None:
+            self._emit(self.calibrator.add_camera_info(*self._camera_info))
+        current_map = old.map if old.map is not None else self._map_index
+        if current_map is not None:
+            self._emit(self.calibrator.add_map_index(current_map))
+        if 'index_max_points' in changed and self._last_cloud is not None:
+            self._builder.submit(self._last_cloud, self.calibrator.build_index,
+                                 keep_all=self.params.cloud_mode == 'accumulate')
+        self.notices.clear()
+        self.get_logger().warning(
+            f'estimator parameter(s) {", ".join(changed)} changed: the estimator was rebuilt and '
+            f'its estimate restarts (metric outputs resume after {self.params.min_samples} samples)')
+
+    def _update_tf(self) -> None:
+        if not self.params.publish_tf:
+            self.tf = None
+            return
+        from hac_ros.tf_broadcast import make_tf_broadcast
+
+        self.tf = make_tf_broadcast(self)
+
+    # ------------------------------------------------------------------ shutdown
+    def destroy_node(self) -> None:
+        self._builder.close()
+        super().destroy_node()
+
+
+# ---------------------------------------------------------------------------------------- main
+# rclpy (Jazzy) wakes the executor on SIGINT/SIGTERM and shuts the context down; when the wake-up is
+# seen before the shutdown, executor.spin() goes back to waiting forever (seen about once in 25
+# SIGTERMs shortly after start-up). Waiting at most this long lets the loop see the shutdown.
+SHUTDOWN_POLL_S = 0.5
+
+def main(args: list[str] | None = None) -> int:
+    """init → spin → clean shutdown on SIGINT/SIGTERM (exit code 0); 2 on invalid parameters.
+
+    The executor is made before the node so that a signal during start-up finds it complete.
+    """
+    rclpy.init(args=args)
+    executor = SingleThreadedExecutor()
+    node = None
+    try:
+        node = HacNode()
+        executor.add_node(node)
+        while rclpy.ok():  # not executor.spin(): see SHUTDOWN_POLL_S
+            executor.spin_once(timeout_sec=SHUTDOWN_POLL_S)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except (ParameterError, InvalidParameterValueException, InvalidParameterTypeException,
+            ParameterException) as exc:
+        print(f'hac_node: invalid parameter: {exc}', file=sys.stderr)
+        return 2
+    except Exception:
+        if rclpy.ok():
+            raise
+        # SIGINT/SIGTERM arrived while the node was being created (the context is shut down and
+        # rcl refuses the next entity): a requested shutdown, not an error
+    finally:
+        executor.shutdown()
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,154 @@
+"""hac_node as users run it: a separate process started with a parameters file, stopped by a signal.
+
+The test process publishes a simulated walk over DDS (localhost, this process's domain) and
+receives the outputs; the node's stderr is read for its warnings.
+"""
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import yaml
+
+rclpy = pytest.importorskip('rclpy')
+
+from rclpy.context import Context  # noqa: E402
+from rclpy.executors import SingleThreadedExecutor  # noqa: E402
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
+
+from test_node import (FRAME_PERIOD_S, INPUTS, LATCHED, OUTPUTS, RELIABLE, SCALE_TOL,  # noqa: E402
+                       TYPES, scenario_recording, wait_for)
+
+REPO = Path(__file__).resolve().parents[1]
+STARTUP_S = 20.0  # the node imports numpy/scipy/rclpy and joins DDS discovery
+EXIT_S = 5.0  # the issue: exit code 0 within a few seconds of SIGINT/SIGTERM
+VOLATILE = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                      durability=DurabilityPolicy.VOLATILE)
+
+
+def start_node(tmp_path: Path, params: dict[str, Any]) -> subprocess.Popen:
+    path = tmp_path / 'hac.yaml'
+    path.write_text(yaml.safe_dump({'hac_node': {'ros__parameters': params}}))
+    env = {**os.environ, 'PYTHONUNBUFFERED': '1', 'PYTHONFAULTHANDLER': '1',
+           'RCUTILS_COLORIZED_OUTPUT': '0'}
+    return subprocess.Popen([sys.executable, '-m', 'hac_ros.node', '--ros-args', '--params-file',
+                             str(path)], cwd=REPO, env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+
+
+def stop(process: subprocess.Popen, sig: int) -> tuple[int, str]:
+    """Send ``sig``; the exit code (None if it hung) and everything the node wrote."""
+    process.send_signal(sig)
+    try:
+        out, err = process.communicate(timeout=EXIT_S)
+        return process.returncode, out + err
+    except subprocess.TimeoutExpired:  # hung: SIGABRT makes faulthandler print every thread
+        process.send_signal(signal.SIGABRT)
+        try:
+            out, err = process.communicate(timeout=EXIT_S)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            out, err = process.communicate()
+        return None, out + err
+
+
+class Client:
+    """The test side: input publishers, output recorders, one executor thread."""
+
+    def __init__(self) -> None:
+        import threading
+
+        self.context = Context()
+        rclpy.init(context=self.context)
+        self.io = rclpy.create_node('hac_process_test', context=self.context)
+        self.publishers = {kind: self.io.create_publisher(
+            TYPES.get(msgtype), topic, LATCHED if kind == 'cloud' else RELIABLE)
+            for kind, (topic, msgtype) in INPUTS.items()}
+        self.received: dict[str, list[Any]] = {topic: [] for topic in OUTPUTS}
+        for topic, msgtype in OUTPUTS.items():
+            self.io.create_subscription(TYPES.get(msgtype), topic,
+                                        lambda m, t=topic: self.received[t].append(m), RELIABLE)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.io)
+        self.thread = threading.Thread(target=self.executor.spin, daemon=True)
+        self.thread.start()
+
+    def node_is_up(self) -> bool:
+        return all(pub.get_subscription_count() > 0 for pub in self.publishers.values()) and \
+            all(self.io.count_publishers(topic) > 0 for topic in OUTPUTS)
+
+    def close(self) -> None:
+        self.executor.shutdown(timeout_sec=2.0)
+        self.thread.join(5.0)
+        self.io.destroy_node()
+        rclpy.shutdown(context=self.context)
+
+
+@pytest.fixture
+def client():
+    c = Client()
+    yield c
+    c.close()
+
+
+def test_node_process_converges_warns_and_exits_cleanly_on_sigint(tmp_path, client):
+    walk = scenario_recording('walk', duration=10.0)
+    node = start_node(tmp_path, {'publish_tf': True, 'min_samples': 10})
+    try:
+        assert wait_for(client.node_is_up, STARTUP_S), 'hac_node did not come up'
+        # a volatile map publisher against the default cloud_qos transient_local
+        client.io.create_publisher(TYPES.get('sensor_msgs/msg/PointCloud2'), '/slam/cloud',
+                                   VOLATILE)
+        for event in walk.events:
+            client.publishers[event.kind].publish(event.msg)
+            if event.kind == 'cloud':
+                time.sleep(0.5)  # indexed off the executor thread; frames would use no map yet
+            elif event.kind == 'joints':
+                time.sleep(FRAME_PERIOD_S)
+        last_joints = int(walk.joints_stamps[-1])
+        assert wait_for(lambda: client.received['/hac/human_joints'] and
+                        client.received['/hac/human_joints'][-1].header.stamp.sec * 10**9 +
+                        client.received['/hac/human_joints'][-1].header.stamp.nanosec
+                        == last_joints, 10.0), 'the last frame produced no world joints'
+    finally:
+        code, log = stop(node, signal.SIGINT)
+    assert code == 0, log
+    scale = client.received['/hac/scale'][-1].data
+    assert abs(scale / walk.scale_at(int(walk.pose_stamps[-1])) - 1.0) < SCALE_TOL
+    assert client.received['/hac/odometry'] and client.received['/diagnostics']
+    warnings = [line for line in log.splitlines() if 'QoS mismatch on /slam/cloud' in line]
+    assert len(warnings) == 1 and 'cloud_qos' in warnings[0] and "'volatile'" in warnings[0], log
+    assert log.count('publish_tf is true but tf2_ros is not available') == 1
+    assert 'Traceback' not in log and 'error handling a' not in log
+
+
+def test_node_process_exits_cleanly_on_sigterm(tmp_path, client):
+    # integers where doubles are declared, as YAML writes them, are accepted
+    node = start_node(tmp_path, {'cloud_qos': 'volatile', 'window_s': 30,
+                                 'base_to_camera': [0, 0, 0, 0, 0, 0, 1]})
+    try:
+        assert wait_for(client.node_is_up, STARTUP_S)
+    finally:
+        code, log = stop(node, signal.SIGTERM)
+    assert code == 0, log
+    assert 'Traceback' not in log and 'unknown parameter' not in log
+
+
+@pytest.mark.parametrize('params, reason', [
+    ({'contact_mode': 'tallest'}, 'contact_mode'),
+    ({'cone_angle_deg': 90.0}, 'cone_angle_deg'),
+    ({'window_s': 'long'}, 'window_s'),
+    ({'min_samples': 2.5}, 'min_samples'),
+])
+def test_node_process_refuses_invalid_parameters(tmp_path, params, reason):
+    node = start_node(tmp_path, params)
+    out, err = node.communicate(timeout=STARTUP_S)
+    assert node.returncode == 2, out + err
+    assert reason in err and 'Traceback' not in err
