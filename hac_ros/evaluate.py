@@ -1,0 +1,415 @@
+"""``hac eval OUT --gt IN``: SPEC's metrics of a replayed recording against its ground truth.
+
+Three rows, so that a number has something to be compared with:
+
+- ``hac``: the outputs in OUT (``/hac/odometry``, ``/hac/human_joints``, ``/hac/scale``);
+- ``no calibration``: the same core on IN with the scale fixed at 1 (SLAM units taken as metres);
+- ``true scale``: the same core on IN with the true scale of each moment (``/gt/scale``), the best
+  any scale estimate could do with these SLAM poses and HMR joints.
+
+The two reference rows re-run the core on IN with ``output_scale`` set (the offline hook), so that
+resets are anchored as in OUT. Metrics (SPEC, "Metrics"; implemented in
+:mod:`hac_ros.core.metrics`): ATE and ATE-S (m, camera centres, Sim(3) / SE(3) alignment, mean),
+W-MPJPE and WA-MPJPE (mm, 100-frame chunks), RTE (%), PA-MPJPE (mm), and the scale error (%) of
+the final estimate and of every frame against the truth of that moment.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from hac_ros.core.errors import HacError
+from hac_ros.core.outputs import HumanJointsOut, OdometryOut, Output, ScaleOut
+from hac_ros.core.params import HacParams
+from hac_ros.replay import (GT_CAMERA, GT_JOINTS, GT_SCALE, SAMPLE_FIELDS, SAMPLES, CoreFeeder,
+                            InputTopics, Recording, load_params)
+
+NS = 1_000_000_000
+ODOMETRY_TOPIC = '/hac/odometry'
+JOINTS_TOPIC = '/hac/human_joints'
+SCALE_TOPIC = '/hac/scale'
+DIAGNOSTICS_TOPIC = '/diagnostics'
+JOINTS_PER_PERSON = 24
+ROOT_JOINT = 0  # pelvis (SMPL-24)
+# Outputs carry the input stamps exactly and the ground truth is at the same stamps; 1 ms absorbs
+# a recording whose ground truth was stamped by another clock rounding.
+MATCH_TOLERANCE_NS = 1_000_000
+ROWS = ('hac', 'no calibration', 'true scale')
+COLUMNS = (  # key, header, format
+    ('ate_m', 'ATE (m)', '.3f'),
+    ('ate_s_m', 'ATE-S (m)', '.3f'),
+    ('w_mpjpe_mm', 'W-MPJPE (mm)', '.1f'),
+    ('wa_mpjpe_mm', 'WA-MPJPE (mm)', '.1f'),
+    ('rte_pct', 'RTE (%)', '.2f'),
+    ('pa_mpjpe_mm', 'PA-MPJPE (mm)', '.1f'),
+    ('scale_error_pct', 'scale err. final (%)', '.2f'),
+    ('scale_error_frames_pct', 'scale err. per frame (%)', '.2f'),
+)
+
+
+# ============================================================================ data
+@dataclass
+class CameraTrack:
+    """stamps_ns (T,) int; positions (T, 3) metres (or SLAM units), world/metric frame;
+    rotations (T, 3, 3) camera to that frame."""
+
+    stamps_ns: np.ndarray
+    positions: np.ndarray
+    rotations: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.stamps_ns)
+
+
+@dataclass
+class JointsTrack:
+    """stamps_ns (F,) int; joints[f]: (P_f, 24, 3) metres, world/metric frame (P_f people)."""
+
+    stamps_ns: np.ndarray
+    joints: list[np.ndarray]
+
+    def __len__(self) -> int:
+        return len(self.stamps_ns)
+
+
+@dataclass
+class ScaleTrack:
+    """stamps_ns (S,) int; values (S,) metres per SLAM unit."""
+
+    stamps_ns: np.ndarray
+    values: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.stamps_ns)
+
+    def at(self, stamps_ns: np.ndarray) -> np.ndarray:
+        """As a step function (the latest value at or before each stamp; the first before it)."""
+        if not len(self.stamps_ns):
+            return np.full(len(stamps_ns), np.nan)
+        idx = np.searchsorted(self.stamps_ns, np.asarray(stamps_ns, dtype=np.int64), side='right') - 1
+        return self.values[np.clip(idx, 0, len(self.values) - 1)]
+
+
+@dataclass
+class Samples:
+    """Per-person scale samples of each frame (/hac/samples): stamps_ns, person, scale (metres per
+    SLAM unit, NaN when rejected), source (0 map, 1 ground, 2 rejected), accepted (bool)."""
+
+    stamps_ns: np.ndarray
+    person: np.ndarray
+    scale: np.ndarray
+    source: np.ndarray
+    accepted: np.ndarray
+
+
+@dataclass
+class Replayed:
+    """What a replay wrote: metric camera, world joints, scale, diagnostics and samples."""
+
+    odometry: CameraTrack
+    joints: JointsTrack
+    scale: ScaleTrack
+    diagnostics: list[tuple[int, dict[str, str]]]
+    samples: Samples | None
+
+
+@dataclass
+class Truth:
+    """Ground truth of a recording (any part may be missing)."""
+
+    camera: CameraTrack | None
+    joints: JointsTrack | None
+    scale: ScaleTrack | None
+
+
+def _empty_camera() -> CameraTrack:
+    return CameraTrack(np.zeros(0, dtype=np.int64), np.zeros((0, 3)), np.zeros((0, 3, 3)))
+
+
+def read_camera(recording: Recording, topic: str) -> CameraTrack:
+    """PoseStamped or Odometry messages of ``topic`` as a camera track (header stamps)."""
+    from msg_adapters import pose_msg_to_rt, stamp_to_ns
+
+    stamps, positions, rotations = [], [], []
+    for _, msg in recording.read(topic):
+        R, c = pose_msg_to_rt(msg)
+        stamps.append(stamp_to_ns(msg.header.stamp))
+        rotations.append(R)
+        positions.append(c)
+    if not stamps:
+        return _empty_camera()
+    return CameraTrack(np.asarray(stamps, dtype=np.int64), np.asarray(positions, dtype=float),
+                       np.asarray(rotations, dtype=float))
+
+
+def read_joints(recording: Recording, topic: str) -> JointsTrack:
+    """PoseArray messages of ``topic``: (P, 24, 3) joints per header stamp."""
+    from msg_adapters import MessageError, pose_array_to_joints, stamp_to_ns
+
+    stamps, joints = [], []
+    for _, msg in recording.read(topic):
+        try:
+            people = np.asarray(pose_array_to_joints(msg), dtype=float).reshape(-1, JOINTS_PER_PERSON, 3)
+        except MessageError:
+            continue
+        stamps.append(stamp_to_ns(msg.header.stamp))
+        joints.append(people)
+    return JointsTrack(np.asarray(stamps, dtype=np.int64), joints)
+
+
+def read_scale(recording: Recording, topic: str) -> ScaleTrack:
+    """std_msgs/Float64 messages of ``topic`` at their log times."""
+    items = recording.read(topic)
+    return ScaleTrack(np.asarray([t for t, _ in items], dtype=np.int64),
+                      np.asarray([float(m.data) for _, m in items], dtype=float))
+
+
+def read_output(path: str | Path) -> Replayed:
+    """Read a recording written by ``hac replay``."""
+    with Recording(path) as rec:
+        if not rec.has(DIAGNOSTICS_TOPIC) and not rec.has(ODOMETRY_TOPIC):
+            raise HacError(f'{path} is not a recording written by hac replay (no {ODOMETRY_TOPIC} '
+                           f'or {DIAGNOSTICS_TOPIC}); it contains: {rec.describe()}')
+        odometry = read_camera(rec, ODOMETRY_TOPIC) if rec.has(ODOMETRY_TOPIC) else _empty_camera()
+        joints = (read_joints(rec, JOINTS_TOPIC) if rec.has(JOINTS_TOPIC)
+                  else JointsTrack(np.zeros(0, dtype=np.int64), []))
+        scale = (read_scale(rec, SCALE_TOPIC) if rec.has(SCALE_TOPIC)
+                 else ScaleTrack(np.zeros(0, dtype=np.int64), np.zeros(0)))
+        diagnostics = []
+        if rec.has(DIAGNOSTICS_TOPIC):
+            for log_ns, msg in rec.read(DIAGNOSTICS_TOPIC):
+                for status in msg.status:
+                    diagnostics.append((log_ns, {kv.key: kv.value for kv in status.values}))
+        samples = read_samples(rec) if rec.has(SAMPLES[0]) else None
+    return Replayed(odometry, joints, scale, diagnostics, samples)
+
+
+def read_samples(recording: Recording) -> Samples:
+    stamps, rows = [], []
+    for log_ns, msg in recording.read(SAMPLES[0]):
+        data = np.asarray(msg.data, dtype=float).reshape(-1, SAMPLE_FIELDS)
+        stamps.extend([log_ns] * len(data))
+        rows.append(data)
+    table = np.vstack(rows) if rows else np.zeros((0, SAMPLE_FIELDS))
+    return Samples(np.asarray(stamps, dtype=np.int64), table[:, 0].astype(int), table[:, 1],
+                   table[:, 2].astype(int), table[:, 3] > 0.5)
+
+
+def read_truth(path: str | Path) -> Truth:
+    """/gt/camera_pose, /gt/human_joints and /gt/scale of a recording (whichever it has)."""
+    with Recording(path) as rec:
+        camera = read_camera(rec, GT_CAMERA[0]) if rec.has(*GT_CAMERA) else None
+        joints = read_joints(rec, GT_JOINTS[0]) if rec.has(*GT_JOINTS) else None
+        scale = read_scale(rec, GT_SCALE[0]) if rec.has(*GT_SCALE) else None
+        if camera is None and joints is None and scale is None:
+            raise HacError(f'{path} has no ground truth ({GT_CAMERA[0]}, {GT_JOINTS[0]}, '
+                           f'{GT_SCALE[0]}); it contains: {rec.describe()}')
+    return Truth(camera, joints, scale)
+
+
+# ============================================================================ reference rows
+@dataclass
+class _Collector:
+    odometry: list[OdometryOut] = field(default_factory=list)
+    joints: list[HumanJointsOut] = field(default_factory=list)
+    scale: list[ScaleOut] = field(default_factory=list)
+
+    def __call__(self, outputs: list[Output]) -> None:
+        for o in outputs:
+            if isinstance(o, OdometryOut):
+                self.odometry.append(o)
+            elif isinstance(o, HumanJointsOut):
+                self.joints.append(o)
+            elif isinstance(o, ScaleOut):
+                self.scale.append(o)
+
+    def as_replayed(self) -> Replayed:
+        if self.odometry:
+            camera = CameraTrack(np.array([o.stamp_ns for o in self.odometry], dtype=np.int64),
+                                 np.array([o.position_metric for o in self.odometry]),
+                                 np.array([o.rotation_metric for o in self.odometry]))
+        else:
+            camera = _empty_camera()
+        joints = JointsTrack(np.array([o.stamp_ns for o in self.joints], dtype=np.int64),
+                             [o.joints_metric for o in self.joints])
+        scale = ScaleTrack(np.array([o.stamp_ns for o in self.scale], dtype=np.int64),
+                           np.array([o.scale for o in self.scale]))
+        return Replayed(camera, joints, scale, [], None)
+
+
+def reference_runs(gt_path: str | Path, params: HacParams, truth: Truth) -> dict[str, Replayed]:
+    """'no calibration' (scale 1) and 'true scale' (/gt/scale) through the core on IN."""
+    runs: dict[str, Replayed] = {}
+    scales: dict[str, Any] = {'no calibration': lambda stamp_ns: 1.0}
+    if truth.scale is not None and len(truth.scale):
+        true_scale = truth.scale
+        scales['true scale'] = lambda stamp_ns: float(true_scale.at(np.array([stamp_ns]))[0])
+    with Recording(gt_path) as rec:
+        topics = InputTopics.check(rec, params)
+        for name, output_scale in scales.items():
+            collect = _Collector()
+            CoreFeeder(rec, topics, params, output_scale=output_scale).run(collect)
+            runs[name] = collect.as_replayed()
+    return runs
+
+
+# ============================================================================ metrics
+def match(a_ns: np.ndarray, b_ns: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Indices (ia, ib) of stamps that agree within :data:`MATCH_TOLERANCE_NS`."""
+    from hac_ros.core.metrics import associate_stamps
+
+    ia, ib = associate_stamps(np.asarray(a_ns, dtype=np.int64), np.asarray(b_ns, dtype=np.int64),
+                              MATCH_TOLERANCE_NS)
+    return np.asarray(ia, dtype=int), np.asarray(ib, dtype=int)
+
+
+def person_tracks(pred: JointsTrack, truth: JointsTrack) -> list[tuple[np.ndarray, np.ndarray]]:
+    """For each person index k: (pred (F_k, 24, 3), truth (F_k, 24, 3)) over the matched frames
+    where both have a k-th person (people keep their block order in both topics)."""
+    ip, it = match(pred.stamps_ns, truth.stamps_ns)
+    people = max((len(pred.joints[i]) for i in ip), default=0)
+    tracks = []
+    for k in range(people):
+        pairs = [(pred.joints[i][k], truth.joints[j][k]) for i, j in zip(ip, it)
+                 if len(pred.joints[i]) > k and len(truth.joints[j]) > k]
+        if pairs:
+            tracks.append((np.array([p for p, _ in pairs]), np.array([t for _, t in pairs])))
+    return tracks
+
+
+def _weighted(values: list[tuple[float, int]]) -> float:
+    values = [(v, n) for v, n in values if math.isfinite(v) and n > 0]
+    total = sum(n for _, n in values)
+    return sum(v * n for v, n in values) / total if total else math.nan
+
+
+def row_metrics(run: Replayed, truth: Truth) -> dict[str, float]:
+    """SPEC's metrics of one row against the truth (NaN where an input is missing)."""
+    from hac_ros.core import metrics
+
+    out: dict[str, float] = {k: math.nan for k, _, _ in COLUMNS}
+    out['camera_frames'] = 0
+    out['joints_frames'] = 0
+    if truth.camera is not None and len(run.odometry) >= 3:
+        ie, ig = match(run.odometry.stamps_ns, truth.camera.stamps_ns)
+        if len(ie) >= 3:
+            est, gt = run.odometry.positions[ie], truth.camera.positions[ig]
+            out['ate_m'] = float(metrics.ate(est, gt))
+            out['ate_s_m'] = float(metrics.ate_s(est, gt))
+            out['camera_frames'] = int(len(ie))
+    if truth.joints is not None and len(run.joints):
+        tracks = person_tracks(run.joints, truth.joints)
+        if tracks:
+            out['w_mpjpe_mm'] = _weighted([(metrics.w_mpjpe(p, t), len(p)) for p, t in tracks])
+            out['wa_mpjpe_mm'] = _weighted([(metrics.wa_mpjpe(p, t), len(p)) for p, t in tracks])
+            out['rte_pct'] = _weighted([(metrics.rte(p[:, ROOT_JOINT], t[:, ROOT_JOINT]), len(p))
+                                        for p, t in tracks if len(p) >= 3])
+            out['pa_mpjpe_mm'] = _weighted([(metrics.pa_mpjpe(p, t), len(p)) for p, t in tracks])
+            out['joints_frames'] = int(sum(len(p) for p, _ in tracks))
+    if truth.scale is not None and len(truth.scale) and len(run.scale):
+        true_at = truth.scale.at(run.scale.stamps_ns)
+        per_frame = np.asarray(metrics.scale_error(run.scale.values, true_at), dtype=float)
+        out['scale_error_pct'] = float(per_frame.reshape(-1)[-1])
+        out['scale_error_frames_pct'] = float(np.mean(per_frame))
+        out['scale_error_frames_max_pct'] = float(np.max(per_frame))
+        out['scale_final'] = float(run.scale.values[-1])
+    return out
+
+
+@dataclass
+class Evaluation:
+    """The rows of ``hac eval`` and what they were computed on."""
+
+    output_path: str
+    gt_path: str
+    rows: dict[str, dict[str, float]]
+    true_scale: dict[str, float]
+    frames: dict[str, int]
+
+    def as_dict(self) -> dict[str, Any]:
+        return {'output': self.output_path, 'ground_truth': self.gt_path,
+                'rows': {k: {m: _json_number(v) for m, v in row.items()}
+                         for k, row in self.rows.items()},
+                'true_scale': self.true_scale, 'frames': self.frames}
+
+    def markdown(self) -> str:
+        header = '| | ' + ' | '.join(h for _, h, _ in COLUMNS) + ' |'
+        rule = '| --- |' + ' ---: |' * len(COLUMNS)
+        lines = [header, rule]
+        for name, row in self.rows.items():
+            cells = [_cell(row.get(key, math.nan), fmt) for key, _, fmt in COLUMNS]
+            lines.append(f'| {name} | ' + ' | '.join(cells) + ' |')
+        return '\n'.join(lines)
+
+    def text(self) -> str:
+        info = [f'hac eval: {self.output_path} against {self.gt_path}']
+        if self.frames:
+            info.append('  matched: ' + ', '.join(f'{k} {v}' for k, v in self.frames.items()))
+        if self.true_scale:
+            info.append('  true scale: ' + ', '.join(f'{k} {v:.6g}' for k, v in self.true_scale.items()))
+        return '\n'.join(info) + '\n\n' + self.markdown()
+
+
+def _cell(value: float, fmt: str) -> str:
+    return '–' if value is None or not math.isfinite(value) else format(value, fmt)
+
+
+def _json_number(value: Any) -> Any:
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+def evaluate(output_path: str | Path, gt_path: str | Path, params: HacParams | None = None,
+             references: bool = True) -> Evaluation:
+    """The metrics of OUT against IN's ground truth, beside the two reference rows."""
+    params = params or HacParams()
+    replayed = read_output(output_path)
+    truth = read_truth(gt_path)
+    rows = {'hac': row_metrics(replayed, truth)}
+    if references:
+        for name, run in reference_runs(gt_path, params, truth).items():
+            rows[name] = row_metrics(run, truth)
+    true_scale: dict[str, float] = {}
+    if truth.scale is not None and len(truth.scale):
+        true_scale = {'first': float(truth.scale.values[0]), 'last': float(truth.scale.values[-1]),
+                      'min': float(np.min(truth.scale.values)),
+                      'max': float(np.max(truth.scale.values))}
+    frames = {'camera poses': int(rows['hac'].get('camera_frames', 0)),
+              'joints frames': int(rows['hac'].get('joints_frames', 0))}
+    if truth.camera is not None:
+        frames['ground-truth poses'] = len(truth.camera)
+    return Evaluation(str(output_path), str(gt_path), rows, true_scale, frames)
+
+
+# ============================================================================ command line
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument('output', metavar='OUT', help='a recording written by hac replay')
+    parser.add_argument('--gt', metavar='IN', required=True,
+                        help='the recording with ground truth (/gt/camera_pose, /gt/human_joints, '
+                        '/gt/scale), normally the replay\'s input')
+    parser.add_argument('--json', metavar='F', help='also write the rows as JSON to F')
+    parser.add_argument('--md', metavar='F', help='also write the table as Markdown to F')
+    parser.add_argument('--params', metavar='FILE',
+                        help='the parameters file the replay used (for the reference rows)')
+    parser.add_argument('--no-references', action='store_true',
+                        help='skip the "no calibration" and "true scale" rows (they re-run the core)')
+
+
+def run(args: argparse.Namespace) -> int:
+    params = load_params(args.params, {})
+    result = evaluate(args.output, args.gt, params, references=not args.no_references)
+    print(result.text())
+    if args.json:
+        Path(args.json).write_text(json.dumps(result.as_dict(), indent=2) + '\n', encoding='utf-8')
+    if args.md:
+        Path(args.md).write_text(result.markdown() + '\n', encoding='utf-8')
+    sys.stdout.flush()
+    return 0

@@ -1,0 +1,190 @@
+"""``hac replay --mode online`` publishes what ``hac_node`` publishes, stamp by stamp.
+
+The node is fed the same recording over DDS (this process's domain, localhost; see conftest.py):
+reliable QoS, each message published only after the node has processed the previous one (a map
+once the node has indexed it and handed it to its calibrator), so that both see the messages in
+the same order. The node's /hac/odometry and /hac/human_joints must equal the replay's to 1e-9.
+"""
+from __future__ import annotations
+
+import threading
+import time
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+import pytest
+
+rclpy = pytest.importorskip('rclpy')
+
+from rclpy.context import Context  # noqa: E402
+from rclpy.executors import SingleThreadedExecutor  # noqa: E402
+from rclpy.parameter import Parameter  # noqa: E402
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
+from rclpy.serialization import deserialize_message  # noqa: E402
+
+from hac_ros.node import HacNode  # noqa: E402
+from hac_ros.replay import replay, tie_ordered  # noqa: E402
+from msg_adapters import pose_array_to_joints, pose_msg_to_rt, rclpy_types, stamp_to_ns  # noqa: E402
+from scenes import walking_scene  # noqa: E402
+from test_replay import write_recording  # noqa: E402
+
+TYPES = rclpy_types()
+TOLERANCE = 1e-9
+RELIABLE = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
+LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
+COMPARED = {'/hac/odometry': 'nav_msgs/msg/Odometry',
+            '/hac/human_joints': 'geometry_msgs/msg/PoseArray'}
+WAIT_S = 10.0
+
+
+def wait_for(predicate: Callable[[], bool], timeout: float = WAIT_S) -> bool:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if predicate():
+            return True
+        time.sleep(0.001)
+    return predicate()
+
+
+class CountingCalibrator:
+    """Wraps the node's calibrator: counts the inputs it has finished processing."""
+
+    def __init__(self, calibrator: Any) -> None:
+        self._inner = calibrator
+        self.done = 0
+
+    def __getattr__(self, name: str) -> Any:
+        attr = getattr(self._inner, name)
+        if name in ('add_pose', 'add_joints', 'add_camera_info', 'add_map_index', 'reject'):
+            def counted(*args: Any, **kwargs: Any) -> Any:
+                result = attr(*args, **kwargs)
+                self.done += 1
+                return result
+            return counted
+        return attr
+
+
+def play_to_node(recording: Path) -> dict[str, list[Any]]:
+    """Publish every input message of ``recording`` to a fresh hac_node; its outputs by topic."""
+    from rosbags.highlevel import AnyReader
+
+    context = Context()
+    rclpy.init(context=context)
+    node = HacNode(context=context, parameter_overrides=[Parameter('input_qos', value='reliable')])
+    counting = CountingCalibrator(node.calibrator)
+    node.calibrator = counting
+    io = rclpy.create_node('hac_replay_vs_node', context=context)
+    received: dict[str, list[Any]] = {topic: [] for topic in COMPARED}
+    for topic, msgtype in COMPARED.items():
+        io.create_subscription(TYPES.get(msgtype), topic,
+                               lambda msg, t=topic: received[t].append(msg), RELIABLE)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    executor.add_node(io)
+    thread = threading.Thread(target=executor.spin, daemon=True)
+    thread.start()
+    try:
+        with AnyReader([recording]) as reader:
+            inputs = {'/slam/pose', '/hmr/joints', '/slam/cloud', '/camera/camera_info'}
+            connections = [c for c in reader.connections if c.topic in inputs]
+            publishers = {c.topic: io.create_publisher(
+                TYPES.get(c.msgtype), c.topic, LATCHED if c.topic == '/slam/cloud' else RELIABLE)
+                for c in connections}
+            assert wait_for(lambda: all(p.get_subscription_count() > 0
+                                        for p in publishers.values())
+                            and all(io.count_publishers(t) > 0 for t in COMPARED)), \
+                'DDS discovery between the test and the node failed'
+            assert wait_for(lambda: all(io.get_subscriptions_info_by_topic(t)
+                                        for t in COMPARED))
+            sent = 0
+            kinds = {'/slam/pose': 'pose', '/hmr/joints': 'joints', '/slam/cloud': 'cloud',
+                     '/camera/camera_info': 'camera_info'}
+            types = {c.topic: c.msgtype for c in connections}
+            messages = ((c.topic, t, raw) for c, t, raw in reader.messages(connections=connections))
+            for topic, _, raw in tie_ordered(messages, kinds):  # the replay's order
+                msg = deserialize_message(bytes(raw), TYPES.get(types[topic]))
+                publishers[topic].publish(msg)
+                sent += 1
+                assert wait_for(lambda: counting.done >= sent), \
+                    f'the node did not process message {sent} ({topic})'
+        # the outputs were published in the callbacks above; wait until the last ones arrived
+        counts = [-1]
+
+        def quiet() -> bool:
+            now = sum(len(v) for v in received.values())
+            settled, counts[0] = now == counts[0], now
+            return settled
+        while not quiet():
+            time.sleep(0.3)
+    finally:
+        executor.shutdown(timeout_sec=2.0)
+        thread.join(5.0)
+        node.calibrator = counting._inner
+        node.destroy_node()
+        io.destroy_node()
+        rclpy.shutdown(context=context)
+    return received
+
+
+def replay_outputs(out: Path) -> dict[str, list[Any]]:
+    from rosbags.highlevel import AnyReader
+
+    got: dict[str, list[Any]] = {topic: [] for topic in COMPARED}
+    with AnyReader([out]) as reader:
+        for conn, _, raw in reader.messages(
+                connections=[c for c in reader.connections if c.topic in COMPARED]):
+            got[conn.topic].append(reader.deserialize(raw, conn.msgtype))
+    return got
+
+
+def odometry_array(msg: Any) -> np.ndarray:
+    """Every number of an Odometry: pose, quaternion, covariances and twist."""
+    p, q = msg.pose.pose.position, msg.pose.pose.orientation
+    lin, ang = msg.twist.twist.linear, msg.twist.twist.angular
+    return np.concatenate([[p.x, p.y, p.z, q.x, q.y, q.z, q.w],
+                           np.asarray(msg.pose.covariance, dtype=float),
+                           [lin.x, lin.y, lin.z, ang.x, ang.y, ang.z],
+                           np.asarray(msg.twist.covariance, dtype=float)])
+
+
+def simulated(name: str, duration: float, path: Path) -> Path:
+    from hac_ros.simulate import make_scenario
+    from hac_ros.simulate import write_recording as write_simulated
+
+    return write_simulated(make_scenario(name, seed=3, duration=duration), path)
+
+
+@pytest.mark.parametrize('kind', ['scene', 'walk', 'reset'])
+def test_online_replay_equals_the_node_stamp_by_stamp(tmp_path, kind):
+    """scene: exact constructed walk; walk: simulated (noisy HMR and SLAM, CameraInfo, map every
+    2 s); reset: simulated SLAM re-initialisation (new map frame and scale, re-anchoring)."""
+    if kind == 'scene':
+        source = write_recording(tmp_path / 'in', walking_scene(frames=60), cloud_every=20)
+    else:
+        source = simulated(kind, 6.0, tmp_path / 'in')
+    replay(source, tmp_path / 'out', mode='online', progress=False)
+    ours = replay_outputs(tmp_path / 'out')
+    node = play_to_node(source)
+
+    ours_odom = {stamp_to_ns(m.header.stamp): m for m in ours['/hac/odometry']}
+    node_odom = {stamp_to_ns(m.header.stamp): m for m in node['/hac/odometry']}
+    assert len(ours_odom) == len(ours['/hac/odometry']) > 30
+    assert sorted(node_odom) == sorted(ours_odom)
+    for stamp, msg in ours_odom.items():
+        other = node_odom[stamp]
+        assert (msg.header.frame_id, msg.child_frame_id) == (other.header.frame_id,
+                                                             other.child_frame_id)
+        np.testing.assert_allclose(odometry_array(other), odometry_array(msg), rtol=0,
+                                   atol=TOLERANCE, err_msg=f'odometry at {stamp}')
+        R_ours, c_ours = pose_msg_to_rt(msg)
+        np.testing.assert_allclose(pose_msg_to_rt(other)[1], c_ours, rtol=0, atol=TOLERANCE)
+
+    ours_joints = {stamp_to_ns(m.header.stamp): m for m in ours['/hac/human_joints']}
+    node_joints = {stamp_to_ns(m.header.stamp): m for m in node['/hac/human_joints']}
+    assert sorted(node_joints) == sorted(ours_joints) and len(ours_joints) > 30
+    for stamp, msg in ours_joints.items():
+        np.testing.assert_allclose(pose_array_to_joints(node_joints[stamp]),
+                                   pose_array_to_joints(msg), rtol=0, atol=TOLERANCE,
+                                   err_msg=f'joints at {stamp}')
