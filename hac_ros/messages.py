@@ -9,6 +9,7 @@ from __future__ import annotations
 import dataclasses
 from collections import deque
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -54,6 +55,7 @@ class OutputMessages:
         self.types = types
         self._path: deque[np.ndarray] = deque(maxlen=PATH_LENGTH)
         self._status: Status | None = None
+        self._plane_cache: tuple[Status, Any] | None = None  # rebuilt when the status changes
 
     def convert(self, output: Output) -> list[Message]:
         """The messages of one calibrator output (none for samples, notices and resets)."""
@@ -125,19 +127,23 @@ class OutputMessages:
                                       (0.2, 0.4, 1.0), width=0.02))
         status = self._status
         if status is not None and status.ground_point_metric is not None:
-            items.append(self._plane_marker(header, status))
+            if self._plane_cache is None or self._plane_cache[0] is not status:
+                self._plane_cache = (status, self._plane_marker(header, status))
+            plane = self._plane_cache[1]
+            plane.header = header
+            items.append(plane)
         return new_message(self.types, MARKERS[1], markers=items)
 
     def _marker(self, header: Any, ns: str, marker_id: int, kind: int, points: list,
                 rgb: tuple[float, float, float], width: float) -> Any:
         t = self.types
+        Point = t.get('geometry_msgs/msg/Point')
         return new_message(
             t, 'visualization_msgs/msg/Marker', header=header, ns=ns, id=int(marker_id),
             type=kind, action=0, pose=_pose(t, np.zeros(3), (0.0, 0.0, 0.0, 1.0)),
             scale=new_message(t, 'geometry_msgs/msg/Vector3', x=width, y=0.0, z=0.0),
             color=_color(t, rgb, 1.0),
-            points=[new_message(t, 'geometry_msgs/msg/Point', x=float(p[0]), y=float(p[1]),
-                                z=float(p[2])) for p in points])
+            points=[Point(x=x, y=y, z=z) for x, y, z in np.asarray(points, dtype=float).tolist()])
 
     def _plane_marker(self, header: Any, status: Status) -> Any:
         from scipy.spatial.transform import Rotation
@@ -161,18 +167,32 @@ def new_message(types: Any, msgtype: str, /, **fields: Any) -> Any:
     filled from the Jazzy type definitions (zeros, empty strings and sequences, nested defaults).
     """
     cls = types.get(msgtype)
-    if dataclasses.is_dataclass(cls):
+    names = _dataclass_fields(cls)
+    if names and len(fields) < len(names):
         defs = dict(_fielddefs(msgtype))
-        for f in dataclasses.fields(cls):
-            if f.name not in fields and f.name in defs:
-                fields[f.name] = _default(types, defs[f.name])
+        for name in names:
+            if name not in fields and name in defs:
+                fields[name] = _default(types, defs[name])
     return cls(**fields)
 
 
-def _fielddefs(name: str) -> list:
+@lru_cache(maxsize=None)
+def _dataclass_fields(cls: type) -> tuple[str, ...]:
+    """Field names of a rosbags dataclass (empty for rclpy classes, which have defaults)."""
+    return tuple(f.name for f in dataclasses.fields(cls)) if dataclasses.is_dataclass(cls) else ()
+
+
+@lru_cache(maxsize=None)
+def _fielddefs(name: str) -> tuple:
+    """The Jazzy field definitions of a message type (the typestore is built once, not per call)."""
+    return tuple(_jazzy_typestore().fielddefs[name][1])
+
+
+@lru_cache(maxsize=1)
+def _jazzy_typestore() -> Any:
     from rosbags.typesys import Stores, get_typestore
 
-    return get_typestore(Stores.ROS2_JAZZY).fielddefs[name][1]
+    return get_typestore(Stores.ROS2_JAZZY)
 
 
 _NUMPY = {'bool': np.bool_, 'byte': np.uint8, 'char': np.uint8, 'int8': np.int8, 'uint8': np.uint8,
