@@ -26,6 +26,7 @@ from hac_ros.core.reference import MapIndex
 
 COS_MIN_RAY_PLANE = np.cos(np.deg2rad(87.0))  # rays within 3° of parallel to the plane: no answer
 BODY_MIN_FRAMES = 5  # body up axes needed before the hmr normal is trusted
+BODY_REFRESH_REL = 0.1  # the body normal is recomputed when the bodies seen grew by 10 %
 BODY_MIN_ANISOTROPY = 3.0  # largest / second eigenvalue of the up-axis scatter: a clear axis
 CONTACT_MIN_POINTS = 30  # contact joints needed before refining the normal
 CONTACT_REFIT_EVERY = 30  # refit the contact plane every this many new contacts
@@ -154,6 +155,7 @@ class GroundModel:
         self._camera_down = np.zeros(3)
         self._body_up_sum = np.zeros(3)
         self._body_frames = 0
+        self._body_cache: tuple[int, np.ndarray | None] = (0, None)
         self._contacts: deque[np.ndarray] = deque(maxlen=CONTACT_BUFFER)
         self._contacts_since_fit = 0
         self._contact_normal: np.ndarray | None = None
@@ -239,8 +241,18 @@ class GroundModel:
         return normal if normal @ self._body_up_sum <= 0 else -normal
 
     def _body_normal(self) -> np.ndarray | None:
+        """The bodies' axis, recomputed when the evidence grew by BODY_REFRESH_REL (so that the
+        plane, cached per normal, is not rebuilt every frame)."""
         if self._body_frames < BODY_MIN_FRAMES:
             return None
+        count, normal = self._body_cache
+        if normal is not None and self._body_frames < count * (1.0 + BODY_REFRESH_REL):
+            return normal
+        normal = self._compute_body_normal()
+        self._body_cache = (self._body_frames, normal)
+        return normal
+
+    def _compute_body_normal(self) -> np.ndarray | None:
         eigval, eigvec = np.linalg.eigh(self._scatter)
         if eigval[-1] < BODY_MIN_ANISOTROPY * max(eigval[-2], 1e-12):
             return None
