@@ -39,6 +39,7 @@ JOINTS_PER_PERSON = 24
 PENDING_MAPS_MAX = 8  # maps waiting for a frame of their stamp
 JUMP_HISTORY = 30  # recent pose speeds whose median is the "normal" speed
 JUMP_MIN_HISTORY = 5  # steps needed before a jump can be told from normal motion
+TYPICAL_REFRESH_POSES = 10  # the typical speed is re-taken every this many poses
 OVERLAP_SAMPLE = 256  # new-map points checked against the previous map
 OVERLAP_DISTANCE_REL = 0.02  # a point overlaps when this close (fraction of the old map's extent)
 MEDIAN_STD_ERROR = 1.2533  # standard error of a median = 1.2533 sigma / sqrt(n) (normal samples)
@@ -108,6 +109,7 @@ class Calibrator:
         self._expect_new_map = False
         self._last_frame_ns = -1
         self._steps: deque[float] = deque(maxlen=JUMP_HISTORY)
+        self._typical_speed, self._typical_age = 0.0, 0
         self._bbox_lo = self._bbox_hi = None
         self._suspects: list[_Pose] = []
         self.anchor = Anchor()
@@ -309,7 +311,11 @@ class Calibrator:
         last = self._poses[-1]
         step = float(np.linalg.norm(pose.c_map - last.c_map))
         speed = step / max(pose.stamp_ns - last.stamp_ns, 1)
-        typical = float(np.median(self._steps))
+        if self._typical_age <= 0:  # the median of recent speeds, refreshed every few poses
+            self._typical_speed = float(np.median(self._steps))
+            self._typical_age = TYPICAL_REFRESH_POSES
+        self._typical_age -= 1
+        typical = self._typical_speed
         extent = float(np.linalg.norm(self._bbox_hi - self._bbox_lo))
         return speed > self.params.reset_jump_factor * typical and \
             step > self.params.reset_jump_min_rel * extent
@@ -345,6 +351,7 @@ class Calibrator:
         self._poses.clear()
         self._pose_stamps.clear()
         self._steps.clear()
+        self._typical_age = 0
         self._bbox_lo = self._bbox_hi = None
         if cause != 'map_overlap':
             self.map = None

@@ -31,6 +31,7 @@ BODY_MIN_ANISOTROPY = 3.0  # largest / second eigenvalue of the up-axis scatter:
 CONTACT_MIN_POINTS = 30  # contact joints needed before refining the normal
 CONTACT_REFIT_EVERY = 30  # refit the contact plane every this many new contacts
 CONTACT_BUFFER = 3000  # contact joints kept for the refinement
+RANSAC_SAMPLE = 500  # contact joints a RANSAC hypothesis is scored on
 CONTACT_MAX_TILT_DEG = 10.0  # a contact plane tilted further than this from the body normal is refused
 CONTACT_LINE_RATIO = 0.15  # second/first singular value below this: the contacts form a line
 OFFSET_BINS = 100  # histogram bins over the map's robust range along n
@@ -263,8 +264,15 @@ class GroundModel:
         if body is None:
             return
         points = np.array(self._contacts)
-        mask = ransac_plane(points, inlier_distance, self.ransac_iters, self._rng)
-        if mask is None or mask.sum() < CONTACT_MIN_POINTS:
+        sample = points
+        if len(points) > RANSAC_SAMPLE:  # RANSAC on a subset; the refit uses every inlier
+            sample = points[self._rng.choice(len(points), RANSAC_SAMPLE, replace=False)]
+        hypothesis = ransac_plane(sample, inlier_distance, self.ransac_iters, self._rng)
+        if hypothesis is None or hypothesis.sum() < 3:
+            return
+        n0, b0, _ = fit_plane_lsq(sample[hypothesis])
+        mask = np.abs(points @ n0 - b0) <= inlier_distance
+        if mask.sum() < CONTACT_MIN_POINTS:
             return
         normal, _, sing = fit_plane_lsq(points[mask])
         if sing[1] < CONTACT_LINE_RATIO * sing[0]:
