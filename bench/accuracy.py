@@ -37,7 +37,8 @@ from hac_ros.simulate.feed import feed_scenario  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = REPO.parent / 'shared' / 'data'
-ABLATION_SCENARIOS = ('walk', 'occluded', 'crowd', 'stairs')
+ABLATION_SCENARIOS = ('walk', 'crowd', 'stairs')
+OCCLUDED = ('occluded',)  # reported apart: a known failure that would swamp the means
 ALL_SCENARIOS = ('walk', 'ego', 'stairs', 'handstand', 'skate', 'occluded', 'crowd', 'drift',
                  'reset', 'static')
 CONTACT_ROWS = ('head', 'pelvis', 'feet', 'lowest', 'max_ratio', 'lowest_gravity')
@@ -96,9 +97,9 @@ def mean_rows(rows: list[dict[str, float]]) -> dict[str, float]:
 
 
 # ---------------------------------------------------------------------- tables
-def table_reference_joint(seeds, duration) -> dict:
+def table_reference_joint(seeds, duration, scenarios=ABLATION_SCENARIOS) -> dict:
     results: dict[str, list] = {}
-    for name in ABLATION_SCENARIOS:
+    for name in scenarios:
         for seed in seeds:
             sc = make_scenario(name, seed=seed, duration=duration)
             true = float(np.median(sc.true_scale))
@@ -214,6 +215,11 @@ def render(results: dict) -> str:
               'median per recording (the paper is offline). mm, mm, %, mm, m, m, %.', '',
               table(['row', *cols], [[row, *[m[c] for c in cols]]
                                      for row, m in results['reference_joint'].items()]), '']
+    parts += ['#### 1b. The same on `occluded` (tables between the camera and the feet)', '',
+              'A known failure (docs/method.md): the table tops are hit before any scale exists and '
+              'the estimate locks on them.', '',
+              table(['row', *cols], [[row, *[m[c] for c in cols]]
+                                     for row, m in results['reference_joint_occluded'].items()]), '']
     gcols = cols + ['fallback %']
     parts += ['### 2. Ground-plane strategies on `ego` (paper Tab. 2)', '',
               table(['row', *gcols], [[row, *([m[c] for c in gcols] if m else ['no estimate'] * len(gcols))]
@@ -248,7 +254,10 @@ def main() -> int:
     seeds = list(range(args.seeds))
     t0 = time.perf_counter()
     results = {'seeds': args.seeds, 'duration': args.duration, 'machine': machine()}
-    for key, fn in [('reference_joint', table_reference_joint), ('ground', table_ground),
+    for key, fn in [('reference_joint', table_reference_joint),
+                    ('reference_joint_occluded',
+                     lambda seeds, d: table_reference_joint(seeds, d, OCCLUDED)),
+                    ('ground', table_ground),
                     ('online_offline', table_online_offline), ('drift_reset', table_drift_reset)]:
         t = time.perf_counter()
         results[key] = fn(seeds, args.duration)
