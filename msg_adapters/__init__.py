@@ -4,6 +4,7 @@ Readers are duck-typed; builders take a :class:`MessageTypes` (``rclpy_types()``
 ``rosbags_types()``). Nothing here imports ROS at import time. Every malformed input raises
 :class:`MessageError`.
 """
+from msg_adapters.cdr import RawCloud, cloud_points, parse_cloud_cdr
 from msg_adapters.camera_info import camera_info_to_intrinsics, intrinsics_to_camera_info
 from msg_adapters.errors import MessageError
 from msg_adapters.joints import joints_to_pose_array, pose_array_to_joints
@@ -15,7 +16,7 @@ from msg_adapters.stamps import make_header, ns_to_stamp, stamp_to_ns
 from msg_adapters.types import MessageTypes, rclpy_types, rosbags_types
 
 __all__ = [
-    'MessageError', 'MessageTypes', 'camera_info_to_intrinsics', 'cloud_to_xyz',
+    'MessageError', 'MessageTypes', 'RawCloud', 'cloud_points', 'parse_cloud_cdr', 'camera_info_to_intrinsics', 'cloud_to_xyz',
     'intrinsics_to_camera_info', 'joints_to_pose_array', 'make_header', 'matrix_to_quat',
     'ns_to_stamp', 'pose_array_to_joints', 'pose_msg_to_rt', 'pose_to_rt', 'quat_to_matrix',
     'rclpy_types', 'rosbags_types', 'rt_to_odometry', 'rt_to_pose', 'rt_to_pose_stamped',
