@@ -1,10 +1,11 @@
-"""``geometry_msgs/PoseArray`` ↔ joints (P, 24, 3): SMPL-24 blocks of 24 poses per person.
+"""``geometry_msgs/PoseArray`` ↔ joints (P, 24, 3): consecutive SMPL-24 blocks, one per person.
 
-Positions only (metres, in the message's frame: the camera optical frame for HMR input, the metric
+Positions only, metres, in the message's frame (the camera optical frame for HMR input, the metric
 world for output); orientations are ignored on input and identity on output.
 """
 from __future__ import annotations
 
+import operator
 from typing import Any
 
 import numpy as np
@@ -13,36 +14,66 @@ from msg_adapters.errors import MessageError
 from msg_adapters.stamps import make_header
 from msg_adapters.types import MessageTypes
 
-JOINTS_PER_PERSON = 24
+JOINTS_PER_PERSON = 24  # SMPL-24 (SPEC: joint order)
+_POSITION = operator.attrgetter('position.x', 'position.y', 'position.z')  # one C call per pose
 
 
 def pose_array_to_joints(msg: Any, joints_per_person: int = JOINTS_PER_PERSON) -> np.ndarray:
-    """PoseArray → (P, 24, 3) float64. Non-finite values pass through (the core counts them)."""
+    """PoseArray → (P, joints_per_person, 3) float64, metres, ``msg.header.frame_id``.
+
+    Zero poses → shape (0, 24, 3). Non-finite values pass through (the core counts them);
+    MessageError when the number of poses is not a multiple of ``joints_per_person``.
+    """
+    if not isinstance(joints_per_person, int) or joints_per_person <= 0:
+        raise MessageError(f'PoseArray: joints_per_person must be a positive int, got '
+                           f'{joints_per_person!r}')
     try:
         poses = msg.poses
         n = len(poses)
-        if n % joints_per_person:
-            raise MessageError(f'PoseArray: {n} poses is not a multiple of {joints_per_person} '
-                               '(one block of joints per person)')
-        flat = np.array([(p.position.x, p.position.y, p.position.z) for p in poses], dtype=float)
-    except MessageError:
-        raise
+    except (AttributeError, TypeError) as exc:
+        raise MessageError(f'PoseArray: expected a poses sequence ({exc})') from exc
+    if n % joints_per_person:
+        raise MessageError(f'PoseArray: {n} poses is not a multiple of {joints_per_person} '
+                           '(one block of joints per person)')
+    try:
+        flat = np.array(list(map(_POSITION, poses)), dtype=float)
     except (AttributeError, TypeError, ValueError) as exc:
-        raise MessageError(f'PoseArray: poses without positions ({exc})') from exc
-    return flat.reshape(-1, joints_per_person, 3)
+        raise MessageError(f'PoseArray: every pose needs a numeric position x, y, z '
+                           f'({exc})') from exc
+    return flat.reshape(n // joints_per_person, joints_per_person, 3)
 
 
 def joints_to_pose_array(joints: np.ndarray, stamp_ns: int, frame_id: str,
                          types: MessageTypes) -> Any:
-    """(P, 24, 3) or (24, 3) joints, metres → PoseArray (identity orientations)."""
-    joints = np.asarray(joints, dtype=float)
+    """Joints (P, 24, 3) or (24, 3), metres, ``frame_id`` → PoseArray (identity orientations).
+
+    Non-finite values are written as they are.
+    """
+    try:
+        joints = np.asarray(joints, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise MessageError(f'joints_to_pose_array: joints must be numbers ({exc})') from exc
     if joints.ndim == 2:
         joints = joints[None]
-    if joints.ndim != 3 or joints.shape[2] != 3:
-        raise MessageError(f'joints_to_pose_array: expected (P, 24, 3), got {joints.shape}')
-    Pose, Point, Quaternion = (types.get('geometry_msgs/msg/Pose'), types.get('geometry_msgs/msg/Point'),
-                               types.get('geometry_msgs/msg/Quaternion'))
-    poses = [Pose(position=Point(x=x, y=y, z=z), orientation=Quaternion(x=0.0, y=0.0, z=0.0, w=1.0))
-             for x, y, z in joints.reshape(-1, 3).tolist()]
+    if joints.ndim != 3 or joints.shape[1:] != (JOINTS_PER_PERSON, 3):
+        raise MessageError(f'joints_to_pose_array: expected (P, {JOINTS_PER_PERSON}, 3) or '
+                           f'({JOINTS_PER_PERSON}, 3), got shape {joints.shape}')
+    Pose = types.get('geometry_msgs/msg/Pose')
+    positions = joints.reshape(-1, 3).tolist()  # Python floats (rclpy refuses numpy scalars)
+    if types.is_rosbags:  # dataclasses: every field given
+        Point, Quaternion = (types.get('geometry_msgs/msg/Point'),
+                             types.get('geometry_msgs/msg/Quaternion'))
+        poses = [Pose(position=Point(x=x, y=y, z=z),
+                      orientation=Quaternion(x=0.0, y=0.0, z=0.0, w=1.0))
+                 for x, y, z in positions]
+    else:  # rclpy: Pose() is already identity (Quaternion.msg: w default 1); twice as fast
+        poses = [_rclpy_pose(Pose(), x, y, z) for x, y, z in positions]
     return types.get('geometry_msgs/msg/PoseArray')(header=make_header(stamp_ns, frame_id, types),
                                                     poses=poses)
+
+
+def _rclpy_pose(pose: Any, x: float, y: float, z: float) -> Any:
+    """Set the position of a default-constructed rclpy Pose (orientation identity) and return it."""
+    position = pose.position
+    position.x, position.y, position.z = x, y, z
+    return pose

@@ -1,8 +1,9 @@
-"""Pose messages ↔ (R, c).
+"""Pose messages ↔ (R, c), quaternions through scipy's ``Rotation`` (scalar-last: x, y, z, w).
 
 A SLAM pose message is the camera's pose in the SLAM map frame (SPEC, conventions): the readers
 return **camera-to-map** ``(R_wc (3, 3), c (3,))`` — the rotation from the camera frame to the map
-frame and the camera centre in map coordinates, SLAM units.
+frame and the camera centre in map coordinates, in SLAM units. The builders take the same pair for
+any parent/child frames (e.g. the metric world and the camera, metres).
 """
 from __future__ import annotations
 
@@ -10,106 +11,182 @@ import math
 from typing import Any
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from msg_adapters.errors import MessageError
 from msg_adapters.stamps import make_header
 from msg_adapters.types import MessageTypes
 
-QUATERNION_NORM_TOL = 1e-2  # |‖q‖ − 1| up to this is rounding and is normalised; beyond it, an error
+# |‖q‖ − 1| up to this is float rounding of a unit quaternion (float32 publishers, text
+# round-trips) and is normalised away; beyond it the message is not a rotation and is refused.
+QUATERNION_NORM_TOL = 1e-3
+# max |RᵀR − I| and |det R − 1| accepted by the builders: a rotation that went through float64
+# arithmetic is within 1e-12; anything further is not a rotation (scipy would silently project it).
+ROTATION_TOL = 1e-6
+POSE_NESTING = 3  # Pose, PoseStamped.pose, Odometry/PoseWithCovarianceStamped .pose.pose
 
 
 def quat_to_matrix(x: float, y: float, z: float, w: float) -> np.ndarray:
-    """Unit quaternion (x, y, z, w) → rotation matrix (3, 3)."""
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-    ])
+    """Quaternion (x, y, z, w) → rotation matrix (3, 3) float64.
+
+    Normalised when |‖q‖ − 1| <= QUATERNION_NORM_TOL; MessageError when not finite or further off.
+    """
+    try:
+        q = np.array([x, y, z, w], dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise MessageError(f'quaternion (x, y, z, w) is not 4 numbers ({exc})') from exc
+    if not np.isfinite(q).all():
+        raise MessageError(f'quaternion (x, y, z, w) is not finite: {q.tolist()}')
+    norm = math.hypot(*q.tolist())  # no overflow for huge components
+    if not abs(norm - 1.0) <= QUATERNION_NORM_TOL:
+        raise MessageError(f'quaternion (x, y, z, w) = {q.tolist()} has norm {norm:.9g}; expected '
+                           f'1 within {QUATERNION_NORM_TOL}')
+    return Rotation.from_quat(q / norm).as_matrix()
 
 
 def matrix_to_quat(R: np.ndarray) -> tuple[float, float, float, float]:
-    """Rotation matrix (3, 3) → unit quaternion (x, y, z, w), w >= 0."""
-    from scipy.spatial.transform import Rotation
+    """Rotation matrix (3, 3) → unit quaternion (x, y, z, w) as Python floats, w >= 0.
 
-    q = Rotation.from_matrix(np.asarray(R, dtype=float)).as_quat()
+    MessageError when R is not a finite proper rotation (within ROTATION_TOL).
+    """
+    try:
+        R = np.asarray(R, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise MessageError(f'rotation: expected a (3, 3) matrix ({exc})') from exc
+    if R.shape != (3, 3):
+        raise MessageError(f'rotation: expected a (3, 3) matrix, got shape {R.shape}')
+    if not np.isfinite(R).all():
+        raise MessageError(f'rotation is not finite: {R.tolist()}')
+    orthogonality = float(np.abs(R.T @ R - np.eye(3)).max())
+    determinant = float(np.linalg.det(R))
+    if orthogonality > ROTATION_TOL or abs(determinant - 1.0) > ROTATION_TOL:
+        raise MessageError(f'rotation: not a rotation matrix (max |RᵀR − I| = {orthogonality:.3g}, '
+                           f'det = {determinant:.6g})')
+    q = Rotation.from_matrix(R).as_quat()
     if q[3] < 0:
         q = -q
     return float(q[0]), float(q[1]), float(q[2]), float(q[3])
 
 
 def pose_to_rt(pose: Any) -> tuple[np.ndarray, np.ndarray]:
-    """``geometry_msgs/Pose`` → (R (3, 3), t (3,)); for a SLAM pose: camera-to-map, camera centre."""
+    """``geometry_msgs/Pose`` → (R (3, 3) float64, c (3,) float64).
+
+    For a SLAM pose: R_wc (camera to map) and c the camera centre, map frame, SLAM units.
+    MessageError for a non-finite position or orientation, or a quaternion whose norm is not 1
+    within QUATERNION_NORM_TOL (a zero quaternion included).
+    """
     try:
         p, q = pose.position, pose.orientation
-        t = np.array([float(p.x), float(p.y), float(p.z)])
-        x, y, z, w = float(q.x), float(q.y), float(q.z), float(q.w)
+        c = np.array([p.x, p.y, p.z], dtype=float)
+        quat = (q.x, q.y, q.z, q.w)
     except (AttributeError, TypeError, ValueError) as exc:
-        raise MessageError(f'Pose: expected position and orientation ({exc})') from exc
-    if not np.all(np.isfinite(t)):
-        raise MessageError(f'Pose: position is not finite: {t.tolist()}')
-    norm = math.sqrt(x * x + y * y + z * z + w * w)
-    if not math.isfinite(norm) or abs(norm - 1.0) > QUATERNION_NORM_TOL:
-        raise MessageError(f'Pose: orientation is not a unit quaternion (norm {norm:.6g})')
-    return quat_to_matrix(x / norm, y / norm, z / norm, w / norm), t
+        raise MessageError(f'Pose: expected position (x, y, z) and orientation (x, y, z, w) '
+                           f'({exc})') from exc
+    if not np.isfinite(c).all():
+        raise MessageError(f'Pose: position is not finite: {c.tolist()}')
+    try:
+        R = quat_to_matrix(*quat)
+    except MessageError as exc:
+        raise MessageError(f'Pose: orientation: {exc}') from exc
+    return R, c
 
 
 def pose_msg_to_rt(msg: Any) -> tuple[np.ndarray, np.ndarray]:
-    """PoseStamped, Odometry, PoseWithCovariance(Stamped) or Pose → camera-to-map (R_wc, c).
+    """A SLAM pose message → camera-to-map ``(R_wc, c)``.
 
-    R_wc: (3, 3) camera to map frame; c: (3,) camera centre, SLAM units, map frame.
+    Accepts ``geometry_msgs/PoseStamped`` (``msg.pose``), ``nav_msgs/Odometry`` and
+    ``geometry_msgs/PoseWithCovarianceStamped`` (``msg.pose.pose``), ``PoseWithCovariance`` or a
+    bare ``Pose``, dispatching on attributes. Returns R_wc: (3, 3) float64, rotation from the
+    camera frame to the map frame; c: (3,) float64, camera centre in the map frame, SLAM units.
     """
-    inner = msg
-    for _ in range(2):  # Odometry.pose.pose, PoseWithCovarianceStamped.pose.pose, PoseStamped.pose
-        if hasattr(inner, 'position'):
+    node = msg
+    for _ in range(POSE_NESTING):
+        if hasattr(node, 'position') and hasattr(node, 'orientation'):
+            return pose_to_rt(node)
+        node = getattr(node, 'pose', None)
+        if node is None:
             break
-        inner = getattr(inner, 'pose', None)
-        if inner is None:
-            raise MessageError(f'{type(msg).__name__}: no pose in this message')
-    return pose_to_rt(inner)
+    raise MessageError(f'{type(msg).__name__}: expected a Pose, PoseStamped, PoseWithCovariance'
+                       f'(Stamped) or Odometry (no pose with position and orientation found)')
 
 
-def rt_to_pose(R: np.ndarray, t: np.ndarray, types: MessageTypes) -> Any:
+def _vector(v: Any, what: str) -> tuple[float, float, float]:
+    """A finite 3-vector as Python floats (rclpy float fields refuse numpy scalars)."""
+    try:
+        a = np.asarray(v, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise MessageError(f'{what}: expected 3 numbers ({exc})') from exc
+    if a.shape != (3,):
+        raise MessageError(f'{what}: expected shape (3,), got {a.shape}')
+    if not np.isfinite(a).all():
+        raise MessageError(f'{what} is not finite: {a.tolist()}')
+    x, y, z = a.tolist()
+    return x, y, z
+
+
+def _covariance(cov: Any, what: str) -> np.ndarray:
+    """(6, 6) or (36,) → (36,) float64 row-major (ROS order x, y, z, rot x, rot y, rot z)."""
+    if cov is None:
+        return np.zeros(36)
+    try:
+        a = np.array(cov, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise MessageError(f'{what}: expected a (6, 6) matrix ({exc})') from exc
+    if a.shape not in ((6, 6), (36,)):
+        raise MessageError(f'{what}: expected shape (6, 6) or (36,), got {a.shape}')
+    return a.reshape(36)
+
+
+def rt_to_pose(R: np.ndarray, c: np.ndarray, types: MessageTypes) -> Any:
+    """(R (3, 3) child-to-parent rotation, c (3,) child origin in the parent frame) → Pose."""
     x, y, z, w = matrix_to_quat(R)
+    px, py, pz = _vector(c, 'position')
     return types.get('geometry_msgs/msg/Pose')(
-        position=types.get('geometry_msgs/msg/Point')(x=float(t[0]), y=float(t[1]), z=float(t[2])),
+        position=types.get('geometry_msgs/msg/Point')(x=px, y=py, z=pz),
         orientation=types.get('geometry_msgs/msg/Quaternion')(x=x, y=y, z=z, w=w))
 
 
 def rt_to_pose_stamped(R: np.ndarray, c: np.ndarray, stamp_ns: int, frame_id: str,
                        types: MessageTypes) -> Any:
+    """Camera-to-``frame_id`` (R_wc (3, 3), c (3,) in ``frame_id``'s unit) → PoseStamped."""
     return types.get('geometry_msgs/msg/PoseStamped')(
         header=make_header(stamp_ns, frame_id, types), pose=rt_to_pose(R, c, types))
-
-
-def _vector3(v: Any, types: MessageTypes) -> Any:
-    v = np.zeros(3) if v is None else np.asarray(v, dtype=float)
-    return types.get('geometry_msgs/msg/Vector3')(x=float(v[0]), y=float(v[1]), z=float(v[2]))
-
-
-def _covariance(cov: Any) -> np.ndarray:
-    return np.zeros(36) if cov is None else np.ascontiguousarray(cov, dtype=np.float64).reshape(36)
 
 
 def rt_to_odometry(R: np.ndarray, c: np.ndarray, stamp_ns: int, frame_id: str, child_frame_id: str,
                    types: MessageTypes, covariance: Any = None, linear: Any = None,
                    angular: Any = None, twist_covariance: Any = None) -> Any:
-    """``nav_msgs/Odometry``: pose of ``child_frame_id`` in ``frame_id``; twist in the child frame."""
+    """``nav_msgs/Odometry``: the pose of ``child_frame_id`` in ``frame_id``.
+
+    R: (3, 3) child-to-parent rotation; c: (3,) child origin in ``frame_id`` (its unit);
+    covariance: pose covariance (6, 6) or None (zeros); linear: (3,) m/s and angular: (3,) rad/s
+    in the child frame, or None (zeros); twist_covariance: (6, 6) or None (zeros).
+    """
     t = types
+    vx, vy, vz = (0.0, 0.0, 0.0) if linear is None else _vector(linear, 'Odometry: linear velocity')
+    wx, wy, wz = (0.0, 0.0, 0.0) if angular is None else _vector(angular,
+                                                                 'Odometry: angular velocity')
+    Vector3 = t.get('geometry_msgs/msg/Vector3')
     return t.get('nav_msgs/msg/Odometry')(
         header=make_header(stamp_ns, frame_id, t), child_frame_id=child_frame_id,
-        pose=t.get('geometry_msgs/msg/PoseWithCovariance')(pose=rt_to_pose(R, c, t),
-                                                           covariance=_covariance(covariance)),
+        pose=t.get('geometry_msgs/msg/PoseWithCovariance')(
+            pose=rt_to_pose(R, c, t), covariance=_covariance(covariance, 'Odometry: covariance')),
         twist=t.get('geometry_msgs/msg/TwistWithCovariance')(
-            twist=t.get('geometry_msgs/msg/Twist')(linear=_vector3(linear, t),
-                                                   angular=_vector3(angular, t)),
-            covariance=_covariance(twist_covariance)))
+            twist=t.get('geometry_msgs/msg/Twist')(linear=Vector3(x=vx, y=vy, z=vz),
+                                                   angular=Vector3(x=wx, y=wy, z=wz)),
+            covariance=_covariance(twist_covariance, 'Odometry: twist covariance')))
 
 
 def rt_to_transform_stamped(R: np.ndarray, t: np.ndarray, stamp_ns: int, frame_id: str,
                             child_frame_id: str, types: MessageTypes) -> Any:
+    """``geometry_msgs/TransformStamped`` (tf): ``child_frame_id`` → ``frame_id``.
+
+    R: (3, 3) child-to-parent rotation; t: (3,) child origin in ``frame_id`` (its unit).
+    """
     x, y, z, w = matrix_to_quat(R)
+    tx, ty, tz = _vector(t, 'translation')
     return types.get('geometry_msgs/msg/TransformStamped')(
         header=make_header(stamp_ns, frame_id, types), child_frame_id=child_frame_id,
         transform=types.get('geometry_msgs/msg/Transform')(
-            translation=_vector3(t, types),
+            translation=types.get('geometry_msgs/msg/Vector3')(x=tx, y=ty, z=tz),
             rotation=types.get('geometry_msgs/msg/Quaternion')(x=x, y=y, z=z, w=w)))
