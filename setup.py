@@ -26,7 +26,6 @@ setup(
         'numpy>=1.24',
         'scipy>=1.10',
         'rosbags>=0.11.9',
-        'sortedcontainers>=2.4',
         'PyYAML>=6.0',
         'tqdm>=4.60',
         'matplotlib>=3.7',

@@ -1,6 +1,7 @@
 """The core against SPEC's method: exact scenes, invariances, edge cases, the estimator."""
 from __future__ import annotations
 
+import math
 import subprocess
 import sys
 
@@ -10,9 +11,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from hac_ros.core.calibrator import Calibrator
-from hac_ros.core.estimator import RollingScale, centred_rolling_median
+from hac_ros.core.estimator import RollingScale, SortedWindow, centred_rolling_median
 from hac_ros.core.ground import GroundModel, Plane, lowest_segment_offset
 from hac_ros.core.outputs import (HumanJointsOut, OdometryOut, ResetOut, SampleOut, ScaleOut)
+from hac_ros.core.numeric import median_1d
 from hac_ros.core.params import HacParams
 from hac_ros.core.reference import MapIndex, literal_cone_median
 from scenes import NS, Scene, walking_scene
@@ -393,6 +395,33 @@ def test_streaming_median_and_mad_equal_numpy(values, window):
         assert est.median() == pytest.approx(np.median(kept), rel=1e-12)
         assert est.mad() == pytest.approx(np.median(np.abs(kept - np.median(kept))), rel=1e-9,
                                           abs=1e-12)
+
+
+@settings(max_examples=60, deadline=None)
+@given(values=st.lists(st.floats(-1e6, 1e6), min_size=1, max_size=200))
+def test_sorted_window_grows_and_removes_like_a_sorted_list(values):
+    window = SortedWindow(capacity=1)  # starts at the minimum buffer and doubles
+    for v in values:
+        window.add(v)
+    assert window.values().tolist() == sorted(values)
+    for v in values[::2]:
+        window.remove(v)
+    rest = sorted(values)
+    for v in values[::2]:
+        rest.remove(v)
+    assert window.values().tolist() == rest
+    with pytest.raises(ValueError):
+        window.remove(2e6)
+
+
+@settings(max_examples=60, deadline=None)
+@given(values=st.lists(st.floats(-1e6, 1e6), min_size=0, max_size=50))
+def test_median_1d_equals_numpy(values):
+    a = np.array(values, dtype=float)
+    if a.size == 0:
+        assert math.isnan(median_1d(a))
+    else:
+        assert median_1d(a) == np.median(a)
 
 
 def test_window_evicts_by_stamp_time_and_gates_outliers_then_relocks():

@@ -29,6 +29,7 @@ import numpy as np
 from hac_ros.core.contact import candidate_joints, combine_ratios, in_view
 from hac_ros.core.estimator import RollingScale
 from hac_ros.core.ground import GroundModel, Plane
+from hac_ros.core.numeric import median_1d
 from hac_ros.core.outputs import (DiagnosticsOut, HumanJointsOut, NoticeOut, OdometryOut, Output,
                                   ResetOut, SampleOut, ScaleOut, Status)
 from hac_ros.core.params import HacParams
@@ -116,6 +117,8 @@ class Calibrator:
         self._last_metric: tuple[int, np.ndarray, np.ndarray] | None = None  # camera, metric frame
         self._diag_second: int | None = None
         self._base_from_camera = _base_from_camera(p.base_to_camera) if p.base_frame else None
+        # the odometry covariance without the scale's share: position floor, orientation variance
+        self._covariance_floor = np.diag([POSITION_VARIANCE_FLOOR] * 3 + [p.orientation_variance] * 3)
         # Offline mode: the scale of every published output at a stamp, decided from the whole
         # recording (see hac_ros.core.offline); None = the online rolling estimate.
         self.output_scale: Callable[[int], float] | None = None
@@ -285,7 +288,8 @@ class Calibrator:
         out: list[Output] = []
         if self._poses:
             last = self._poses[-1]
-            step = float(np.linalg.norm(pose.c_map - last.c_map))
+            delta = pose.c_map - last.c_map
+            step = math.sqrt(float(delta @ delta))
             self._steps.append(step / max(pose.stamp_ns - last.stamp_ns, 1))  # speed per ns
         self._poses.append(pose)
         self._pose_stamps.append(pose.stamp_ns)
@@ -309,14 +313,16 @@ class Calibrator:
         if not self._poses or len(self._steps) < JUMP_MIN_HISTORY:
             return False
         last = self._poses[-1]
-        step = float(np.linalg.norm(pose.c_map - last.c_map))
+        delta = pose.c_map - last.c_map
+        step = math.sqrt(float(delta @ delta))
         speed = step / max(pose.stamp_ns - last.stamp_ns, 1)
         if self._typical_age <= 0:  # the median of recent speeds, refreshed every few poses
-            self._typical_speed = float(np.median(self._steps))
+            self._typical_speed = median_1d(np.fromiter(self._steps, float, len(self._steps)))
             self._typical_age = TYPICAL_REFRESH_POSES
         self._typical_age -= 1
         typical = self._typical_speed
-        extent = float(np.linalg.norm(self._bbox_hi - self._bbox_lo))
+        diagonal = self._bbox_hi - self._bbox_lo
+        extent = math.sqrt(float(diagonal @ diagonal))
         return speed > self.params.reset_jump_factor * typical and \
             step > self.params.reset_jump_min_rel * extent
 
@@ -444,9 +450,9 @@ class Calibrator:
                 joints: np.ndarray) -> list[Output]:
         """One person's scale sample (SPEC steps 1–5)."""
         self.people += 1
-        if not np.all(np.isfinite(joints)):
+        if not np.isfinite(joints).all():
             return self._rejected_sample(stamp, person, 'nonfinite_joints')
-        if not np.any(joints[:, 2] > 0.0):
+        if not (joints[:, 2] > 0.0).any():
             return self._rejected_sample(stamp, person, 'behind_camera')
         self.ground.add_body(R_wc, joints)
         scale_now = self.scale if self.converged else None
@@ -454,15 +460,16 @@ class Calibrator:
         candidates = candidate_joints(self.params.contact_mode, joints, R_wc, normal)
         if candidates.size == 0:
             return self._rejected_sample(stamp, person, 'behind_camera')
-        visible = in_view(joints, self._K, *self._image_size)
+        visible = in_view(joints[candidates], self._K, *self._image_size)
         plane = self.ground.plane(self.map)
         ratios = np.full(len(candidates), np.nan)
-        from_map = np.zeros(len(candidates), dtype=bool)
-        for k, j in enumerate(candidates):
-            distance_metric = float(np.linalg.norm(joints[j]))
-            direction_map = R_wc @ (joints[j] / distance_metric)
+        from_map = [False] * len(candidates)
+        for k, j in enumerate(candidates.tolist()):
+            joint = joints[j]
+            distance_metric = math.sqrt(float(joint @ joint))
+            direction_map = R_wc @ (joint / distance_metric)
             plane_distance = plane.ray_distance(c_map, direction_map) if plane is not None else math.nan
-            if visible[j] and self.map is not None:
+            if visible[k] and self.map is not None:
                 d_slam = self._map_distance(c_map, direction_map, distance_metric, scale_now)
                 if d_slam is not None and self._plausible(d_slam, distance_metric, plane_distance,
                                                           scale_now):
@@ -470,11 +477,12 @@ class Calibrator:
                     continue
             if math.isfinite(plane_distance):
                 ratios[k] = distance_metric / plane_distance
-        if not np.any(np.isfinite(ratios)):
+        if not np.isfinite(ratios).any():
             reason = 'no_map' if self.map is None and plane is None else 'no_reference'
             return self._rejected_sample(stamp, person, reason)
         sample = combine_ratios(self.params.contact_mode, ratios)
-        chosen = int(np.nanargmax(ratios)) if self.params.contact_mode == 'max_ratio' else 0
+        chosen = int(np.nanargmax(ratios)) if len(ratios) > 1 and \
+            self.params.contact_mode == 'max_ratio' else 0
         source = 'map' if from_map[chosen] else 'ground'
         if source == 'map':
             self.map_hits += 1
@@ -557,9 +565,8 @@ class Calibrator:
         n = max(self.estimator.samples, 1)
         sigma_scale = MEDIAN_STD_ERROR * self.estimator.spread() / math.sqrt(n)
         lever = self.anchor.rotation @ (pose.c_map - self.anchor.centre_slam)
-        cov = np.zeros((6, 6))
-        cov[:3, :3] = sigma_scale ** 2 * np.outer(lever, lever) + POSITION_VARIANCE_FLOOR * np.eye(3)
-        cov[3:, 3:] = self.params.orientation_variance * np.eye(3)
+        cov = self._covariance_floor.copy()
+        cov[:3, :3] += sigma_scale ** 2 * (lever[:, None] * lever)
         return [OdometryOut(pose.stamp_ns, self.child_frame_id, R_out, p_out, cov, linear, angular)]
 
     def _published_scale(self, stamp_ns: int) -> float | None:

@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from hac_ros.core.numeric import median_1d
+
 PELVIS, NECK, HEAD = 0, 12, 15
 LEFT_FOOT, RIGHT_FOOT = 10, 11
 FIXED_JOINTS = {'feet': (LEFT_FOOT, RIGHT_FOOT), 'pelvis': (PELVIS,), 'head': (HEAD,)}
@@ -44,20 +46,30 @@ def combine_ratios(mode: str, ratios: np.ndarray) -> float:
 
     max_ratio: the maximum (authors' code); fixed multi-joint sets (feet): the median; one joint: it.
     """
+    if ratios.size == 1:
+        return float(ratios[0])
     ratios = ratios[np.isfinite(ratios)]
     if ratios.size == 0:
         return float('nan')
     if mode == 'max_ratio':
         return float(ratios.max())
-    return float(np.median(ratios))
+    return median_1d(ratios)
 
 
-def in_view(joints_cam: np.ndarray, K: np.ndarray | None, width: int, height: int) -> np.ndarray:
-    """(24,) bool: which joints project inside the image (all in front of it without intrinsics)."""
-    in_front = joints_cam[:, 2] > 0.0
+def in_view(joints_cam: np.ndarray, K: np.ndarray | None, width: int, height: int) -> list[bool]:
+    """Which joints (M, 3) project inside the image (all in front of it without intrinsics).
+
+    A plain loop: M is a person's few candidate joints, where numpy's per-call cost dominates.
+    """
     if K is None:
-        return in_front
-    z = np.where(in_front, joints_cam[:, 2], 1.0)
-    u = K[0, 0] * joints_cam[:, 0] / z + K[0, 1] * joints_cam[:, 1] / z + K[0, 2]
-    v = K[1, 1] * joints_cam[:, 1] / z + K[1, 2]
-    return in_front & (u >= 0) & (u < width) & (v >= 0) & (v < height)
+        return [z > 0.0 for z in joints_cam[:, 2].tolist()]
+    (fx, skew, cx), (_, fy, cy) = K[:2].tolist()
+    out = []
+    for x, y, z in joints_cam.tolist():
+        if z <= 0.0:
+            out.append(False)
+            continue
+        u = (fx * x + skew * y) / z + cx
+        v = fy * y / z + cy
+        out.append(0.0 <= u < width and 0.0 <= v < height)
+    return out

@@ -1,10 +1,14 @@
 """The scale estimator: a rolling window in stamp time with a streaming median (SPEC, method step 5).
 
 The paper takes one median over a whole video. Online we keep the per-frame scales of the last
-``window_s`` stamp seconds (at most ``window_max_samples``) in a sorted container, so that adding or
-evicting a sample costs O(log n) and the median is an index lookup: the window is never re-sorted.
-The robust spread is the median absolute deviation (MAD), found in O(log² n) by selecting the k-th
-smallest of the two sorted runs of deviations on either side of the median.
+``window_s`` stamp seconds (at most ``window_max_samples``) in a sorted numpy buffer
+(:class:`SortedWindow`): adding or evicting a sample is a binary search and one memmove of the
+buffer's tail (the window is never re-sorted; 16 KB at the default 2000 samples, which is faster
+than a balanced tree's Python-level bookkeeping for any window this estimator holds), and the median
+is an index lookup. The robust spread is the median absolute deviation (MAD): the k+1 deviations
+nearest the median are a contiguous run of the sorted window, so the MAD is the smallest
+``max(med − v[i], v[i+k] − med)`` over the runs that straddle the median: one vectorised pass, no
+copy, no sort.
 
 Once converged (``min_samples``), a sample further than ``gate_k`` robust sigmas from the median
 (and than ``gate_min_rel`` of it) is gated out. If gated samples keep coming in a row for a third
@@ -18,7 +22,6 @@ from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
-from sortedcontainers import SortedList
 
 MAD_TO_SIGMA = 1.4826  # sigma of a normal distribution per unit of MAD
 
@@ -44,7 +47,7 @@ class RollingScale:
         self.gate_k = float(gate_k)
         self.gate_min_rel = float(gate_min_rel)
         self._fifo: deque[tuple[int, float]] = deque()  # (stamp_ns, scale) in arrival order
-        self._sorted: SortedList = SortedList()
+        self._sorted = SortedWindow(min(self.max_samples, 1 << 16))
         self._gated_run: list[tuple[int, float]] = []
         self.relocks = 0
         self._mad_cache: float | None = None  # valid until the window changes
@@ -92,30 +95,13 @@ class RollingScale:
         return len(self._sorted) >= self.min_samples
 
     def median(self) -> float:
-        n = len(self._sorted)
-        if n == 0:
-            return float('nan')
-        if n % 2:
-            return float(self._sorted[n // 2])
-        return 0.5 * (self._sorted[n // 2 - 1] + self._sorted[n // 2])
+        return self._sorted.median()
 
     def mad(self) -> float:
-        """Median absolute deviation from the median, O(log² n), without copying the window."""
+        """Median absolute deviation from the median (cached until the window changes)."""
         if self._mad_cache is None:
-            self._mad_cache = self._mad()
+            self._mad_cache = self._sorted.mad()
         return self._mad_cache
-
-    def _mad(self) -> float:
-        n = len(self._sorted)
-        if n == 0:
-            return float('nan')
-        med = self.median()
-        split = self._sorted.bisect_left(med)
-        if n % 2:
-            return float(_kth_deviation(self._sorted, split, med, n // 2))
-        lo = _kth_deviation(self._sorted, split, med, n // 2 - 1)
-        hi = _kth_deviation(self._sorted, split, med, n // 2)
-        return 0.5 * (lo + hi)
 
     def spread(self) -> float:
         """Robust sigma of the samples (1.4826 MAD), metres per SLAM unit."""
@@ -169,39 +155,78 @@ class RollingScale:
         self._mad_cache = None
 
 
-def _kth_deviation(values: SortedList, split: int, med: float, k: int) -> float:
-    """The k-th smallest (0-based) of |v - med| over sorted ``values``.
+class SortedWindow:
+    """A multiset of floats kept sorted in a numpy buffer: insert, remove, median, MAD.
 
-    ``values[:split]`` are < med, so their deviations grow leftwards; ``values[split:]`` grow
-    rightwards. Selecting the k-th of two sorted sequences takes O(log n) probes (binary search on
-    how many come from the left run), each an O(log n) SortedList index.
+    Insert and remove are a binary search plus a memmove of the tail (O(n) bytes, no Python loop);
+    median O(1); MAD one vectorised O(n) pass. The buffer doubles when full.
     """
-    n_left, n_right = split, len(values) - split
 
-    def left(i: int) -> float:  # i-th smallest deviation on the left
-        return med - values[split - 1 - i]
+    def __init__(self, capacity: int = 1024) -> None:
+        self._buf = np.empty(max(int(capacity), 16))
+        self._n = 0
 
-    def right(i: int) -> float:
-        return values[split + i] - med
+    def __len__(self) -> int:
+        return self._n
 
-    # number taken from the left run: a in [max(0, k+1-n_right), min(k+1, n_left)]
-    lo, hi = max(0, k + 1 - n_right), min(k + 1, n_left)
-    while lo < hi:
-        a = (lo + hi) // 2
-        b = k + 1 - a  # taken from the right
-        # too few from the left if the next left element is smaller than the last right one
-        if b > 0 and a < n_left and left(a) < right(b - 1):
-            lo = a + 1
-        else:
-            hi = a
-    a = lo
-    b = k + 1 - a
-    candidates = []
-    if a > 0:
-        candidates.append(left(a - 1))
-    if b > 0:
-        candidates.append(right(b - 1))
-    return max(candidates)
+    def add(self, value: float) -> None:
+        n = self._n
+        if n == self._buf.size:
+            self._buf = np.concatenate([self._buf, np.empty(n)])
+        buf = self._buf
+        pos = int(buf[:n].searchsorted(value))
+        if pos < n:
+            buf[pos + 1:n + 1] = buf[pos:n]  # overlapping: numpy copies via memmove
+        buf[pos] = value
+        self._n = n + 1
+
+    def remove(self, value: float) -> None:
+        """Remove one occurrence of ``value`` (ValueError when absent)."""
+        n = self._n
+        buf = self._buf
+        pos = int(buf[:n].searchsorted(value))
+        if pos >= n or buf[pos] != value:
+            raise ValueError(f'{value!r} is not in the window')
+        buf[pos:n - 1] = buf[pos + 1:n]
+        self._n = n - 1
+
+    def clear(self) -> None:
+        self._n = 0
+
+    def values(self) -> np.ndarray:
+        """A view of the sorted values (valid until the next change)."""
+        return self._buf[:self._n]
+
+    def median(self) -> float:
+        n, buf = self._n, self._buf
+        if n == 0:
+            return float('nan')
+        if n % 2:
+            return float(buf[n // 2])
+        return 0.5 * (float(buf[n // 2 - 1]) + float(buf[n // 2]))
+
+    def mad(self) -> float:
+        """Median absolute deviation from the median (the mean of the two middle deviations when
+        n is even, like ``np.median``)."""
+        n = self._n
+        if n == 0:
+            return float('nan')
+        v, med = self._buf[:n], self.median()
+        if n % 2:
+            return _kth_deviation(v, med, n // 2)
+        return 0.5 * (_kth_deviation(v, med, n // 2 - 1) + _kth_deviation(v, med, n // 2))
+
+
+def _kth_deviation(v: np.ndarray, med: float, k: int) -> float:
+    """The k-th smallest (0-based) of |v − med| over the sorted array ``v``.
+
+    The k+1 values nearest ``med`` are a contiguous run v[i:i+k+1]; the k-th smallest deviation is
+    the smallest, over the runs, of the run's largest deviation max(med − v[i], v[i+k] − med).
+    """
+    n = v.size
+    if k + 1 >= n:
+        return float(max(med - v[0], v[-1] - med))
+    return float(np.maximum(med - v[:n - k], v[k:] - med).min())
 
 
 def sequence_scale(samples: np.ndarray) -> float:

@@ -17,6 +17,8 @@ plane of the map), ``none``; and a known plane (``set_known``) for the upper bou
 """
 from __future__ import annotations
 
+import math
+
 from collections import deque
 from dataclasses import dataclass
 
@@ -172,8 +174,8 @@ class GroundModel:
     def add_body(self, R_wc: np.ndarray, joints_cam: np.ndarray) -> None:
         """One person's up axis (pelvis → neck), joints_cam (24, 3) metres, camera optical frame."""
         up_cam = joints_cam[12] - joints_cam[0]
-        norm = float(np.linalg.norm(up_cam))
-        if not np.isfinite(norm) or norm <= 0.0:
+        norm = math.sqrt(float(up_cam @ up_cam))
+        if not math.isfinite(norm) or norm <= 0.0:
             return
         up_map = R_wc @ (up_cam / norm)
         self._scatter += np.outer(up_map, up_map)
