@@ -28,8 +28,9 @@ import numpy as np
 from hac_ros.core.errors import HacError
 from hac_ros.core.outputs import HumanJointsOut, OdometryOut, Output, ScaleOut
 from hac_ros.core.params import HacParams
-from hac_ros.replay import (GT_CAMERA, GT_JOINTS, GT_SCALE, SAMPLE_FIELDS, SAMPLES, CoreFeeder,
-                            InputTopics, Recording, load_params)
+from hac_ros.messages import SAMPLE_FIELDS, SAMPLES
+from hac_ros.replay import (GT_CAMERA, GT_JOINTS, GT_SCALE, CoreFeeder, InputTopics, Recording,
+                            load_params)
 
 NS = 1_000_000_000
 ODOMETRY_TOPIC = '/hac/odometry'

@@ -273,7 +273,7 @@ class HacNode(Node):
         values = {name: self.get_parameter(name).value for name in names()}
         self.params = HacParams().replace(**values)  # raises ParameterError with the reason
         self.calibrator = Calibrator(self.params)
-        self.outputs = OutputMessages(self.params, TYPES)
+        self.outputs = OutputMessages(self.params)
         self.notices: Counter[str] = Counter()  # causes of the NoticeOut logged (once each)
         self.qos_incompatible: Counter[str] = Counter()  # topics with an incompatible publisher
         self.clouds_received = 0

@@ -40,7 +40,8 @@ from hac_ros.core.offline import OfflineScale, offline_scale
 from hac_ros.core.outputs import (NoticeOut, OdometryOut, Output, ResetOut, SampleOut, Status)
 from hac_ros.core.params import HacParams
 from hac_ros.core.reference import MapIndex
-from hac_ros.messages import OUTPUT_TOPICS, Message, OutputMessages
+from hac_ros.messages import (OUTPUT_TOPICS, SAMPLES, Message, OutputMessages,
+                              samples_message)
 
 NS = 1_000_000_000
 POSE_TYPES = {'PoseStamped': 'geometry_msgs/msg/PoseStamped', 'Odometry': 'nav_msgs/msg/Odometry'}
@@ -49,14 +50,6 @@ INPUT_TYPES = {'joints': 'geometry_msgs/msg/PoseArray', 'cloud': 'sensor_msgs/ms
 GT_CAMERA = ('/gt/camera_pose', 'geometry_msgs/msg/PoseStamped')
 GT_JOINTS = ('/gt/human_joints', 'geometry_msgs/msg/PoseArray')
 GT_SCALE = ('/gt/scale', 'std_msgs/msg/Float64')
-# Replay-only topic (not published by the node): one message per processed frame, at its stamp.
-# data = [person, scale, source, accepted] per person, scale in metres per SLAM unit (NaN when
-# rejected), source 0 = map hit, 1 = ground-plane fallback, 2 = rejected.
-SAMPLES = ('/hac/samples', 'std_msgs/msg/Float64MultiArray')
-SAMPLE_FIELDS = 4
-SAMPLE_LABEL = 'person,scale,source(0 map 1 ground 2 rejected),accepted'
-SOURCE_CODES = {'map': 0.0, 'ground': 1.0}
-SOURCE_REJECTED = 2.0
 STORAGES = ('mcap', 'sqlite3')
 # Messages of the same log time are fed in this order (then any other topic): the camera's
 # intrinsics and the map before the frame they serve, the pose (the clock) before its joints.
@@ -413,9 +406,8 @@ class OutputWriter:
         return conn
 
     def write_message(self, message: Message) -> None:
-        conn = self.connection(message.topic, message.msgtype)
-        self.write_raw(conn, message.stamp_ns,
-                       self.typestore.serialize_cdr(message.msg, message.msgtype))
+        """One serialized message (CDR bytes), logged at its stamp."""
+        self.write_raw(self.connection(message.topic, message.msgtype), message.stamp_ns, message.msg)
 
     def write_raw(self, conn: Any, stamp_ns: int, data: Any) -> None:
         self.writer.write(conn, int(stamp_ns), data)
@@ -425,28 +417,12 @@ class OutputWriter:
         self.writer.close()
 
 
-def samples_message(types: Any, samples: list[SampleOut]) -> Any:
-    """The /hac/samples message of one frame (see :data:`SAMPLES`)."""
-    data = np.empty(SAMPLE_FIELDS * len(samples))
-    for k, s in enumerate(samples):
-        code = SOURCE_CODES.get(s.source, SOURCE_REJECTED) if math.isfinite(s.scale) else SOURCE_REJECTED
-        data[SAMPLE_FIELDS * k:SAMPLE_FIELDS * (k + 1)] = (s.person, s.scale, code, float(s.accepted))
-    Dimension = types.get('std_msgs/msg/MultiArrayDimension')
-    dims = [Dimension(label='sample', size=len(samples), stride=len(data)),
-            Dimension(label=SAMPLE_LABEL, size=SAMPLE_FIELDS, stride=SAMPLE_FIELDS)]
-    layout = types.get('std_msgs/msg/MultiArrayLayout')(dim=dims, data_offset=0)
-    return types.get(SAMPLES[1])(layout=layout, data=data)
-
-
 class OutputHandler:
     """Collects what a pass needs from the calibrator's outputs and writes the messages."""
 
     def __init__(self, params: HacParams, writer: OutputWriter | None, printer: 'NoticePrinter',
                  keep_odometry: bool = False) -> None:
-        from msg_adapters import rosbags_types
-
-        self.types = rosbags_types()
-        self.messages = OutputMessages(params, self.types)
+        self.messages = OutputMessages(params)
         self.writer = writer
         self.printer = printer
         self.samples: list[SampleOut] = []
@@ -480,7 +456,7 @@ class OutputHandler:
 
     def _write_samples(self, samples: list[SampleOut]) -> None:
         if self.writer is not None:
-            self.writer.write_message(Message(*SAMPLES, samples_message(self.types, samples),
+            self.writer.write_message(Message(*SAMPLES, samples_message(samples),
                                               samples[0].stamp_ns))
 
 

@@ -10,8 +10,6 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from hac_ros.core.errors import HacError
 from msg_adapters import (intrinsics_to_camera_info, joints_to_pose_array, rosbags_types,
                           rt_to_odometry, rt_to_pose_stamped, xyz_to_cloud)
