@@ -306,8 +306,7 @@ class CoreFeeder:
 
     def feed(self, kind: str, item: Any, log_ns: int) -> list[Output]:
         """One input message (raw bytes, or the Future of a built map) -> calibrator outputs."""
-        from msg_adapters import (MessageError, camera_info_to_intrinsics, pose_array_to_joints,
-                                  pose_msg_to_rt, stamp_to_ns)
+        from msg_adapters import MessageError, camera_info_to_intrinsics, stamp_to_ns
 
         cal = self.calibrator
         if kind == 'cloud':
@@ -317,31 +316,41 @@ class CoreFeeder:
             return cal.add_map_index(built.index)
         topic = {'pose': self.topics.pose, 'joints': self.topics.joints,
                  'camera_info': self.topics.camera_info}[kind]
+        if kind == 'pose':  # poses and joints straight from their CDR bytes (msg_adapters.cdr)
+            return self._feed_pose(self.recording.to_cdr(item, topic), topic)
+        if kind == 'joints':
+            return self._feed_joints(self.recording.to_cdr(item, topic))
         msg = self.recording.deserialize(item, topic, log_ns)
         try:
             stamp = stamp_to_ns(msg.header.stamp)
         except MessageError:
             return cal.reject(MALFORMED[kind], -1)
-        if kind == 'pose':
-            try:
-                R_wc, c_map = pose_msg_to_rt(msg)
-            except MessageError:
-                return cal.reject(MALFORMED[kind], stamp)
-            if self.poses is not None:
-                self.poses.append((stamp, R_wc, c_map))
-            return cal.add_pose(stamp, R_wc, c_map, msg.header.frame_id,
-                                getattr(msg, 'child_frame_id', ''))
-        if kind == 'joints':
-            try:
-                joints_cam = pose_array_to_joints(msg)
-            except MessageError:
-                return cal.reject(MALFORMED[kind], stamp)
-            return cal.add_joints(stamp, joints_cam, msg.header.frame_id)
         try:
             K, width, height = camera_info_to_intrinsics(msg)
         except MessageError:
             return cal.reject(MALFORMED[kind], stamp)
         return cal.add_camera_info(K, width, height, msg.header.frame_id)
+
+    def _feed_pose(self, data: Any, topic: str) -> list[Output]:
+        from msg_adapters import MessageError, parse_pose_cdr
+
+        try:
+            pose = parse_pose_cdr(data, self.recording.topics[topic])
+        except MessageError:
+            return self.calibrator.reject(MALFORMED['pose'], -1)
+        if self.poses is not None:
+            self.poses.append((pose.stamp_ns, pose.R_wc, pose.c_map))
+        return self.calibrator.add_pose(pose.stamp_ns, pose.R_wc, pose.c_map, pose.frame_id,
+                                        pose.child_frame_id)
+
+    def _feed_joints(self, data: Any) -> list[Output]:
+        from msg_adapters import MessageError, parse_joints_cdr
+
+        try:
+            stamp, frame_id, joints_cam = parse_joints_cdr(data)
+        except MessageError:
+            return self.calibrator.reject(MALFORMED['joints'], -1)
+        return self.calibrator.add_joints(stamp, joints_cam, frame_id)
 
 
 def tie_ordered(messages: Iterable[tuple[str, int, Any]], kinds: dict[str, str]

@@ -14,6 +14,7 @@ quaternion (x, y, z, w) 4 float64, a colour (r, g, b, a) 4 float32.
 from __future__ import annotations
 
 import struct
+from functools import lru_cache
 from typing import Iterable, Sequence
 
 import numpy as np
@@ -155,14 +156,23 @@ def marker(w: CdrWriter, stamp_ns: int, frame_id: str, ns: str, marker_id: int, 
     w.header(stamp_ns, frame_id)
     w.string(ns)
     w.i32x3(marker_id, kind, action)
-    w.f64_array(np.concatenate([np.ravel(pose), np.ravel(scale)]))
-    w.f32x4(rgba)
-    w.buf += _I32_U32.pack(0, 0)  # lifetime (aligned: follows 16 bytes of float32)
-    w.octet(0)  # frame_locked
+    w.f64_array(np.concatenate([np.ravel(pose), np.ravel(scale)]))  # 8-aligned, 80 bytes
     count = 0 if points is None else len(points)
-    w.u32(count)
+    # colour, lifetime (0 s, 0 ns), frame_locked, padding, the points' count: fixed offsets here
+    w.buf += _MARKER_MIDDLE.pack(*rgba, 0, 0, 0, count)
     if count:
         w.f64_array(np.asarray(points, dtype=float))
+    w.buf += _marker_tail()
+
+
+_MARKER_MIDDLE = struct.Struct('<4fiIB3xI')
+
+
+@lru_cache(maxsize=1)
+def _marker_tail() -> bytes:
+    """A Marker's fields after ``points``, all empty. They align to at most 4 bytes and start
+    4-aligned (after the points' count or float64 points), so their bytes never change."""
+    w = CdrWriter()
     w.empty_sequence()  # colors
     w.string('')  # texture_resource
     w.header(0, '')  # texture: sensor_msgs/CompressedImage
@@ -174,6 +184,7 @@ def marker(w: CdrWriter, stamp_ns: int, frame_id: str, ns: str, marker_id: int, 
     w.string('')  # mesh_file.filename
     w.empty_sequence()  # mesh_file.data
     w.octet(0)  # mesh_use_embedded_materials
+    return bytes(w.buf[len(ENCAPSULATION_LE):])
 
 
 def diagnostic_array(stamp_ns: int, frame_id: str,

@@ -1,4 +1,4 @@
-"""Pose messages ↔ (R, c), quaternions through scipy's ``Rotation`` (scalar-last: x, y, z, w).
+"""Pose messages ↔ (R, c); quaternions are scalar-last (x, y, z, w), as in ROS and scipy.
 
 A SLAM pose message is the camera's pose in the SLAM map frame (SPEC, conventions): the readers
 return **camera-to-map** ``(R_wc (3, 3), c (3,))`` — the rotation from the camera frame to the map
@@ -11,7 +11,6 @@ import math
 from typing import Any
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from msg_adapters.errors import MessageError
 from msg_adapters.stamps import make_header
@@ -32,16 +31,22 @@ def quat_to_matrix(x: float, y: float, z: float, w: float) -> np.ndarray:
     Normalised when |‖q‖ − 1| <= QUATERNION_NORM_TOL; MessageError when not finite or further off.
     """
     try:
-        q = np.array([x, y, z, w], dtype=float)
+        q = [float(x), float(y), float(z), float(w)]
     except (TypeError, ValueError) as exc:
         raise MessageError(f'quaternion (x, y, z, w) is not 4 numbers ({exc})') from exc
-    if not np.isfinite(q).all():
-        raise MessageError(f'quaternion (x, y, z, w) is not finite: {q.tolist()}')
-    norm = math.hypot(*q.tolist())  # no overflow for huge components
+    if not all(math.isfinite(v) for v in q):
+        raise MessageError(f'quaternion (x, y, z, w) is not finite: {q}')
+    norm = math.hypot(*q)  # no overflow for huge components
     if not abs(norm - 1.0) <= QUATERNION_NORM_TOL:
-        raise MessageError(f'quaternion (x, y, z, w) = {q.tolist()} has norm {norm:.9g}; expected '
+        raise MessageError(f'quaternion (x, y, z, w) = {q} has norm {norm:.9g}; expected '
                            f'1 within {QUATERNION_NORM_TOL}')
-    return Rotation.from_quat(q / norm).as_matrix()
+    x, y, z, w = (v / norm for v in q)
+    # the textbook formula in plain floats (runs for every input pose)
+    xx, yy, zz = x * x, y * y, z * z
+    xy, xz, yz, wx, wy, wz = x * y, x * z, y * z, w * x, w * y, w * z
+    return np.array([[1.0 - 2.0 * (yy + zz), 2.0 * (xy - wz), 2.0 * (xz + wy)],
+                     [2.0 * (xy + wz), 1.0 - 2.0 * (xx + zz), 2.0 * (yz - wx)],
+                     [2.0 * (xz - wy), 2.0 * (yz + wx), 1.0 - 2.0 * (xx + yy)]])
 
 
 def matrix_to_quat(R: np.ndarray) -> tuple[float, float, float, float]:
@@ -55,17 +60,36 @@ def matrix_to_quat(R: np.ndarray) -> tuple[float, float, float, float]:
         raise MessageError(f'rotation: expected a (3, 3) matrix ({exc})') from exc
     if R.shape != (3, 3):
         raise MessageError(f'rotation: expected a (3, 3) matrix, got shape {R.shape}')
-    if not np.isfinite(R).all():
+    # plain floats: this runs for every published pose, where numpy's per-call cost dominates
+    a, b, c, d, e, f, g, h, i = R.ravel().tolist()
+    if not math.isfinite(a + b + c + d + e + f + g + h + i):
         raise MessageError(f'rotation is not finite: {R.tolist()}')
-    orthogonality = float(np.abs(R.T @ R - np.eye(3)).max())
-    determinant = float(np.linalg.det(R))
+    orthogonality = max(abs(a * a + d * d + g * g - 1.0), abs(b * b + e * e + h * h - 1.0),
+                        abs(c * c + f * f + i * i - 1.0), abs(a * b + d * e + g * h),
+                        abs(a * c + d * f + g * i), abs(b * c + e * f + h * i))
+    determinant = a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
     if orthogonality > ROTATION_TOL or abs(determinant - 1.0) > ROTATION_TOL:
         raise MessageError(f'rotation: not a rotation matrix (max |RᵀR − I| = {orthogonality:.3g}, '
                            f'det = {determinant:.6g})')
-    q = Rotation.from_matrix(R).as_quat()
-    if q[3] < 0:
-        q = -q
-    return float(q[0]), float(q[1]), float(q[2]), float(q[3])
+    # Shepperd's method: the largest of 4w², 4x², 4y², 4z² gives a well-conditioned division
+    trace = a + e + i
+    best = max(trace, a, e, i)
+    if best == trace:
+        w = math.sqrt(1.0 + trace) * 2.0
+        q = ((h - f) / w, (c - g) / w, (d - b) / w, 0.25 * w)
+    elif best == a:
+        x = math.sqrt(1.0 + a - e - i) * 2.0
+        q = (0.25 * x, (b + d) / x, (c + g) / x, (h - f) / x)
+    elif best == e:
+        y = math.sqrt(1.0 + e - a - i) * 2.0
+        q = ((b + d) / y, 0.25 * y, (f + h) / y, (c - g) / y)
+    else:
+        z = math.sqrt(1.0 + i - a - e) * 2.0
+        q = ((c + g) / z, (f + h) / z, 0.25 * z, (d - b) / z)
+    norm = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+    sign = -1.0 if q[3] < 0 else 1.0
+    x, y, z, w = (sign * v / norm for v in q)
+    return x, y, z, w
 
 
 def pose_to_rt(pose: Any) -> tuple[np.ndarray, np.ndarray]:
@@ -82,13 +106,22 @@ def pose_to_rt(pose: Any) -> tuple[np.ndarray, np.ndarray]:
     except (AttributeError, TypeError, ValueError) as exc:
         raise MessageError(f'Pose: expected position (x, y, z) and orientation (x, y, z, w) '
                            f'({exc})') from exc
-    if not np.isfinite(c).all():
-        raise MessageError(f'Pose: position is not finite: {c.tolist()}')
+    return pose_values_to_rt(c, quat, 'Pose')
+
+
+def pose_values_to_rt(position: np.ndarray, quat_xyzw: Any, where: str = 'Pose'
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """A pose's values → (R (3, 3), c (3,)) float64: the checks of :func:`pose_to_rt`.
+
+    position: (3,) float64; quat_xyzw: 4 numbers. ``where`` names the message in errors.
+    """
+    if not np.isfinite(position).all():
+        raise MessageError(f'{where}: position is not finite: {np.asarray(position).tolist()}')
     try:
-        R = quat_to_matrix(*quat)
+        R = quat_to_matrix(*quat_xyzw)
     except MessageError as exc:
-        raise MessageError(f'Pose: orientation: {exc}') from exc
-    return R, c
+        raise MessageError(f'{where}: orientation: {exc}') from exc
+    return R, position
 
 
 def pose_msg_to_rt(msg: Any) -> tuple[np.ndarray, np.ndarray]:
