@@ -43,11 +43,11 @@ from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityP
 from hac_ros.core.calibrator import Calibrator
 from hac_ros.core.errors import ParameterError
 from hac_ros.core.outputs import NoticeOut, OdometryOut, Output, ResetOut
-from hac_ros.core.params import NODE_NAME, HacParams, describe, names
+from hac_ros.core.params import NODE_NAME, POSE_MSGTYPES, HacParams, describe, names
 from hac_ros.core.reference import MapIndex
 from hac_ros.messages import OUTPUT_TOPICS, OutputMessages
-from msg_adapters import (MessageError, camera_info_to_intrinsics, pose_array_to_joints,
-                          pose_msg_to_rt, rclpy_types, stamp_to_ns)
+from msg_adapters import (MessageError, camera_info_to_intrinsics, parse_joints_cdr,
+                          parse_pose_cdr, rclpy_types, stamp_to_ns)
 from msg_adapters.cdr import RawCloud, cloud_points, parse_cloud_cdr  # noqa: F401 (re-exported)
 
 TYPES = rclpy_types()  # rclpy's message classes by ROS name
@@ -321,11 +321,10 @@ class HacNode(Node):
             self.destroy_subscription(old)
         p = self.params
         topic, msg_type, qos, raw = {
-            'pose': (p.pose_topic, TYPES.get('nav_msgs/msg/Odometry' if p.pose_type == 'Odometry'
-                                                   else 'geometry_msgs/msg/PoseStamped'),
-                     input_qos(p), False),
+            'pose': (p.pose_topic, TYPES.get(POSE_MSGTYPES[p.pose_type]),
+                     input_qos(p), True),
             'joints': (p.joints_topic, TYPES.get('geometry_msgs/msg/PoseArray'), input_qos(p),
-                       False),
+                       True),
             'camera_info': (p.camera_info_topic, TYPES.get('sensor_msgs/msg/CameraInfo'),
                             input_qos(p), False),
             'cloud': (p.cloud_topic, TYPES.get('sensor_msgs/msg/PointCloud2'), cloud_qos(p),
@@ -365,26 +364,24 @@ class HacNode(Node):
     # ------------------------------------------------------------------ inputs
     # A message that cannot be decoded (msg_adapters.MessageError, an invalid stamp included) is
     # rejected with its kind's reason: pose_nonfinite, joints_malformed, camera_info_invalid.
-    def _on_pose(self, msg: Any) -> None:
-        stamp = -1
+    # Poses and joints arrive as CDR bytes (raw subscriptions) and are read by msg_adapters.cdr,
+    # the same parser the replay uses: one np.frombuffer instead of a message object per pose.
+    def _on_pose(self, data: bytes) -> None:
         try:
-            stamp = stamp_to_ns(msg.header.stamp)
-            R_wc, c_map = pose_msg_to_rt(msg)
+            pose = parse_pose_cdr(data, POSE_MSGTYPES[self.params.pose_type])
         except MessageError:
-            self._emit(self.calibrator.reject('pose_nonfinite', stamp))
+            self._emit(self.calibrator.reject('pose_nonfinite', -1))
             return
-        child = getattr(msg, 'child_frame_id', '')
-        self._emit(self.calibrator.add_pose(stamp, R_wc, c_map, msg.header.frame_id, child))
+        self._emit(self.calibrator.add_pose(pose.stamp_ns, pose.R_wc, pose.c_map, pose.frame_id,
+                                            pose.child_frame_id))
 
-    def _on_joints(self, msg: Any) -> None:
-        stamp = -1
+    def _on_joints(self, data: bytes) -> None:
         try:
-            stamp = stamp_to_ns(msg.header.stamp)
-            joints_cam = pose_array_to_joints(msg)
+            stamp, frame_id, joints_cam = parse_joints_cdr(data)
         except MessageError:
-            self._emit(self.calibrator.reject('joints_malformed', stamp))
+            self._emit(self.calibrator.reject('joints_malformed', -1))
             return
-        self._emit(self.calibrator.add_joints(stamp, joints_cam, msg.header.frame_id))
+        self._emit(self.calibrator.add_joints(stamp, joints_cam, frame_id))
 
     def _on_camera_info(self, msg: Any) -> None:
         stamp = -1

@@ -24,7 +24,8 @@ import numpy as np
 from hac_ros.core.errors import HacError
 from hac_ros.evaluate import (CameraTrack, JointsTrack, Replayed, Truth, match, person_tracks,
                               read_camera, read_output, read_truth)
-from hac_ros.replay import POSE_TYPES, Recording
+from hac_ros.core.params import POSE_MSGTYPES
+from hac_ros.replay import Recording
 
 NS = 1_000_000_000
 DPI = 100
@@ -302,7 +303,7 @@ def plot_fallback(path: Path, run: Replayed, truth: Truth | None) -> None:
 def read_slam(path: str | Path) -> CameraTrack | None:
     """The raw SLAM camera track of a recording (/slam/pose, PoseStamped or Odometry), if any."""
     with Recording(path) as rec:
-        if rec.topics.get(SLAM_POSE_TOPIC) in POSE_TYPES.values() and rec.has(SLAM_POSE_TOPIC):
+        if rec.topics.get(SLAM_POSE_TOPIC) in POSE_MSGTYPES.values() and rec.has(SLAM_POSE_TOPIC):
             return read_camera(rec, SLAM_POSE_TOPIC)
     return None
 

@@ -38,13 +38,12 @@ from hac_ros.core.calibrator import Calibrator
 from hac_ros.core.errors import HacError
 from hac_ros.core.offline import OfflineScale, offline_scale
 from hac_ros.core.outputs import (NoticeOut, OdometryOut, Output, ResetOut, SampleOut, Status)
-from hac_ros.core.params import HacParams
+from hac_ros.core.params import POSE_MSGTYPES, HacParams
 from hac_ros.core.reference import MapIndex
 from hac_ros.messages import (OUTPUT_TOPICS, SAMPLES, Message, OutputMessages,
                               samples_message)
 
 NS = 1_000_000_000
-POSE_TYPES = {'PoseStamped': 'geometry_msgs/msg/PoseStamped', 'Odometry': 'nav_msgs/msg/Odometry'}
 INPUT_TYPES = {'joints': 'geometry_msgs/msg/PoseArray', 'cloud': 'sensor_msgs/msg/PointCloud2',
                'camera_info': 'sensor_msgs/msg/CameraInfo'}
 GT_CAMERA = ('/gt/camera_pose', 'geometry_msgs/msg/PoseStamped')
@@ -187,10 +186,10 @@ class InputTopics:
     @classmethod
     def check(cls, recording: Recording, params: HacParams) -> 'InputTopics':
         """The parameters' topics, checked against what the recording holds."""
-        pose_type = POSE_TYPES[params.pose_type]
-        other = next(k for k, v in POSE_TYPES.items() if k != params.pose_type)
+        pose_type = POSE_MSGTYPES[params.pose_type]
+        other = next(k for k, v in POSE_MSGTYPES.items() if k != params.pose_type)
         hint = ''
-        if recording.topics.get(params.pose_topic) == POSE_TYPES[other]:
+        if recording.topics.get(params.pose_topic) == POSE_MSGTYPES[other]:
             hint = f' (use --pose-type {other})'
         recording.check_topic(params.pose_topic, [pose_type], 'SLAM pose', hint)
         recording.check_topic(params.joints_topic, [INPUT_TYPES['joints']], 'HMR joints',
@@ -777,7 +776,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--cloud-topic', help='overrides cloud_topic')
     parser.add_argument('--joints-topic', help='overrides joints_topic')
     parser.add_argument('--camera-info-topic', help='overrides camera_info_topic ("" = off)')
-    parser.add_argument('--pose-type', choices=tuple(POSE_TYPES), help='overrides pose_type')
+    parser.add_argument('--pose-type', choices=tuple(POSE_MSGTYPES), help='overrides pose_type')
     parser.add_argument('--copy-inputs', action='store_true',
                         help='also copy every topic of IN into OUT (so OUT alone can be evaluated)')
     parser.add_argument('--export-tum', metavar='DIR',

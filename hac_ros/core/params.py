@@ -21,6 +21,8 @@ CONTACT_MODES = ('lowest', 'max_ratio', 'lowest_gravity', 'feet', 'pelvis', 'hea
 REFERENCE_MODES = ('cone_median', 'nearest_to_ray')
 GROUND_MODES = ('hmr', 'slam_y', 'largest_plane', 'none')
 POSE_TYPES = ('PoseStamped', 'Odometry')
+# pose_type -> the ROS message type of pose_topic
+POSE_MSGTYPES = {'PoseStamped': 'geometry_msgs/msg/PoseStamped', 'Odometry': 'nav_msgs/msg/Odometry'}
 CLOUD_MODES = ('replace', 'accumulate')
 INPUT_QOS = ('best_effort', 'reliable')
 CLOUD_QOS = ('transient_local', 'volatile')

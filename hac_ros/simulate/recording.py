@@ -11,11 +11,11 @@ from pathlib import Path
 from typing import Any
 
 from hac_ros.core.errors import HacError
+from hac_ros.core.params import POSE_TYPES
 from msg_adapters import (intrinsics_to_camera_info, joints_to_pose_array, rosbags_types,
                           rt_to_odometry, rt_to_pose_stamped, xyz_to_cloud)
 
 STORAGES = ('mcap', 'sqlite3')
-POSE_TYPES = ('PoseStamped', 'Odometry')
 TOPICS = {
     '/slam/cloud': 'sensor_msgs/msg/PointCloud2',
     '/slam/pose': None,  # by pose_type
