@@ -51,6 +51,7 @@ from msg_adapters import (MessageError, camera_info_to_intrinsics, parse_joints_
 from msg_adapters.cdr import RawCloud, cloud_points, parse_cloud_cdr  # noqa: F401 (re-exported)
 
 TYPES = rclpy_types()  # rclpy's message classes by ROS name
+GIL_SWITCH_INTERVAL_S = 0.0005  # see main()
 
 # ---------------------------------------------------------------------------------------- QoS
 INPUT_DEPTH = 100  # pose/joints/camera_info kept per subscription: > 3 s at 30 Hz, absorbs bursts
@@ -523,6 +524,10 @@ def main(args: list[str] | None = None) -> int:
 
     The executor is made before the node so that a signal during start-up finds it complete.
     """
+    # The map builder thread holds the GIL between native calls; with Python's default 5 ms
+    # switch interval a frame arriving then waits up to 5 ms. 0.5 ms bounds that wait (measured:
+    # docs/benchmarks.md, node latency) at a negligible cost to the builder.
+    sys.setswitchinterval(GIL_SWITCH_INTERVAL_S)
     rclpy.init(args=args)
     executor = SingleThreadedExecutor()
     node = None
