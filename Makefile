@@ -31,7 +31,9 @@ bench: $(STAMP)
 	$(PY) bench/accuracy.py
 	$(PY) bench/core_speed.py
 	$(PY) bench/replay_throughput.py
-	$(PY) bench/node_latency.py
+	$(PY) bench/node_latency.py --map-points 100000
+	$(PY) bench/node_latency.py --map-points 1000000
+	$(PY) bench/node_memory.py
 
 clean:
 	rm -rf out build install log .pytest_cache

@@ -33,6 +33,8 @@ from hac_ros.core.reference import MapIndex  # noqa: E402
 
 TRUE_SCALE = 0.5
 COS_AUTHORS = 0.999  # authors' code: cone cos > 0.999
+WALK_REPEATS = 5  # the 1000-frame walk is timed this many times: median (and worst) reported
+MODES = ('lowest_gravity', 'lowest', 'max_ratio')  # the default first
 
 
 def room_scene(frames: int, rate: float = 30.0, seed: int = 0):
@@ -136,19 +138,24 @@ def walk_1000_frames() -> dict[str, float]:
     indexed = [(stamp, kind, MapIndex(p[0], p[1], stamp) if kind == 'map' else p)
                for stamp, kind, p in events]
     frames = sum(1 for _, kind, _ in events if kind == 'joints')
-    cal = Calibrator(HacParams())
-    cal.add_camera_info(sc.K, sc.width, sc.height, sc.camera_frame)
-    t0 = time.perf_counter()
-    for stamp, kind, payload in indexed:
-        if kind == 'map':
-            cal.add_map_index(payload)
-        elif kind == 'pose':
-            cal.add_pose(stamp, *payload)
-        else:
-            cal.add_joints(stamp, *payload)
-    cal.flush()
-    wall = time.perf_counter() - t0
-    return {'frames': frames, 'wall_s': wall, 'per_1000_frames_s': wall * 1000 / frames,
+    walls = []
+    for _ in range(WALK_REPEATS):  # a fresh calibrator each time; the first run warms caches
+        cal = Calibrator(HacParams())
+        cal.add_camera_info(sc.K, sc.width, sc.height, sc.camera_frame)
+        t0 = time.perf_counter()
+        for stamp, kind, payload in indexed:
+            if kind == 'map':
+                cal.add_map_index(payload)
+            elif kind == 'pose':
+                cal.add_pose(stamp, *payload)
+            else:
+                cal.add_joints(stamp, *payload)
+        cal.flush()
+        walls.append(time.perf_counter() - t0)
+    wall = float(np.median(walls))
+    return {'frames': frames, 'repeats': WALK_REPEATS, 'wall_s': wall,
+            'walls_s': walls, 'per_1000_frames_s': wall * 1000 / frames,
+            'worst_per_1000_frames_s': max(walls) * 1000 / frames,
             'scale_error_%': abs(cal.scale / float(np.median(sc.true_scale)) - 1) * 100}
 
 
@@ -168,7 +175,7 @@ def main() -> int:
     for n in args.sizes:
         points = map_points(n)
         entry: dict[str, float] = {}
-        for mode in ('lowest', 'max_ratio'):
+        for mode in MODES:
             cal = Calibrator(HacParams(contact_mode=mode))
             cal.add_map(int(stamps[0]), points, 'map')
             time_frames(cal, stamps, R, c, J, 0, warm)  # converge first
@@ -190,15 +197,19 @@ def main() -> int:
         entry['speedup_max_ratio'] = entry['literal_median_ms'] / entry['max_ratio_median_ms']
         entry.update({f'ingest_{k}': v for k, v in ingestion_seconds(points).items()})
         results['sizes'][n] = entry
-        rows.append([f'{n:,}', entry['lowest_median_ms'], entry['lowest_p99_ms'],
-                     entry['max_ratio_median_ms'], entry['literal_median_ms'],
-                     entry['speedup_lowest'], entry['speedup_max_ratio'], entry['ingest_total_s']])
-        print(f'{n:>9,} points: lowest {entry["lowest_median_ms"]:.3f} ms, max_ratio '
-              f'{entry["max_ratio_median_ms"]:.3f} ms, literal {entry["literal_median_ms"]:.1f} ms, '
-              f'ingest {entry["ingest_total_s"]:.3f} s', flush=True)
+        entry['speedup_lowest_gravity'] = entry['literal_median_ms'] / entry['lowest_gravity_median_ms']
+        rows.append([f'{n:,}', entry['lowest_gravity_median_ms'], entry['lowest_gravity_p99_ms'],
+                     entry['lowest_median_ms'], entry['max_ratio_median_ms'],
+                     entry['literal_median_ms'], entry['speedup_lowest_gravity'],
+                     entry['speedup_max_ratio'], entry['ingest_total_s']])
+        print(f'{n:>9,} points: lowest_gravity {entry["lowest_gravity_median_ms"]:.3f} ms, lowest '
+              f'{entry["lowest_median_ms"]:.3f} ms, max_ratio {entry["max_ratio_median_ms"]:.3f} ms, '
+              f'literal {entry["literal_median_ms"]:.1f} ms, ingest {entry["ingest_total_s"]:.3f} s',
+              flush=True)
     results['walk_1000'] = walk_1000_frames()
-    headers = ['map points', 'lowest median ms', 'lowest p99 ms', 'max_ratio median ms',
-               'literal median ms', 'speed-up (lowest)', 'speed-up (max_ratio)', 'ingest s']
+    headers = ['map points', 'lowest_gravity (default) median ms', 'lowest_gravity p99 ms',
+               'lowest median ms', 'max_ratio median ms', 'literal median ms',
+               'speed-up (lowest_gravity)', 'speed-up (max_ratio)', 'ingest s']
     walk = results['walk_1000']
     text = '\n'.join([
         f'Command: `python bench/core_speed.py`. {machine_line(results["machine"])} '
@@ -208,9 +219,12 @@ def main() -> int:
         'joint ray of the frame) on the same frames and maps, in the same run. Ingest: PointCloud2 '
         'CDR bytes → (N, 3) (the node\'s raw path) → k-d tree (thinned to index_max_points).', '',
         table(headers, rows), '',
-        f'1000 frames of the simulated `walk` through the core (maps indexed beforehand): '
-        f'{walk["per_1000_frames_s"]:.3f} s per 1000 frames ({walk["frames"]} frames, scale error '
-        f'{walk["scale_error_%"]:.2f} %). The paper: 5 s per 1000 frames on an RTX 2080 Ti.'])
+        f'1000 frames of the simulated `walk` through the core (SLAM poses, HMR joints and maps in '
+        f'processing order, maps indexed beforehand, default parameters): '
+        f'{walk["per_1000_frames_s"]:.3f} s per 1000 frames (median of {walk["repeats"]} runs; '
+        f'worst {walk["worst_per_1000_frames_s"]:.3f} s; {walk["frames"]} frames, scale error '
+        f'{walk["scale_error_%"]:.2f} %). Target (issue 6): 0.2 s. The paper: 5 s per 1000 '
+        'frames on an RTX 2080 Ti.'])
     print(text)
     write_json('core_speed', results)
     write_section('core_speed', '## Core speed (`bench/core_speed.py`)\n\n' + text)

@@ -40,19 +40,17 @@ TARGET_RTF = 50.0  # issue 6: at least 50x real time
 GOAL_RTF = 100.0
 # Where the time goes: the cumulative time of these functions (disjoint parts of the replay loop).
 PARTS = (
-    ('reading the recording (rosbags)', (('hac_ros/replay.py', 'messages'),)),
-    ('decoding input CDR (rosbags)', (('hac_ros/replay.py', 'deserialize'),)),
-    ('input messages -> numpy (msg_adapters)', (('msg_adapters/poses.py', 'pose_msg_to_rt'),
-                                                ('msg_adapters/joints.py', 'pose_array_to_joints'))),
+    ('reading the recording (rosbags mcap reader)', (('hac_ros/replay.py', 'messages'),)),
+    ('decoding poses and joints from CDR (msg_adapters.cdr)',
+     (('msg_adapters/cdr.py', 'parse_pose_cdr'), ('msg_adapters/cdr.py', 'parse_joints_cdr'))),
     ('map: decode points + build index', (('hac_ros/replay.py', 'build_map'),)),
     ('core: the calibrator', (('hac_ros/core/calibrator.py', 'add_pose'),
                               ('hac_ros/core/calibrator.py', 'add_joints'),
                               ('hac_ros/core/calibrator.py', 'add_camera_info'),
                               ('hac_ros/core/calibrator.py', 'add_map_index'),
                               ('hac_ros/core/calibrator.py', 'flush'))),
-    ('outputs -> messages (hac_ros/messages.py: markers, odometry, joints, diagnostics)',
-     (('hac_ros/messages.py', 'convert'), ('hac_ros/replay.py', 'samples_message'))),
-    ('encoding output CDR (rosbags)', (('rosbags/typesys/store.py', 'serialize_cdr'),)),
+    ('outputs -> CDR bytes (hac_ros/messages.py, msg_adapters.cdr_write)',
+     (('hac_ros/messages.py', 'convert'), ('hac_ros/messages.py', 'samples_message'))),
     ('writing OUT (rosbags mcap writer)', (('rosbags/rosbag2/writer.py', 'write'),)),
 )
 
