@@ -36,6 +36,7 @@ from hac_ros.core.numeric import median_1d
 # with about twice the segment's volume, a good trade between look-ups and excess points.
 _MIN_WINDOW_NEAR_REL = 1e-6  # a window never starts closer than this fraction of the map extent
 SAMPLE_POINTS = 16384  # points of the map kept for whole-map statistics (extent, floor offset)
+EXTENT_POINTS = 4096  # points of the sample whose 1st-99th percentiles give the extent
 LEAF_SIZE = 32  # k-d tree leaf size: builds ~20 % faster than scipy's 16 at the same query cost
 
 
@@ -60,9 +61,8 @@ class MapIndex:
     def __init__(self, points_map: np.ndarray, frame_id: str = '', stamp_ns: int = 0,
                  max_points: int | None = None) -> None:
         points = np.ascontiguousarray(points_map, dtype=np.float64).reshape(-1, 3)
-        finite = np.all(np.isfinite(points), axis=1)
-        if not finite.all():
-            points = points[finite]
+        if not np.isfinite(points).all():  # the fast test first: a row-wise one costs ~1 ms at 100k
+            points = points[np.isfinite(points).all(axis=1)]
         self.received = len(points)
         if max_points is not None and len(points) > max_points:
             # thinned uniformly at random (fixed seed: reproducible), see the module docstring
@@ -78,8 +78,9 @@ class MapIndex:
             # balanced_tree=False builds ~2x faster with near-identical query cost on SLAM maps
             self.tree: cKDTree | None = cKDTree(points, leafsize=LEAF_SIZE, balanced_tree=False,
                                                 compact_nodes=False)
-            if self.size >= 100:
-                lo, hi = np.percentile(self.sample, [1.0, 99.0], axis=0)
+            if self.size >= 100:  # percentiles of ~4k points: a scene size, not a measurement
+                few = self.sample[::max(1, len(self.sample) // EXTENT_POINTS)]
+                lo, hi = np.percentile(few, [1.0, 99.0], axis=0)
             else:
                 lo, hi = points.min(axis=0), points.max(axis=0)
             self.extent = float(np.linalg.norm(hi - lo))
