@@ -245,7 +245,32 @@ class Bench:
         rclpy.try_shutdown()
 
 
-def run(map_points: int, duration: float) -> dict[str, Any]:
+# The floor: a node that only echoes each joints message's bytes to /hac/human_joints (raw
+# subscriptions, QoS as hac_node's defaults). Its latency is what rclpy and DDS cost on this machine.
+ECHO_NODE = """
+import sys
+import rclpy
+from rclpy.qos import QoSProfile, ReliabilityPolicy, DurabilityPolicy
+from geometry_msgs.msg import PoseArray, PoseStamped
+from sensor_msgs.msg import PointCloud2
+sys.setswitchinterval(0.0005)
+rclpy.init()
+node = rclpy.create_node('hac_echo')
+best_effort = QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)
+latched = QoSProfile(depth=2, reliability=ReliabilityPolicy.RELIABLE,
+                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
+out = node.create_publisher(PoseArray, '/hac/human_joints', 100)
+node.create_subscription(PoseArray, '/hmr/joints', out.publish, best_effort, raw=True)
+node.create_subscription(PoseStamped, '/slam/pose', lambda data: None, best_effort, raw=True)
+node.create_subscription(PointCloud2, '/slam/cloud', lambda data: None, latched, raw=True)
+try:
+    rclpy.spin(node)
+except KeyboardInterrupt:
+    pass
+"""
+
+
+def run(map_points: int, duration: float, echo: bool = False) -> dict[str, Any]:
     total = WARMUP_S + duration
     sc = make_scenario('walk', seed=0, duration=total + 1.0, hmr_bias=0.0)
     base_map = max(sc.maps, key=lambda m: len(m.points_slam))
@@ -257,8 +282,9 @@ def run(map_points: int, duration: float) -> dict[str, Any]:
 
     params = REPO / 'config' / 'hac.yaml'
     env = {**os.environ, 'PYTHONUNBUFFERED': '1', 'RCUTILS_COLORIZED_OUTPUT': '0'}
-    node = subprocess.Popen([sys.executable, '-m', 'hac_ros.node', '--ros-args', '--params-file',
-                             str(params)], cwd=REPO, env=env, stdout=subprocess.PIPE,
+    command = ([sys.executable, '-c', ECHO_NODE] if echo else
+               [sys.executable, '-m', 'hac_ros.node', '--ros-args', '--params-file', str(params)])
+    node = subprocess.Popen(command, cwd=REPO, env=env, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
     try:
         deadline = time.monotonic() + STARTUP_S
@@ -299,6 +325,7 @@ def run(map_points: int, duration: float) -> dict[str, Any]:
     rejected = {k.split('.', 1)[1]: int(v) for k, v in bench.diagnostics.items()
                 if k.startswith('rejected.')}
     result = {
+        'node': 'echo (the rclpy + DDS floor)' if echo else 'hac_node',
         'map_points': map_points, 'duration_s': duration, 'rate_hz': RATE_HZ,
         'frames_sent': len(measured), 'frames_answered': int(latencies.size),
         'frames_dropped': len(measured) - int(latencies.size),
@@ -340,17 +367,18 @@ def _stop(node: subprocess.Popen) -> tuple[int | None, str, str]:
 
 def report(runs: dict[str, dict[str, Any]], info: dict[str, Any]) -> str:
     rows = []
-    for key in sorted(runs, key=int):
+    for key in sorted(runs, key=lambda k: (k.startswith('echo'), runs[k]['map_points'])):
         r = runs[key]
         lat, ing = r['latency_ms'], r['ingest_ms']
-        rows.append([f"{r['map_points']:,}", f"{r['duration_s']:.0f}", r['frames_sent'],
+        rows.append([r.get('node', 'hac_node'), f"{r['map_points']:,}", f"{r['duration_s']:.0f}",
+                     r['frames_sent'],
                      r['frames_dropped'], lat['p50'], lat['p99'], lat['max'],
                      lat['p99_near_map'], lat['p99_away_from_map'],
                      r['node_cpu_percent_of_one_core'],
                      ing['decode_points_ms'], ing['index_build_ms'],
                      ing['take_raw_ms'] + ing['cdr_header_ms'], ing['take_deserialized_ms'],
                      ing['deserialize_message_ms']])
-    headers = ['map points', 'seconds', 'frames', 'dropped', 'p50 ms', 'p99 ms', 'max ms',
+    headers = ['node', 'map points', 'seconds', 'frames', 'dropped', 'p50 ms', 'p99 ms', 'max ms',
                f'p99 ms, < {NEAR_MAP_S:g} s after a map', 'p99 ms, other frames',
                'node CPU % of a core', 'builder: decode ms', 'builder: thin+index ms',
                'executor: raw take + header ms', 'executor: typed take ms (not used)',
@@ -365,10 +393,14 @@ def report(runs: dict[str, dict[str, Any]], info: dict[str, Any]) -> str:
         'executor thread only takes the raw message and reads its header; the builder thread '
         'decodes the points and thins and indexes them (`index_max_points`). For comparison, '
         'what a typed subscription would cost the executor (rclpy deserializes while taking) '
-        'and `rclpy.serialization.deserialize_message` on the same bytes.', '',
+        'and `rclpy.serialization.deserialize_message` on the same bytes. The "echo" rows replace '
+        'hac_node by a node that only republishes each joints message\'s bytes (raw '
+        'subscriptions, same QoS): the latency rclpy and DDS alone cost on this machine, measured '
+        'the same way.', '',
         table(headers, rows), '',
         machine_line(info),
-        'Re-run: `python bench/node_latency.py --map-points 100000` and `--map-points 1000000`.',
+        'Re-run: `python bench/node_latency.py --map-points 100000` and `--map-points 1000000` '
+        '(add `--echo` for the floor).',
     ])
 
 
@@ -376,12 +408,15 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--map-points', type=int, default=100_000)
     parser.add_argument('--duration', type=float, default=20.0, help='measured seconds')
+    parser.add_argument('--echo', action='store_true',
+                        help='measure a node that only echoes the joints (the rclpy + DDS floor)')
     args = parser.parse_args(argv)
-    result = run(args.map_points, args.duration)
+    result = run(args.map_points, args.duration, args.echo)
     info = machine()
     path = RESULTS / f'{NAME}.json'
     previous = json.loads(path.read_text()) if path.exists() else {}
-    runs = {**previous.get('runs', {}), str(args.map_points): result}
+    key = f'echo_{args.map_points}' if args.echo else str(args.map_points)
+    runs = {**previous.get('runs', {}), key: result}
     write_json(NAME, {'machine': info, 'runs': runs})
     markdown = report(runs, info)
     write_section(NAME, markdown)

@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import math
 
-from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
@@ -159,7 +158,9 @@ class GroundModel:
         self._body_up_sum = np.zeros(3)
         self._body_frames = 0
         self._body_cache: tuple[int, np.ndarray | None] = (0, None)
-        self._contacts: deque[np.ndarray] = deque(maxlen=CONTACT_BUFFER)
+        # ring buffer of the last CONTACT_BUFFER contact joints, SLAM units, map frame
+        self._contacts = np.empty((CONTACT_BUFFER, 3))
+        self._contact_count = 0
         self._contacts_since_fit = 0
         self._contact_normal: np.ndarray | None = None
         self._known: Plane | None = None
@@ -186,9 +187,10 @@ class GroundModel:
         """A contact joint placed in the map with the current scale (SLAM units, map frame)."""
         if self.mode != 'hmr' or not np.all(np.isfinite(contact_map)):
             return
-        self._contacts.append(np.asarray(contact_map, dtype=float))
+        self._contacts[self._contact_count % CONTACT_BUFFER] = contact_map
+        self._contact_count += 1
         self._contacts_since_fit += 1
-        if len(self._contacts) >= CONTACT_MIN_POINTS and self._contacts_since_fit >= CONTACT_REFIT_EVERY:
+        if self._contact_count >= CONTACT_MIN_POINTS and self._contacts_since_fit >= CONTACT_REFIT_EVERY:
             self._contacts_since_fit = 0
             self._refine_with_contacts(self.inlier_m / scale)
 
@@ -265,7 +267,7 @@ class GroundModel:
         body = self._body_normal()
         if body is None:
             return
-        points = np.array(self._contacts)
+        points = self._contact_points()
         sample = points
         if len(points) > RANSAC_SAMPLE:  # RANSAC on a subset; the refit uses every inlier
             sample = points[self._rng.choice(len(points), RANSAC_SAMPLE, replace=False)]
@@ -286,6 +288,14 @@ class GroundModel:
         normal = self._orient_down(normal)
         if np.degrees(np.arccos(np.clip(normal @ body, -1, 1))) <= CONTACT_MAX_TILT_DEG:
             self._contact_normal = normal
+
+    def _contact_points(self) -> np.ndarray:
+        """The buffered contact joints (M, 3), oldest first, SLAM units, map frame."""
+        n = self._contact_count
+        if n <= CONTACT_BUFFER:
+            return self._contacts[:n].copy()
+        start = n % CONTACT_BUFFER
+        return np.concatenate([self._contacts[start:], self._contacts[:start]])
 
     def _largest_plane(self, map_index: MapIndex) -> Plane | None:
         points = map_index.sample
