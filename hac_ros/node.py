@@ -20,6 +20,7 @@ Run: ``ros2 run hac_ros hac_node --ros-args --params-file config/hac.yaml`` or
 """
 from __future__ import annotations
 
+import os
 import sys
 import threading
 import time
@@ -52,6 +53,8 @@ from msg_adapters.cdr import RawCloud, cloud_points, parse_cloud_cdr  # noqa: F4
 
 TYPES = rclpy_types()  # rclpy's message classes by ROS name
 GIL_SWITCH_INTERVAL_S = 0.0005  # see main()
+FRAME_WAIT_S = 0.05  # a map build waits at most this long for the end of a frame (MapBuilder)
+MAP_POLL_S = 0.01  # the executor takes finished maps from the builder this often
 
 # ---------------------------------------------------------------------------------------- QoS
 INPUT_DEPTH = 100  # pose/joints/camera_info kept per subscription: > 3 s at 30 Hz, absorbs bursts
@@ -194,15 +197,14 @@ class MapBuilt:
 class MapBuilder:
     """Decodes map clouds and builds their :class:`MapIndex` on one worker thread.
 
-    ``submit`` is called on the executor's thread; ``on_ready`` is called from the worker when a
-    result is waiting (the node triggers a guard condition with it) and ``take`` hands the results
-    over on the executor's thread. In ``replace`` mode only the newest waiting cloud is built (an
+    ``submit`` is called on the executor's thread; the node's timer calls ``take`` (every
+    MAP_POLL_S) to hand the finished results over on the executor's thread. In ``replace`` mode only the newest waiting cloud is built (an
     older one waiting is superseded: it would be replaced anyway); in ``accumulate`` mode every cloud
     is built in order (up to :data:`MAPS_WAITING_MAX` waiting).
     """
 
-    def __init__(self, on_ready: Callable[[], None]) -> None:
-        self._on_ready = on_ready
+    def __init__(self) -> None:
+        self._frame_done = threading.Event()
         self._cond = threading.Condition()
         self._waiting: deque[tuple[RawCloud, IndexBuilder]] = deque()
         self._ready: deque[MapBuilt] = deque()
@@ -222,6 +224,10 @@ class MapBuilder:
             self._waiting.append((cloud, build_index))
             self._cond.notify()
 
+    def frame_done(self) -> None:
+        """A frame was just handled (executor thread): the next ~30 ms are free for a build."""
+        self._frame_done.set()
+
     def take(self) -> list[MapBuilt]:
         with self._cond:
             ready = list(self._ready)
@@ -233,6 +239,7 @@ class MapBuilder:
             self._closed = True
             self._waiting.clear()
             self._cond.notify()
+        self._frame_done.set()
         self._thread.join(BUILDER_JOIN_S)
 
     def _run(self) -> None:
@@ -243,12 +250,15 @@ class MapBuilder:
                 if self._closed:
                     return
                 cloud, build_index = self._waiting.popleft()
+            # Start right after a frame, so that the build's GIL-holding parts (the point decoding,
+            # scipy's bounds of the points) fall between frames, not on one (FRAME_WAIT_S: at most).
+            self._frame_done.clear()
+            self._frame_done.wait(FRAME_WAIT_S)
             result = build_map(cloud, build_index)
             with self._cond:
                 if self._closed:
                     return
                 self._ready.append(result)
-            self._on_ready()
 
 
 def build_map(cloud: RawCloud, build_index: IndexBuilder) -> MapBuilt:
@@ -290,8 +300,10 @@ class HacNode(Node):
         for topic, msgtype in OUTPUT_TOPICS:
             depth = DIAGNOSTICS_DEPTH if topic == '/diagnostics' else OUTPUT_DEPTH
             self._output_publishers[topic] = self.create_publisher(TYPES.get(msgtype), topic, depth)
-        self._map_ready = self.create_guard_condition(self._on_maps_ready)
-        self._builder = MapBuilder(self._map_ready.trigger)
+        self._builder = MapBuilder()
+        # finished maps are handed over by a timer, not a guard condition: rclpy's EventsExecutor
+        # (the executable's default, see make_executor) does not support guard conditions
+        self._map_poll = self.create_timer(MAP_POLL_S, self._on_maps_ready)
         self._subscriptions_by_kind: dict[str, Any] = {}
         for kind in ('pose', 'joints', 'camera_info', 'cloud'):
             self._subscribe(kind)
@@ -383,6 +395,7 @@ class HacNode(Node):
             self._emit(self.calibrator.reject('joints_malformed', -1))
             return
         self._emit(self.calibrator.add_joints(stamp, joints_cam, frame_id))
+        self._builder.frame_done()
 
     def _on_camera_info(self, msg: Any) -> None:
         stamp = -1
@@ -519,6 +532,22 @@ class HacNode(Node):
 # SIGTERMs shortly after start-up). Waiting at most this long lets the loop see the shutdown.
 SHUTDOWN_POLL_S = 0.5
 
+def make_executor() -> Any:
+    """rclpy's EventsExecutor (C++, Jazzy's ``rclpy.experimental``) unless HAC_EXECUTOR=single.
+
+    The default SingleThreadedExecutor rebuilds a wait set of every entity (4 subscriptions, the
+    parameter services, guard conditions) in Python for each callback; the EventsExecutor
+    dispatches each event directly (measured: docs/benchmarks.md, node latency).
+    """
+    if os.environ.get('HAC_EXECUTOR', 'events') != 'single':
+        try:
+            from rclpy.experimental import EventsExecutor
+            return EventsExecutor()
+        except ImportError:  # an rclpy without it
+            pass
+    return SingleThreadedExecutor()
+
+
 def main(args: list[str] | None = None) -> int:
     """init → spin → clean shutdown on SIGINT/SIGTERM (exit code 0); 2 on invalid parameters.
 
@@ -529,7 +558,7 @@ def main(args: list[str] | None = None) -> int:
     # docs/benchmarks.md, node latency) at a negligible cost to the builder.
     sys.setswitchinterval(GIL_SWITCH_INTERVAL_S)
     rclpy.init(args=args)
-    executor = SingleThreadedExecutor()
+    executor = make_executor()
     node = None
     try:
         node = HacNode()
