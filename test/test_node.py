@@ -538,3 +538,22 @@ def test_docs_table_and_config_list_every_parameter_with_its_default():
     assert HacParams.from_yaml(config) == HacParams()
     listed = yaml.safe_load(config.read_text(encoding='utf-8'))['hac_node']['ros__parameters']
     assert list(listed) == names()
+
+
+def test_the_executable_spins_the_events_executor_unless_told_otherwise(monkeypatch):
+    """make_executor: rclpy's EventsExecutor by default, the SingleThreadedExecutor with
+    HAC_EXECUTOR=single (the node's own behaviour under both is covered by the other tests: the
+    subprocess ones run the executable, the in-process ones a SingleThreadedExecutor)."""
+    from rclpy.experimental import EventsExecutor
+
+    from hac_ros.node import make_executor
+
+    rclpy.init()
+    try:
+        monkeypatch.delenv('HAC_EXECUTOR', raising=False)
+        default = make_executor()
+        assert type(default).__name__ == type(EventsExecutor()).__name__
+        monkeypatch.setenv('HAC_EXECUTOR', 'single')
+        assert isinstance(make_executor(), SingleThreadedExecutor)
+    finally:
+        rclpy.try_shutdown()
