@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from hac_ros.core.transforms import rotation_defects
 from msg_adapters.errors import MessageError
 from msg_adapters.stamps import make_header
 from msg_adapters.types import MessageTypes
@@ -60,18 +61,16 @@ def matrix_to_quat(R: np.ndarray) -> tuple[float, float, float, float]:
         raise MessageError(f'rotation: expected a (3, 3) matrix ({exc})') from exc
     if R.shape != (3, 3):
         raise MessageError(f'rotation: expected a (3, 3) matrix, got shape {R.shape}')
-    # plain floats: this runs for every published pose, where numpy's per-call cost dominates
-    a, b, c, d, e, f, g, h, i = R.ravel().tolist()
-    if not math.isfinite(a + b + c + d + e + f + g + h + i):
+    defects = rotation_defects(R)
+    if defects is None:
         raise MessageError(f'rotation is not finite: {R.tolist()}')
-    orthogonality = max(abs(a * a + d * d + g * g - 1.0), abs(b * b + e * e + h * h - 1.0),
-                        abs(c * c + f * f + i * i - 1.0), abs(a * b + d * e + g * h),
-                        abs(a * c + d * f + g * i), abs(b * c + e * f + h * i))
-    determinant = a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
+    orthogonality, determinant = defects
     if orthogonality > ROTATION_TOL or abs(determinant - 1.0) > ROTATION_TOL:
         raise MessageError(f'rotation: not a rotation matrix (max |RᵀR − I| = {orthogonality:.3g}, '
                            f'det = {determinant:.6g})')
-    # Shepperd's method: the largest of 4w², 4x², 4y², 4z² gives a well-conditioned division
+    # Shepperd's method in plain floats (every published pose): the largest of 4w², 4x², 4y², 4z²
+    # gives a well-conditioned division
+    a, b, c, d, e, f, g, h, i = R.ravel().tolist()
     trace = a + e + i
     best = max(trace, a, e, i)
     if best == trace:

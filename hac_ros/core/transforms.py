@@ -95,16 +95,24 @@ def quat_to_matrix(q_xyzw: np.ndarray) -> np.ndarray:
     return Rotation.from_quat(q_xyzw).as_matrix()
 
 
+def rotation_defects(R: np.ndarray) -> tuple[float, float] | None:
+    """(max |RᵀR − I|, det R) of a (3, 3) float matrix, or None when it is not finite.
+
+    Plain floats: ~5x faster than the numpy calls for one matrix (every pose in and out).
+    """
+    a, b, c, d, e, f, g, h, i = R.ravel().tolist()
+    if not math.isfinite(a + b + c + d + e + f + g + h + i):
+        return None
+    orthogonality = max(abs(a * a + d * d + g * g - 1.0), abs(b * b + e * e + h * h - 1.0),
+                        abs(c * c + f * f + i * i - 1.0), abs(a * b + d * e + g * h),
+                        abs(a * c + d * f + g * i), abs(b * c + e * f + h * i))
+    return orthogonality, a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
+
+
 def is_rotation(R: np.ndarray, tol: float = 1e-6) -> bool:
     """Is R a finite proper rotation (3, 3): max |RᵀR − I| <= tol and det R > 0?"""
     R = np.asarray(R, dtype=float)
     if R.shape != (3, 3):
         return False
-    a, b, c, d, e, f, g, h, i = R.ravel().tolist()  # plain floats: ~5x faster than numpy calls
-    if not math.isfinite(a + b + c + d + e + f + g + h + i):
-        return False
-    gram = (a * a + d * d + g * g - 1.0, b * b + e * e + h * h - 1.0, c * c + f * f + i * i - 1.0,
-            a * b + d * e + g * h, a * c + d * f + g * i, b * c + e * f + h * i)
-    if max(abs(x) for x in gram) > tol:
-        return False
-    return a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g) > 0.0
+    defects = rotation_defects(R)
+    return defects is not None and defects[0] <= tol and defects[1] > 0.0
