@@ -47,8 +47,8 @@ from hac_ros.core.outputs import NoticeOut, OdometryOut, Output, ResetOut
 from hac_ros.core.params import NODE_NAME, POSE_MSGTYPES, HacParams, describe, names
 from hac_ros.core.reference import MapIndex
 from hac_ros.messages import OUTPUT_TOPICS, OutputMessages
-from msg_adapters import (MessageError, camera_info_to_intrinsics, parse_joints_cdr,
-                          parse_pose_cdr, rclpy_types, stamp_to_ns)
+from hac_ros.inputs import add_joints_cdr, add_pose_cdr
+from msg_adapters import MessageError, camera_info_to_intrinsics, rclpy_types, stamp_to_ns
 from msg_adapters.cdr import RawCloud, cloud_points, parse_cloud_cdr  # noqa: F401 (re-exported)
 
 TYPES = rclpy_types()  # rclpy's message classes by ROS name
@@ -198,9 +198,10 @@ class MapBuilder:
     """Decodes map clouds and builds their :class:`MapIndex` on one worker thread.
 
     ``submit`` is called on the executor's thread; the node's timer calls ``take`` (every
-    MAP_POLL_S) to hand the finished results over on the executor's thread. In ``replace`` mode only the newest waiting cloud is built (an
-    older one waiting is superseded: it would be replaced anyway); in ``accumulate`` mode every cloud
-    is built in order (up to :data:`MAPS_WAITING_MAX` waiting).
+    MAP_POLL_S) to hand the finished results over on the executor's thread. In ``replace`` mode
+    only the newest waiting cloud is built (an older one waiting is superseded: it would be
+    replaced anyway); in ``accumulate`` mode every cloud is built in order (up to
+    :data:`MAPS_WAITING_MAX` waiting).
     """
 
     def __init__(self) -> None:
@@ -377,24 +378,13 @@ class HacNode(Node):
     # ------------------------------------------------------------------ inputs
     # A message that cannot be decoded (msg_adapters.MessageError, an invalid stamp included) is
     # rejected with its kind's reason: pose_nonfinite, joints_malformed, camera_info_invalid.
-    # Poses and joints arrive as CDR bytes (raw subscriptions) and are read by msg_adapters.cdr,
-    # the same parser the replay uses: one np.frombuffer instead of a message object per pose.
+    # Poses and joints arrive as CDR bytes (raw subscriptions) and go through hac_ros.inputs, as
+    # in the replay: one np.frombuffer instead of a message object per pose.
     def _on_pose(self, data: bytes) -> None:
-        try:
-            pose = parse_pose_cdr(data, POSE_MSGTYPES[self.params.pose_type])
-        except MessageError:
-            self._emit(self.calibrator.reject('pose_nonfinite', -1))
-            return
-        self._emit(self.calibrator.add_pose(pose.stamp_ns, pose.R_wc, pose.c_map, pose.frame_id,
-                                            pose.child_frame_id))
+        self._emit(add_pose_cdr(self.calibrator, data, POSE_MSGTYPES[self.params.pose_type])[0])
 
     def _on_joints(self, data: bytes) -> None:
-        try:
-            stamp, frame_id, joints_cam = parse_joints_cdr(data)
-        except MessageError:
-            self._emit(self.calibrator.reject('joints_malformed', -1))
-            return
-        self._emit(self.calibrator.add_joints(stamp, joints_cam, frame_id))
+        self._emit(add_joints_cdr(self.calibrator, data))
         self._builder.frame_done()
 
     def _on_camera_info(self, msg: Any) -> None:

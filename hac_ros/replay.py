@@ -40,6 +40,7 @@ from hac_ros.core.offline import OfflineScale, offline_scale
 from hac_ros.core.outputs import (NoticeOut, OdometryOut, Output, ResetOut, SampleOut, Status)
 from hac_ros.core.params import POSE_MSGTYPES, HacParams
 from hac_ros.core.reference import MapIndex
+from hac_ros.inputs import add_joints_cdr, add_pose_cdr
 from hac_ros.messages import (OUTPUT_TOPICS, SAMPLES, Message, OutputMessages,
                               samples_message)
 
@@ -315,10 +316,14 @@ class CoreFeeder:
             return cal.add_map_index(built.index)
         topic = {'pose': self.topics.pose, 'joints': self.topics.joints,
                  'camera_info': self.topics.camera_info}[kind]
-        if kind == 'pose':  # poses and joints straight from their CDR bytes (msg_adapters.cdr)
-            return self._feed_pose(self.recording.to_cdr(item, topic), topic)
+        if kind == 'pose':  # poses and joints from their CDR bytes, as hac_node (hac_ros.inputs)
+            outputs, pose = add_pose_cdr(cal, self.recording.to_cdr(item, topic),
+                                         self.recording.topics[topic])
+            if pose is not None and self.poses is not None:
+                self.poses.append((pose.stamp_ns, pose.R_wc, pose.c_map))
+            return outputs
         if kind == 'joints':
-            return self._feed_joints(self.recording.to_cdr(item, topic))
+            return add_joints_cdr(cal, self.recording.to_cdr(item, topic))
         msg = self.recording.deserialize(item, topic, log_ns)
         try:
             stamp = stamp_to_ns(msg.header.stamp)
@@ -329,27 +334,6 @@ class CoreFeeder:
         except MessageError:
             return cal.reject(MALFORMED[kind], stamp)
         return cal.add_camera_info(K, width, height, msg.header.frame_id)
-
-    def _feed_pose(self, data: Any, topic: str) -> list[Output]:
-        from msg_adapters import MessageError, parse_pose_cdr
-
-        try:
-            pose = parse_pose_cdr(data, self.recording.topics[topic])
-        except MessageError:
-            return self.calibrator.reject(MALFORMED['pose'], -1)
-        if self.poses is not None:
-            self.poses.append((pose.stamp_ns, pose.R_wc, pose.c_map))
-        return self.calibrator.add_pose(pose.stamp_ns, pose.R_wc, pose.c_map, pose.frame_id,
-                                        pose.child_frame_id)
-
-    def _feed_joints(self, data: Any) -> list[Output]:
-        from msg_adapters import MessageError, parse_joints_cdr
-
-        try:
-            stamp, frame_id, joints_cam = parse_joints_cdr(data)
-        except MessageError:
-            return self.calibrator.reject(MALFORMED['joints'], -1)
-        return self.calibrator.add_joints(stamp, joints_cam, frame_id)
 
 
 def tie_ordered(messages: Iterable[tuple[str, int, Any]], kinds: dict[str, str]
