@@ -155,11 +155,8 @@ class MapIndex:
         upper[-1] = np.nextafter(far, math.inf)  # the window's end is included
         # in the cone (cos > cos_min, in front: cos > 0) without dividing by a zero distance
         keep = along > max(cos_min, 0.0) * dist
-        if count > 1:
-            keep &= dist >= np.repeat(lower, sizes)
-            keep &= dist < np.repeat(upper, sizes)
-        else:
-            keep &= (dist >= lower[0]) & (dist < upper[0])
+        keep &= dist >= np.repeat(lower, sizes)
+        keep &= dist < np.repeat(upper, sizes)
         dist = dist[keep]
         return dist, along[keep] / dist
 
