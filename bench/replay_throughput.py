@@ -9,7 +9,7 @@ walking a circle, the camera following; bench/core_speed.py ``room_scene``), SLA
 joints every frame, and a ``--map-points`` map (floor and walls) republished every second, as a
 SLAM system republishes its map; mcap, written to a temporary directory first (not timed). Timed:
 ``replay()`` from opening the recording to the renamed OUT, in ``online`` mode (one pass) and
-``offline`` mode (the default: two passes), including reading, CDR decoding, map indexing, the core,
+``offline`` mode (the default: one run with deferred metric outputs, then resolved and written), including reading, CDR decoding, map indexing, the core,
 message conversion, serialization and writing. A cProfile of an online replay of the first
 ``--profile-duration`` seconds says where the time goes. Prints, writes
 bench/results/replay_throughput.json and the ``replay_throughput`` section of docs/benchmarks.md.

@@ -8,10 +8,13 @@ message to a :class:`~hac_ros.core.calibrator.Calibrator` in log-time order with
 Modes (docs/replay.md):
 
 - ``online``: what the node publishes, frame by frame (causal).
-- ``offline`` (default): pass 1 runs the calibrator online and keeps its accepted samples and its
-  resets; :mod:`hac_ros.core.offline` turns them into a stamp -> scale schedule per segment (the
-  median, or a centred rolling median where the scale drifts); pass 2 runs a fresh calibrator with
-  that schedule as :attr:`~hac_ros.core.calibrator.Calibrator.output_scale`.
+- ``offline`` (default): one run of the calibrator, with its metric outputs deferred
+  (:mod:`hac_ros.core.metric`), keeps its accepted samples and its resets;
+  :mod:`hac_ros.core.offline` turns them into a stamp -> scale schedule per segment (the median,
+  or a centred rolling median where the scale drifts); the deferred outputs are then resolved with
+  that schedule and written (what a second run with the schedule as
+  :attr:`~hac_ros.core.calibrator.Calibrator.output_scale` would give, without reading the
+  recording or indexing its maps again).
 
 OUT is written under a temporary name beside it and renamed at the end: an error or Ctrl-C leaves
 no OUT, and IN is only ever read. Besides SPEC's output topics the replay writes
@@ -36,6 +39,7 @@ import numpy as np
 
 from hac_ros.core.calibrator import Calibrator
 from hac_ros.core.errors import HacError
+from hac_ros.core.metric import MetricStage, finite_scale
 from hac_ros.core.offline import OfflineScale, offline_scale
 from hac_ros.core.outputs import (NoticeOut, OdometryOut, Output, ResetOut, SampleOut, Status)
 from hac_ros.core.params import POSE_MSGTYPES, HacParams
@@ -453,7 +457,7 @@ class OutputHandler:
 
 
 class NoticePrinter:
-    """Prints each NoticeOut once to stderr (a second pass repeats the first's: not printed)."""
+    """Prints each NoticeOut once to stderr (a notice repeated with the same stamp and text is not)."""
 
     def __init__(self, stream: Any = None) -> None:
         self.stream = stream
@@ -563,16 +567,6 @@ def replay(input_path: str | Path, output_path: str | Path, params: HacParams | 
         n_inputs = sum(recording.counts.get(t, 0) for t in topics.kinds())
         n_pass = sum(recording.counts.values()) if copy_inputs else n_inputs
         schedule = None
-        if mode == 'offline':
-            first = OutputHandler(params, None, printer)
-            feeder = CoreFeeder(recording, topics, params, map_thread=map_thread)
-            with _progress(progress, n_inputs, 'pass 1/2: estimate') as bar:
-                feeder.run(first, progress=bar)
-            accepted = [s for s in first.samples if s.accepted]
-            schedule = offline_scale(np.array([s.stamp_ns for s in accepted], dtype=np.int64),
-                                     np.array([s.scale for s in accepted]),
-                                     [r.stamp_ns for r in first.resets], params.window_s,
-                                     params.min_samples)
         with _staging(output_path) as staged:
             writer = OutputWriter(staged, storage)
             try:
@@ -580,22 +574,69 @@ def replay(input_path: str | Path, output_path: str | Path, params: HacParams | 
                 for topic, msgtype in (*OUTPUT_TOPICS, SAMPLES):
                     if topic != '/hac/markers' or params.publish_markers:
                         writer.connection(topic, msgtype)
-                feeder = CoreFeeder(recording, topics, params, output_scale=schedule,
-                                    keep_poses=export_tum is not None, map_thread=map_thread)
+                feeder = CoreFeeder(recording, topics, params, keep_poses=export_tum is not None,
+                                    map_thread=map_thread)
                 on_message = _input_copier(recording, writer) if copy_inputs else None
-                label = 'pass 2/2: write' if mode == 'offline' else 'replay'
-                with _progress(progress, n_pass, label) as bar:
-                    feeder.run(handler, on_message=on_message, progress=bar)
+                if mode == 'online':
+                    with _progress(progress, n_pass, 'replay') as bar:
+                        feeder.run(handler, on_message=on_message, progress=bar)
+                    status = feeder.calibrator.status()
+                else:
+                    status, schedule = _offline(feeder, handler, on_message, progress, n_pass)
             finally:
                 writer.close()
             tum: dict[str, Path] = {}
             if export_tum is not None:
                 tum = write_tum_exports(Path(export_tum), handler.odometry or [], feeder.poses or [],
                                         recording)
-    status = feeder.calibrator.status()
     return ReplaySummary(mode, input_path, output_path, status, time.perf_counter() - start,
                          n_inputs, dict(writer.counts), list(handler.resets), schedule, tum,
                          start_ns)
+
+
+def _offline(feeder: 'CoreFeeder', handler: 'OutputHandler',
+             on_message: Callable[[str, int, Any], None] | None, progress: bool,
+             n_pass: int) -> tuple[Status, OfflineScale]:
+    """The offline mode: one run of the calibrator with its metric outputs deferred, the schedule
+    from its accepted samples and resets, then the deferred outputs resolved with the schedule and
+    written (hac_ros.core.metric: the same outputs as a second run with that schedule would give).
+
+    Memory: the run's outputs are kept until the schedule is known (about 1 kB per frame).
+    """
+    calibrator = feeder.calibrator
+    calibrator.defer = True
+    recorded: list[list[Output]] = []
+    samples: list[SampleOut] = []
+    resets: list[int] = []
+
+    def record(outputs: list[Output]) -> None:
+        for output in outputs:
+            if isinstance(output, SampleOut):
+                if output.accepted:
+                    samples.append(output)
+            elif isinstance(output, ResetOut):
+                resets.append(output.stamp_ns)
+        recorded.append(outputs)
+
+    with _progress(progress, n_pass, 'estimate') as bar:
+        feeder.run(record, on_message=on_message, progress=bar)
+    p = calibrator.params
+    schedule = offline_scale(np.array([s.stamp_ns for s in samples], dtype=np.int64),
+                             np.array([s.scale for s in samples]), resets, p.window_s,
+                             p.min_samples)
+
+    def scale_at(stamp_ns: int) -> float | None:
+        return finite_scale(schedule(stamp_ns))
+
+    stage = MetricStage(calibrator.metric.base_from_camera, p.orientation_variance)
+    with _progress(progress, len(recorded), 'write') as bar:
+        for outputs in recorded:
+            handler(stage.resolve(outputs, scale_at, schedule.error))
+            if bar is not None:
+                bar.update(1)
+    recorded.clear()
+    pending = calibrator.pending_status()
+    return stage.status(pending, scale_at(pending.status.stamp_ns)), schedule
 
 
 def check_output_path(input_path: Path, output_path: Path) -> None:

@@ -539,3 +539,62 @@ def test_offline_estimates_each_segment_of_a_reset_on_its_own(tmp_path):
     offline = row_metrics(runs['offline'], truth)
     assert offline['scale_error_frames_pct'] <= online['scale_error_frames_pct']
     assert offline['w_mpjpe_mm'] <= online['w_mpjpe_mm']
+
+
+@pytest.mark.parametrize('base', [False, True])
+def test_deferred_outputs_resolved_with_the_schedule_equal_a_run_with_that_schedule(base):
+    """The offline mode runs the calibrator once with its metric outputs deferred and resolves them
+    with the schedule (hac_ros.core.metric): exactly what a second run with the schedule gives,
+    across a SLAM reset (the anchor) and with a base frame (the odometry's base offset)."""
+    from dataclasses import fields
+
+    from hac_ros.core.metric import MetricStage, finite_scale
+    from hac_ros.core.outputs import ResetOut, SampleOut
+    from hac_ros.replay import CoreFeeder, InputTopics, Recording
+
+    params = HacParams(base_frame='base_link', base_to_camera=[0.1, 0.0, 0.5, 0.5, -0.5, 0.5, -0.5]) \
+        if base else HacParams()
+    with Recording(BAGS / 'reset_short') as recording:
+        topics = InputTopics.check(recording, params)
+        deferred: list = []
+        feeder = CoreFeeder(recording, topics, params)
+        feeder.calibrator.defer = True
+        feeder.run(deferred.extend)
+        samples = [o for o in deferred if isinstance(o, SampleOut) and o.accepted]
+        resets = [o.stamp_ns for o in deferred if isinstance(o, ResetOut)]
+        assert resets, 'the recording has a SLAM reset'
+        schedule = offline_scale(np.array([s.stamp_ns for s in samples]),
+                                 np.array([s.scale for s in samples]), resets, params.window_s,
+                                 params.min_samples)
+        stage = MetricStage(feeder.calibrator.metric.base_from_camera, params.orientation_variance)
+        resolved = stage.resolve(deferred, lambda stamp: finite_scale(schedule(stamp)))
+        direct: list = []
+        CoreFeeder(recording, topics, params, output_scale=schedule).run(direct.extend)
+    assert [type(o).__name__ for o in resolved] == [type(o).__name__ for o in direct]
+    assert sum(type(o).__name__ == 'OdometryOut' for o in direct) > 100
+
+    def same(a, b) -> bool:
+        if hasattr(a, '__dataclass_fields__'):
+            return all(same(getattr(a, f.name), getattr(b, f.name)) for f in fields(a))
+        if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+            return a is not None and b is not None and np.array_equal(a, b, equal_nan=True)
+        return a == b or (a != a and b != b)  # NaN == NaN here
+
+    for a, b in zip(resolved, direct):
+        assert same(a, b), [(f.name, getattr(a, f.name), getattr(b, f.name)) for f in fields(a)
+                            if not same(getattr(a, f.name), getattr(b, f.name))]
+
+
+def test_offline_odometry_covariance_is_finite_from_the_first_pose(tmp_path):
+    """Offline, poses before the first sample are published with the segment's scale: their
+    covariance takes the segment's standard error (never NaN)."""
+    from rosbags.highlevel import AnyReader
+    from rosbags.typesys import Stores, get_typestore
+
+    replay(BAGS / 'reset_short', tmp_path / 'out', NO_MARKERS, progress=False)
+    with AnyReader([tmp_path / 'out'], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:
+        conns = [c for c in reader.connections if c.topic == '/hac/odometry']
+        covariances = np.array([reader.deserialize(raw, conns[0].msgtype).pose.covariance
+                                for _, _, raw in reader.messages(connections=conns)])
+    assert len(covariances) > 300 and np.isfinite(covariances).all()
+    assert (covariances[:, 0] > 1e-6).mean() > 0.9  # the scale's share on top of the floor

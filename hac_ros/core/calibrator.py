@@ -29,12 +29,13 @@ import numpy as np
 from hac_ros.core.contact import candidate_joints, combine_ratios, in_view
 from hac_ros.core.estimator import RollingScale
 from hac_ros.core.ground import GroundModel, Plane
+from hac_ros.core.metric import (MetricStage, PendingFrame, PendingOdometry, PendingReset,
+                                 PendingStatus, finite_scale)
 from hac_ros.core.numeric import median_1d
-from hac_ros.core.outputs import (DiagnosticsOut, HumanJointsOut, NoticeOut, OdometryOut, Output,
-                                  ResetOut, SampleOut, ScaleOut, Status)
+from hac_ros.core.outputs import NoticeOut, Output, ResetOut, SampleOut, Status
 from hac_ros.core.params import HacParams
 from hac_ros.core.reference import MapIndex
-from hac_ros.core.transforms import Anchor, interpolate_pose, is_rotation, rotation_log
+from hac_ros.core.transforms import interpolate_pose, is_rotation
 
 JOINTS_PER_PERSON = 24
 PENDING_MAPS_MAX = 8  # maps waiting for a frame of their stamp
@@ -44,7 +45,6 @@ TYPICAL_REFRESH_POSES = 10  # the typical speed is re-taken every this many pose
 OVERLAP_SAMPLE = 256  # new-map points checked against the previous map
 OVERLAP_DISTANCE_REL = 0.02  # a point overlaps when this close (fraction of the old map's extent)
 MEDIAN_STD_ERROR = 1.2533  # standard error of a median = 1.2533 sigma / sqrt(n) (normal samples)
-POSITION_VARIANCE_FLOOR = 1e-6  # m², keeps the published covariance positive definite
 NS = 1_000_000_000
 
 # Human-readable text of each rejection cause (the first occurrence is logged).
@@ -113,15 +113,16 @@ class Calibrator:
         self._typical_speed, self._typical_age = 0.0, 0
         self._bbox_lo = self._bbox_hi = None
         self._suspects: list[_Pose] = []
-        self.anchor = Anchor()
-        self._last_metric: tuple[int, np.ndarray, np.ndarray] | None = None  # camera, metric frame
         self._diag_second: int | None = None
-        self._base_from_camera = _base_from_camera(p.base_to_camera) if p.base_frame else None
-        # the odometry covariance without the scale's share: position floor, orientation variance
-        self._covariance_floor = np.diag([POSITION_VARIANCE_FLOOR] * 3 + [p.orientation_variance] * 3)
-        # Offline mode: the scale of every published output at a stamp, decided from the whole
-        # recording (see hac_ros.core.offline); None = the online rolling estimate.
+        # the anchor of each SLAM map and the last metric pose: what depends on the published scale
+        self.metric = MetricStage(_base_from_camera(p.base_to_camera) if p.base_frame else None,
+                                  p.orientation_variance)
+        # The scale of every published output at a stamp, decided from the whole recording (see
+        # hac_ros.core.offline); None = the online rolling estimate.
         self.output_scale: Callable[[int], float] | None = None
+        # Deferred (the offline replay's first pass): metric outputs come back as the metric
+        # stage's Pending* records, to be resolved once the schedule is known (MetricStage.resolve).
+        self.defer = False
 
     # ================================================================== inputs
     def add_camera_info(self, K: np.ndarray, width: int, height: int, frame_id: str = '') -> list[Output]:
@@ -262,22 +263,22 @@ class Calibrator:
         return self.estimator.median()
 
     def status(self, stamp_ns: int | None = None) -> Status:
+        """A snapshot of the estimator at ``stamp_ns`` (default: the last frame's stamp)."""
+        pending = self.pending_status(stamp_ns)
+        return self.metric.status(pending, self._published_scale(pending.status.stamp_ns))
+
+    def pending_status(self, stamp_ns: int | None = None) -> PendingStatus:
+        """The status before the metric stage places its ground plane in the metric frame."""
         plane = self.ground.plane(self.map) if self.map is not None else None
-        normal_metric = point_metric = None
-        if plane is not None and self.converged and self._poses:
-            c_map = self._poses[-1].c_map
-            foot_map = c_map + (plane.offset - plane.normal @ c_map) * plane.normal
-            normal_metric = self.anchor.rotation @ plane.normal
-            point_metric = self.anchor.camera(np.eye(3), foot_map, self.scale)[1]
-        return Status(
+        status = Status(
             stamp_ns=int(self._last_frame_ns if stamp_ns is None else stamp_ns),
             converged=self.converged, scale=self.scale, spread=self.estimator.spread(),
             samples=self.estimator.samples, frames=self.frames, people=self.people,
             map_hits=self.map_hits, ground_fallbacks=self.ground_fallbacks, resets=self.resets,
             rejected=dict(self.rejected), map_points=len(self.map) if self.map is not None else 0,
             ground_normal_map=None if plane is None else plane.normal,
-            ground_offset_slam=float('nan') if plane is None else plane.offset,
-            ground_normal_metric=normal_metric, ground_point_metric=point_metric)
+            ground_offset_slam=float('nan') if plane is None else plane.offset)
+        return PendingStatus(status, plane, self._poses[-1].c_map if self._poses else None)
 
     @property
     def child_frame_id(self) -> str:
@@ -351,9 +352,8 @@ class Calibrator:
         self.estimator.reset()
         self.ground.reset()
         self.resets += 1
-        if self._last_metric is not None:
-            _, R_metric, p_metric = self._last_metric
-            self.anchor = Anchor.continuing(R_metric, p_metric, first_pose.R_wc, first_pose.c_map)
+        out: list[Output] = self._metric(PendingReset(first_pose.stamp_ns, first_pose.R_wc,
+                                                      first_pose.c_map))
         self._poses.clear()
         self._pose_stamps.clear()
         self._steps.clear()
@@ -366,9 +366,8 @@ class Calibrator:
         # frames before the reset belong to the old map: their poses are gone
         stale = [f for f in self._pending if f.stamp_ns < first_pose.stamp_ns]
         self._pending = [f for f in self._pending if f.stamp_ns >= first_pose.stamp_ns]
-        out: list[Output] = [ResetOut(first_pose.stamp_ns, cause),
-                             NoticeOut(first_pose.stamp_ns, 'reset', f'estimator reset ({cause}): '
-                                       f'{text}', 'warn')]
+        out += [ResetOut(first_pose.stamp_ns, cause),
+                NoticeOut(first_pose.stamp_ns, 'reset', f'estimator reset ({cause}): {text}', 'warn')]
         for frame in stale:
             out += self.reject('no_pose', frame.stamp_ns)
         return out
@@ -440,10 +439,9 @@ class Calibrator:
         self.estimator.advance(stamp)
         for person, joints in enumerate(frame.joints_cam):
             out += self._person(stamp, person, R_wc, c_map, joints)
-        scale = self._published_scale(stamp)
-        if scale is not None:
-            out.append(HumanJointsOut(stamp, self.anchor.joints(R_wc, c_map, scale, frame.joints_cam)))
-            out.append(ScaleOut(stamp, scale, self.estimator.spread()))
+        if self.defer or self._published_scale(stamp) is not None:
+            out += self._metric(PendingFrame(stamp, R_wc, c_map, frame.joints_cam,
+                                             self.estimator.spread()))
         return out
 
     def _person(self, stamp: int, person: int, R_wc: np.ndarray, c_map: np.ndarray,
@@ -542,38 +540,24 @@ class Calibrator:
 
     # ================================================================== outputs
     def _odometry(self, pose: _Pose) -> list[Output]:
-        scale = self._published_scale(pose.stamp_ns)
-        if scale is None:
+        if not self.defer and self._published_scale(pose.stamp_ns) is None:
             return []
-        R_metric, p_metric = self.anchor.camera(pose.R_wc, pose.c_map, scale)
-        last = self._last_metric
-        self._last_metric = (pose.stamp_ns, R_metric, p_metric)
-        R_out, p_out = R_metric, p_metric
-        if self._base_from_camera is not None:
-            R_cb, t_cb = self._base_from_camera  # base pose in the camera frame
-            R_out, p_out = R_metric @ R_cb, p_metric + R_metric @ t_cb
-        linear = np.zeros(3)
-        angular = np.zeros(3)
-        if last is not None and last[0] < pose.stamp_ns:
-            dt = (pose.stamp_ns - last[0]) / NS
-            R_prev, p_prev = last[1], last[2]
-            if self._base_from_camera is not None:
-                R_prev, p_prev = R_prev @ R_cb, p_prev + R_prev @ t_cb
-            linear = R_out.T @ (p_out - p_prev) / dt
-            angular = rotation_log(R_prev.T @ R_out) / dt
-        # position uncertainty from the scale's: sigma_s * |metric lever arm per unit scale|
+        # the position's uncertainty comes from the scale's standard error (MetricStage)
         n = max(self.estimator.samples, 1)
         sigma_scale = MEDIAN_STD_ERROR * self.estimator.spread() / math.sqrt(n)
-        lever = self.anchor.rotation @ (pose.c_map - self.anchor.centre_slam)
-        cov = self._covariance_floor.copy()
-        cov[:3, :3] += sigma_scale ** 2 * (lever[:, None] * lever)
-        return [OdometryOut(pose.stamp_ns, self.child_frame_id, R_out, p_out, cov, linear, angular)]
+        return self._metric(PendingOdometry(pose.stamp_ns, self.child_frame_id, pose.R_wc,
+                                            pose.c_map, sigma_scale))
+
+    def _metric(self, pending: object) -> list[Output]:
+        """A pending metric output: returned as is when deferred, else resolved at once."""
+        if self.defer:
+            return [pending]  # type: ignore[list-item]
+        return self.metric.apply(pending, self._published_scale)
 
     def _published_scale(self, stamp_ns: int) -> float | None:
         """The scale metric outputs use at ``stamp_ns`` (None: nothing metric yet)."""
         if self.output_scale is not None:
-            value = float(self.output_scale(stamp_ns))
-            return value if math.isfinite(value) and value > 0.0 else None
+            return finite_scale(self.output_scale(stamp_ns))
         return self.scale if self.converged else None
 
     def _diagnostics(self, stamp_ns: int) -> list[Output]:
@@ -581,7 +565,7 @@ class Calibrator:
         if self._diag_second is not None and second <= self._diag_second:
             return []
         self._diag_second = second
-        return [DiagnosticsOut(self.status(stamp_ns))]
+        return self._metric(self.pending_status(stamp_ns))
 
 
 def _overlaps(old: MapIndex, new: MapIndex, min_fraction: float) -> bool:

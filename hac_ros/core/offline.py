@@ -61,7 +61,9 @@ class SegmentScale:
     recording's beginning); samples: accepted samples in it; median: their median, metres per SLAM
     unit (NaN if fewer than min_samples); sigma: robust sigma of the samples about the local trend;
     drift: whether the drift test fired; drift_z / drift_rel: the largest window z-score and relative
-    departure seen; knots_ns / knots_scale: the schedule (one knot = constant median).
+    departure seen; knots_ns / knots_scale: the schedule (one knot = constant median); error: the
+    standard error of the published scale (of the median, or of one window's median when drifting),
+    metres per SLAM unit (the odometry's covariance uses it).
     """
 
     start_ns: int
@@ -75,6 +77,7 @@ class SegmentScale:
     knots_scale: np.ndarray = field(repr=False)
     first_sample_ns: int = 0
     last_sample_ns: int = 0
+    error: float = math.nan
 
     def at(self, stamps_ns: np.ndarray) -> np.ndarray:
         """Scale at each stamp (M,) int ns -> (M,) float: interpolated knots, constant beyond."""
@@ -112,6 +115,10 @@ class OfflineScale:
 
     def segment_index(self, stamp_ns: int) -> int:
         return bisect.bisect_right(self._starts, int(stamp_ns))
+
+    def error(self, stamp_ns: int) -> float:
+        """Standard error of the scale at ``stamp_ns`` (its segment's), metres per SLAM unit."""
+        return self.segments[self.segment_index(stamp_ns)].error
 
     def __call__(self, stamp_ns: int) -> float:
         k = self.segment_index(stamp_ns)
@@ -188,10 +195,14 @@ def segment_scale(stamps_ns: np.ndarray, scales: np.ndarray, start_ns: int, wind
         knots[-1] = min(knots[-1], int(stamps_ns[-1]))
         knots = np.unique(knots)
         values = centred_medians(stamps_ns, scales, knots, half_ns, min_samples)
+        span = max(int(stamps_ns[-1]) - int(stamps_ns[0]), 1)
+        n_used = max(1.0, n * min(1.0, 2 * half_ns / span))  # the samples of one window
     else:
         knots, values = np.array([stamps_ns[0]], dtype=np.int64), np.array([median])
+        n_used = float(n)
     return SegmentScale(int(start_ns), n, median, sigma, bool(drift), z_max, rel_max, knots, values,
-                        int(stamps_ns[0]), int(stamps_ns[-1]))
+                        int(stamps_ns[0]), int(stamps_ns[-1]),
+                        MEDIAN_STD_ERROR * sigma / math.sqrt(n_used))
 
 
 def drift_statistic(stamps_ns: np.ndarray, scales: np.ndarray, median: float, sigma: float,

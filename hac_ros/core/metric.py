@@ -1,0 +1,189 @@
+"""The metric stage: a scale applied to SLAM poses and HMR joints (SPEC, method step 6).
+
+The :class:`~hac_ros.core.calibrator.Calibrator` decides *what* is published and *when* (SPEC's
+processing order); this stage decides *with which scale*. It owns what depends on the published
+scale: the anchor of each SLAM map (so that the metric camera is continuous across a SLAM
+re-initialisation) and the last metric camera pose (for the velocities and the next anchor).
+
+The calibrator hands it ``Pending*`` records that hold the SLAM-unit quantities of an output.
+Online (``hac_node``, ``hac replay --mode online``) each record is resolved at once with the
+current estimate. Offline (the replay's default mode) the calibrator *defers*: it returns the
+records among its other outputs, and once the whole recording's schedule is known
+:meth:`MetricStage.resolve` turns them, in their order, into the very outputs a second run with that
+schedule would give, so the second pass needs neither the recording nor its maps again.
+
+Pure numpy. Stamps are int nanoseconds; scales are metres per SLAM unit (None: nothing metric).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from typing import Callable, Iterable
+
+import numpy as np
+
+from hac_ros.core.ground import Plane
+from hac_ros.core.outputs import (DiagnosticsOut, HumanJointsOut, OdometryOut, Output, ScaleOut,
+                                  Status)
+from hac_ros.core.transforms import Anchor, rotation_log
+
+NS = 1_000_000_000
+POSITION_VARIANCE_FLOOR = 1e-6  # m², keeps the published covariance positive definite
+
+ScaleAt = Callable[[int], 'float | None']  # stamp ns -> published scale, or None (nothing metric)
+
+
+@dataclass
+class PendingOdometry:
+    """The odometry of one SLAM pose before a scale is applied.
+
+    R_wc: (3, 3) camera to SLAM map; c_map: (3,) camera centre, SLAM units, map frame;
+    sigma_scale: the online estimate's standard error then, metres per SLAM unit (NaN before any
+    sample), for the covariance.
+    """
+
+    stamp_ns: int
+    child_frame_id: str
+    R_wc: np.ndarray
+    c_map: np.ndarray
+    sigma_scale: float
+
+
+@dataclass
+class PendingFrame:
+    """A processed frame's world joints and scale before a scale is applied.
+
+    R_wc, c_map: the frame's camera pose (SLAM map frame, SLAM units); joints_cam: (P, 24, 3)
+    metres, camera optical frame; spread: the estimator's spread after the frame.
+    """
+
+    stamp_ns: int
+    R_wc: np.ndarray
+    c_map: np.ndarray
+    joints_cam: np.ndarray
+    spread: float
+
+
+@dataclass
+class PendingReset:
+    """A SLAM re-initialisation: the new map is anchored at its first pose (R_wc (3, 3), c_map (3,)
+    SLAM units, new map frame) so that the metric camera continues from the last metric pose."""
+
+    stamp_ns: int
+    R_wc: np.ndarray
+    c_map: np.ndarray
+
+
+@dataclass
+class PendingStatus:
+    """A /diagnostics status whose metric ground plane is still to be placed.
+
+    status: every SLAM-unit field filled, the metric ones None; plane: the ground plane (SLAM map
+    frame) or None; c_map: (3,) the last camera centre, SLAM units (the plane point below it).
+    """
+
+    status: Status
+    plane: Plane | None
+    c_map: np.ndarray | None
+
+
+Pending = (PendingOdometry, PendingFrame, PendingReset, PendingStatus)
+
+
+class MetricStage:
+    """Applies a published scale to pending outputs, keeping the anchor and the last metric pose.
+
+    base_from_camera: the base's pose in the camera frame (R (3, 3), t (3,) metres), or None to
+    publish the camera itself; orientation_variance: rad², the odometry's orientation covariance.
+    """
+
+    def __init__(self, base_from_camera: tuple[np.ndarray, np.ndarray] | None,
+                 orientation_variance: float) -> None:
+        self.anchor = Anchor()
+        self.base_from_camera = base_from_camera
+        # camera, metric frame: (stamp ns, R camera->metric (3, 3), centre (3,) metres)
+        self.last_metric: tuple[int, np.ndarray, np.ndarray] | None = None
+        # the odometry covariance without the scale's share: position floor, orientation variance
+        self._covariance_floor = np.diag([POSITION_VARIANCE_FLOOR] * 3 + [orientation_variance] * 3)
+
+    def resolve(self, outputs: Iterable[Output | object], scale_at: ScaleAt,
+                error_at: Callable[[int], float] | None = None) -> list[Output]:
+        """Outputs with every pending record replaced by its metric output(s), in order.
+
+        error_at: stamp -> standard error of that scale (metres per SLAM unit), for the odometry's
+        covariance; None: the online estimate's, recorded in each pending odometry.
+        """
+        out: list[Output] = []
+        for output in outputs:
+            if isinstance(output, Pending):
+                out += self.apply(output, scale_at, error_at)
+            else:
+                out.append(output)  # type: ignore[arg-type]
+        return out
+
+    def apply(self, pending: object, scale_at: ScaleAt,
+              error_at: Callable[[int], float] | None = None) -> list[Output]:
+        """One pending record -> its outputs with the scale ``scale_at`` gives at its stamp."""
+        if isinstance(pending, PendingOdometry):
+            sigma = pending.sigma_scale if error_at is None else error_at(pending.stamp_ns)
+            return self._odometry(pending, scale_at(pending.stamp_ns), sigma)
+        if isinstance(pending, PendingFrame):
+            scale = scale_at(pending.stamp_ns)
+            if scale is None:
+                return []
+            joints = self.anchor.joints(pending.R_wc, pending.c_map, scale, pending.joints_cam)
+            return [HumanJointsOut(pending.stamp_ns, joints),
+                    ScaleOut(pending.stamp_ns, scale, pending.spread)]
+        if isinstance(pending, PendingReset):
+            if self.last_metric is not None:
+                _, R_metric, p_metric = self.last_metric
+                self.anchor = Anchor.continuing(R_metric, p_metric, pending.R_wc, pending.c_map)
+            return []
+        if isinstance(pending, PendingStatus):
+            return [DiagnosticsOut(self.status(pending, scale_at(pending.status.stamp_ns)))]
+        raise TypeError(f'not a pending output: {type(pending).__name__}')
+
+    def status(self, pending: PendingStatus, scale: float | None) -> Status:
+        """The status with its metric ground plane: the down normal and the plane point below the
+        camera, in the metric frame (None before a scale or without a plane)."""
+        plane, c_map = pending.plane, pending.c_map
+        if plane is None or c_map is None or scale is None:
+            return pending.status
+        foot_map = c_map + (plane.offset - plane.normal @ c_map) * plane.normal
+        return replace(pending.status, ground_normal_metric=self.anchor.rotation @ plane.normal,
+                       ground_point_metric=self.anchor.camera(np.eye(3), foot_map, scale)[1])
+
+    def _odometry(self, pending: PendingOdometry, scale: float | None,
+                  sigma_scale: float) -> list[Output]:
+        if scale is None:
+            return []
+        stamp = pending.stamp_ns
+        R_metric, p_metric = self.anchor.camera(pending.R_wc, pending.c_map, scale)
+        last = self.last_metric
+        self.last_metric = (stamp, R_metric, p_metric)
+        R_out, p_out = R_metric, p_metric
+        if self.base_from_camera is not None:
+            R_cb, t_cb = self.base_from_camera  # base pose in the camera frame
+            R_out, p_out = R_metric @ R_cb, p_metric + R_metric @ t_cb
+        linear = np.zeros(3)
+        angular = np.zeros(3)
+        if last is not None and last[0] < stamp:
+            dt = (stamp - last[0]) / NS
+            R_prev, p_prev = last[1], last[2]
+            if self.base_from_camera is not None:
+                R_prev, p_prev = R_prev @ R_cb, p_prev + R_prev @ t_cb
+            linear = R_out.T @ (p_out - p_prev) / dt
+            angular = rotation_log(R_prev.T @ R_out) / dt
+        # position uncertainty from the scale's: sigma_s * |metric lever arm per unit scale|
+        # (a scale without a known error, e.g. a given one before any sample: the floor alone)
+        cov = self._covariance_floor.copy()
+        if math.isfinite(sigma_scale):
+            lever = self.anchor.rotation @ (pending.c_map - self.anchor.centre_slam)
+            cov[:3, :3] += sigma_scale ** 2 * (lever[:, None] * lever)
+        return [OdometryOut(stamp, pending.child_frame_id, R_out, p_out, cov, linear, angular)]
+
+
+def finite_scale(value: float) -> float | None:
+    """A published scale, or None when it is not a finite positive number."""
+    value = float(value)
+    return value if math.isfinite(value) and value > 0.0 else None
