@@ -36,6 +36,9 @@ SOURCE_REJECTED = 2.0
 
 DIAGNOSTIC_NAME = 'hac_ros: scale estimator'
 PATH_LENGTH = 600  # camera positions kept for the path marker
+# The camera path (600 points, 14 kB) and the ground plane are re-sent at most once per this much
+# stamp time, the skeletons every frame: RViz keeps a marker until it is replaced (lifetime 0).
+SLOW_MARKERS_PERIOD_NS = 1_000_000_000
 PLANE_SIZE_M = 8.0  # side of the ground-plane marker, metres
 PLANE_THICKNESS_M = 0.01
 # SMPL-24 bones (parent, child) for the skeleton marker
@@ -71,6 +74,7 @@ class OutputMessages:
         self._path_count = 0
         self._status: Status | None = None
         self._plane: tuple[Status, np.ndarray] | None = None  # (status, pose (7,)) of the plane
+        self._slow_sent_ns: int | None = None  # stamp of the last path and plane markers sent
 
     def convert(self, output: Output) -> list[Message]:
         """The messages of one calibrator output (none for samples, notices and resets)."""
@@ -123,12 +127,17 @@ class OutputMessages:
 
     # ------------------------------------------------------------------ markers
     def markers(self, output: HumanJointsOut) -> bytes:
-        """Skeletons (one LINE_LIST per person), the camera path, and the ground plane."""
+        """Skeletons (one LINE_LIST per person) every frame; the camera path and the ground plane
+        with the first frame and then at most once per SLOW_MARKERS_PERIOD_NS of stamp time."""
         stamp, frame = output.stamp_ns, self.params.metric_frame
         people = [(person, joints) for person, joints in enumerate(output.joints_metric)
                   if np.isfinite(joints).all()]
-        path = self._path_points()
-        plane = self._plane_pose()
+        path, plane = _NO_POINTS, None
+        last = self._slow_sent_ns
+        if last is None or not 0 <= stamp - last < SLOW_MARKERS_PERIOD_NS:
+            path, plane = self._path_points(), self._plane_pose()
+            if len(path) >= 2 or plane is not None:
+                self._slow_sent_ns = stamp
         w = cdr_write.CdrWriter()
         w.u32(len(people) + (len(path) >= 2) + (plane is not None))
         for person, joints in people:
@@ -163,6 +172,9 @@ class OutputMessages:
             quat = Rotation.align_vectors([normal], [[0.0, 0.0, 1.0]])[0].as_quat()
             self._plane = (status, np.concatenate([status.ground_point_metric, quat]))
         return self._plane[1]
+
+
+_NO_POINTS = np.empty((0, 3))
 
 
 def samples_message(samples: list[SampleOut]) -> bytes:

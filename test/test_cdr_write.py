@@ -179,6 +179,7 @@ def test_every_output_message_of_a_scenario_round_trips(name):
     cal = Calibrator(params)
     messages = OutputMessages(params)
     seen: dict[str, int] = {}
+    slow: dict[str, list[int]] = {'camera_path': [], 'ground_plane': []}
     cal.add_camera_info(sc.K, sc.width, sc.height, sc.camera_frame)
     for stamp, kind, payload in scenario_events(sc):
         add = {'map': cal.add_map, 'pose': cal.add_pose, 'joints': cal.add_joints}[kind]
@@ -190,7 +191,14 @@ def test_every_output_message_of_a_scenario_round_trips(name):
                 if m.topic == MARKERS[0]:
                     kinds = {mk.ns for mk in msg.markers}
                     assert 'skeleton' in kinds
+                    for ns in kinds & set(slow):
+                        slow[ns].append(m.stamp_ns)
                 if m.topic == DIAGNOSTICS[0]:
                     assert msg.status[0].values[0].key == 'converged'
     assert set(seen) == {'/hac/odometry', '/hac/human_joints', '/hac/scale', '/hac/markers',
                          '/diagnostics'}
+    # the path and the plane are refreshed about once a second of stamp time, not every frame
+    for ns, stamps in slow.items():
+        assert len(stamps) >= 5, ns
+        assert min(np.diff(stamps)) >= 1_000_000_000, ns
+        assert len(stamps) < seen['/hac/markers'] / 10, ns
