@@ -150,7 +150,7 @@ class Recording:
         try:
             if self.is_ros2:
                 return self.reader.deserialize(raw, msgtype)
-            return self.jazzy.deserialize_cdr(self.to_cdr(raw, topic), msgtype)
+            return self.jazzy.deserialize_cdr(self.to_cdr(raw, topic, log_ns), msgtype)
         except Exception as exc:
             raise HacError(f'{self.path} is corrupt: a {topic} message (log time {log_ns} ns) does '
                            f'not decode as {msgtype}: {_reason(exc)}') from None
@@ -160,11 +160,20 @@ class Recording:
         """The types of :meth:`to_cdr`'s bytes: the recording's own (ROS 2) or Jazzy (ROS 1)."""
         return self.reader.typestore if self.is_ros2 else self.jazzy
 
-    def to_cdr(self, raw: Any, topic: str) -> Any:
-        """The message bytes as ROS 2 CDR (a ROS 1 message becomes its ROS 2 Jazzy type)."""
+    def to_cdr(self, raw: Any, topic: str, log_ns: int = -1) -> Any:
+        """The message bytes as ROS 2 CDR (a ROS 1 message becomes its ROS 2 Jazzy type).
+
+        ROS 2 bytes are passed on as they are (a malformed message is then the decoder's to
+        count); a ROS 1 message that does not convert raises HacError, as :meth:`deserialize`.
+        """
         if self.is_ros2:
             return raw
-        return self.jazzy.ros1_to_cdr(raw, self.topics[topic])
+        msgtype = self.topics[topic]
+        try:
+            return self.jazzy.ros1_to_cdr(raw, msgtype)
+        except Exception as exc:
+            raise HacError(f'{self.path} is corrupt: a {topic} message (log time {log_ns} ns) does '
+                           f'not decode as {msgtype}: {_reason(exc)}') from None
 
     def read(self, topic: str) -> list[tuple[int, Any]]:
         """Every message of ``topic``, deserialized: [(log time ns, message)]."""
@@ -321,13 +330,13 @@ class CoreFeeder:
         topic = {'pose': self.topics.pose, 'joints': self.topics.joints,
                  'camera_info': self.topics.camera_info}[kind]
         if kind == 'pose':  # poses and joints from their CDR bytes, as hac_node (hac_ros.inputs)
-            outputs, pose = add_pose_cdr(cal, self.recording.to_cdr(item, topic),
+            outputs, pose = add_pose_cdr(cal, self.recording.to_cdr(item, topic, log_ns),
                                          self.recording.topics[topic])
             if pose is not None and self.poses is not None:
                 self.poses.append((pose.stamp_ns, pose.R_wc, pose.c_map))
             return outputs
         if kind == 'joints':
-            return add_joints_cdr(cal, self.recording.to_cdr(item, topic))
+            return add_joints_cdr(cal, self.recording.to_cdr(item, topic, log_ns))
         msg = self.recording.deserialize(item, topic, log_ns)
         try:
             stamp = stamp_to_ns(msg.header.stamp)
@@ -708,7 +717,7 @@ def _input_copier(recording: Recording, writer: OutputWriter) -> Callable[[str, 
         if topic in ours:
             return
         conn = writer.connection(topic, recording.topics[topic], typestore=typestore)
-        writer.write_raw(conn, log_ns, recording.to_cdr(raw, topic))
+        writer.write_raw(conn, log_ns, recording.to_cdr(raw, topic, log_ns))
     return copy
 
 

@@ -598,3 +598,33 @@ def test_offline_odometry_covariance_is_finite_from_the_first_pose(tmp_path):
                                 for _, _, raw in reader.messages(connections=conns)])
     assert len(covariances) > 300 and np.isfinite(covariances).all()
     assert (covariances[:, 0] > 1e-6).mean() > 0.9  # the scale's share on top of the floor
+
+
+def test_a_corrupt_message_in_a_ros1_bag_is_a_clear_error(walk_bag, tmp_path):
+    """A ROS 1 message that does not convert to ROS 2 CDR (here a truncated SLAM pose) stops the
+    replay with a "corrupt" error naming the topic, and leaves no OUT."""
+    from rosbags.convert import convert
+    from rosbags.rosbag1 import Reader as Reader1
+    from rosbags.rosbag1 import Writer as Writer1
+    from rosbags.typesys import Stores, get_typestore
+
+    noetic = get_typestore(Stores.ROS1_NOETIC)
+    good = tmp_path / 'good.bag'
+    convert([walk_bag], good, dst_storage='', dst_version=None, compress=None, compress_mode='',
+            default_typestore=get_typestore(Stores.ROS2_JAZZY), typestore=noetic,
+            exclude_topics=[], include_topics=[], exclude_msgtypes=[], include_msgtypes=[])
+    bad = tmp_path / 'bad.bag'
+    with Reader1(good) as reader, Writer1(bad) as writer:
+        conns = {c.id: writer.add_connection(c.topic, c.msgtype, typestore=noetic)
+                 for c in reader.connections}
+        poses = 0
+        for conn, log_ns, raw in reader.messages():
+            if conn.topic == '/slam/pose':
+                poses += 1
+                if poses == 20:
+                    raw = raw[:10]  # truncated inside the header
+            writer.write(conns[conn.id], log_ns, raw)
+    result = hac('replay', str(bad), '-o', str(tmp_path / 'out'), '--mode', 'online')
+    _assert_clean_error(result, 'corrupt')
+    assert '/slam/pose' in result.stderr
+    assert not (tmp_path / 'out').exists()
