@@ -1,14 +1,20 @@
-"""SLAM poses and HMR joints from their CDR bytes into the calibrator, for the node and the replay.
+"""Input messages into the calibrator, for the node and the replay.
 
-Both shells hand the serialized message (a raw subscription's bytes, or a recording's) to these
-functions, so that the same message gives the same calibrator call online and replayed. A message
-that does not decode is a counted rejection with its kind's reason (stamp −1: it was not read).
+SLAM poses and HMR joints come as CDR bytes (a raw subscription's, or a recording's), CameraInfo as
+a message object (rclpy's or rosbags'), so that the same message gives the same calibrator call
+online and replayed. A message that does not decode is a counted rejection with its kind's reason
+(stamp −1 when its stamp could not be read).
 """
 from __future__ import annotations
 
+from typing import Any
+
+import numpy as np
+
 from hac_ros.core.calibrator import Calibrator
 from hac_ros.core.outputs import Output
-from msg_adapters import MessageError, RawPose, parse_joints_cdr, parse_pose_cdr
+from msg_adapters import (MessageError, RawPose, camera_info_to_intrinsics, parse_joints_cdr,
+                          parse_pose_cdr, stamp_to_ns)
 
 
 def add_pose_cdr(calibrator: Calibrator, data: bytes | memoryview, msgtype: str
@@ -31,3 +37,16 @@ def add_joints_cdr(calibrator: Calibrator, data: bytes | memoryview) -> list[Out
     except MessageError:
         return calibrator.reject('joints_malformed', -1)
     return calibrator.add_joints(stamp, joints_cam, frame_id)
+
+
+def add_camera_info_msg(calibrator: Calibrator, msg: Any
+                        ) -> tuple[list[Output], tuple[np.ndarray, int, int] | None]:
+    """A sensor_msgs/CameraInfo → the calibrator's outputs, and the intrinsics read (K (3, 3)
+    pixels, width, height) or None when they are invalid (rejected as ``camera_info_invalid``)."""
+    stamp = -1
+    try:
+        stamp = stamp_to_ns(msg.header.stamp)
+        K, width, height = camera_info_to_intrinsics(msg)
+    except MessageError:
+        return calibrator.reject('camera_info_invalid', stamp), None
+    return calibrator.add_camera_info(K, width, height, msg.header.frame_id), (K, width, height)

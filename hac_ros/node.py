@@ -47,8 +47,8 @@ from hac_ros.core.outputs import NoticeOut, OdometryOut, Output, ResetOut
 from hac_ros.core.params import NODE_NAME, POSE_MSGTYPES, HacParams, describe, names
 from hac_ros.core.reference import MapIndex
 from hac_ros.messages import OUTPUT_TOPICS, OutputMessages
-from hac_ros.inputs import add_joints_cdr, add_pose_cdr
-from msg_adapters import MessageError, camera_info_to_intrinsics, rclpy_types, stamp_to_ns
+from hac_ros.inputs import add_camera_info_msg, add_joints_cdr, add_pose_cdr
+from msg_adapters import MessageError, rclpy_types
 from msg_adapters.cdr import RawCloud, cloud_points, parse_cloud_cdr  # noqa: F401 (re-exported)
 
 TYPES = rclpy_types()  # rclpy's message classes by ROS name
@@ -388,15 +388,10 @@ class HacNode(Node):
         self._builder.frame_done()
 
     def _on_camera_info(self, msg: Any) -> None:
-        stamp = -1
-        try:
-            stamp = stamp_to_ns(msg.header.stamp)
-            K, width, height = camera_info_to_intrinsics(msg)
-        except MessageError:
-            self._emit(self.calibrator.reject('camera_info_invalid', stamp))
-            return
-        self._camera_info = (K, width, height)
-        self._emit(self.calibrator.add_camera_info(K, width, height, msg.header.frame_id))
+        outputs, intrinsics = add_camera_info_msg(self.calibrator, msg)
+        if intrinsics is not None:
+            self._camera_info = intrinsics
+        self._emit(outputs)
 
     def _on_cloud(self, data: bytes) -> None:
         """Raw CDR bytes: read the header here, decode and index on the builder thread."""

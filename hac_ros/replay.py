@@ -44,7 +44,7 @@ from hac_ros.core.offline import OfflineScale, offline_scale
 from hac_ros.core.outputs import (NoticeOut, OdometryOut, Output, ResetOut, SampleOut, Status)
 from hac_ros.core.params import POSE_MSGTYPES, HacParams
 from hac_ros.core.reference import MapIndex
-from hac_ros.inputs import add_joints_cdr, add_pose_cdr
+from hac_ros.inputs import add_camera_info_msg, add_joints_cdr, add_pose_cdr
 from hac_ros.messages import (OUTPUT_TOPICS, SAMPLES, Message, OutputMessages,
                               samples_message)
 
@@ -58,9 +58,6 @@ STORAGES = ('mcap', 'sqlite3')
 # Messages of the same log time are fed in this order (then any other topic): the camera's
 # intrinsics and the map before the frame they serve, the pose (the clock) before its joints.
 TIE_ORDER = {'camera_info': 0, 'cloud': 1, 'pose': 2, 'joints': 3}
-# The calibrator's rejection reason for an input message that does not convert (as hac_node counts it)
-MALFORMED = {'pose': 'pose_nonfinite', 'joints': 'joints_malformed', 'cloud': 'cloud_malformed',
-             'camera_info': 'camera_info_invalid'}
 MAPS_AHEAD = 3  # map clouds decoded and indexed ahead of the calibrator, on a worker thread
 LOOKAHEAD_MESSAGES = 400  # at most this many messages read ahead of the calibrator (13 s at 30 Hz)
 TUM_FILES = {'metric': 'camera_metric.tum', 'slam': 'camera_slam.tum', 'gt': 'camera_gt.tum'}
@@ -319,8 +316,6 @@ class CoreFeeder:
 
     def feed(self, kind: str, item: Any, log_ns: int) -> list[Output]:
         """One input message (raw bytes, or the Future of a built map) -> calibrator outputs."""
-        from msg_adapters import MessageError, camera_info_to_intrinsics, stamp_to_ns
-
         cal = self.calibrator
         if kind == 'cloud':
             built: BuiltMap = item.result()
@@ -337,16 +332,7 @@ class CoreFeeder:
             return outputs
         if kind == 'joints':
             return add_joints_cdr(cal, self.recording.to_cdr(item, topic, log_ns))
-        msg = self.recording.deserialize(item, topic, log_ns)
-        try:
-            stamp = stamp_to_ns(msg.header.stamp)
-        except MessageError:
-            return cal.reject(MALFORMED[kind], -1)
-        try:
-            K, width, height = camera_info_to_intrinsics(msg)
-        except MessageError:
-            return cal.reject(MALFORMED[kind], stamp)
-        return cal.add_camera_info(K, width, height, msg.header.frame_id)
+        return add_camera_info_msg(cal, self.recording.deserialize(item, topic, log_ns))[0]
 
 
 def tie_ordered(messages: Iterable[tuple[str, int, Any]], kinds: dict[str, str]

@@ -91,10 +91,6 @@ def rotation_log(R: np.ndarray) -> np.ndarray:
     return skew * (angle / (2.0 * math.sin(angle)))
 
 
-def quat_to_matrix(q_xyzw: np.ndarray) -> np.ndarray:
-    return Rotation.from_quat(q_xyzw).as_matrix()
-
-
 def rotation_defects(R: np.ndarray) -> tuple[float, float] | None:
     """(max |RᵀR − I|, det R) of a (3, 3) float matrix, or None when it is not finite.
 
