@@ -58,7 +58,8 @@ STORAGES = ('mcap', 'sqlite3')
 # Messages of the same log time are fed in this order (then any other topic): the camera's
 # intrinsics and the map before the frame they serve, the pose (the clock) before its joints.
 TIE_ORDER = {'camera_info': 0, 'cloud': 1, 'pose': 2, 'joints': 3}
-MAPS_AHEAD = 3  # map clouds decoded and indexed ahead of the calibrator, on a worker thread
+MAPS_AHEAD = 3  # map clouds decoded and indexed ahead of the calibrator, on worker threads
+MAP_WORKERS = 2  # threads indexing maps (scipy's k-d tree build releases the GIL)
 LOOKAHEAD_MESSAGES = 400  # at most this many messages read ahead of the calibrator (13 s at 30 Hz)
 TUM_FILES = {'metric': 'camera_metric.tum', 'slam': 'camera_slam.tum', 'gt': 'camera_gt.tum'}
 
@@ -273,7 +274,7 @@ class CoreFeeder:
             progress: Any = None) -> None:
         """Feed every input message in log-time order, then flush. Maps are decoded and indexed
         ahead on a worker thread (they are handed to the calibrator in order, as read)."""
-        pool = (ThreadPoolExecutor(max_workers=1, thread_name_prefix='hac_map') if self.map_thread
+        pool = (ThreadPoolExecutor(max_workers=MAP_WORKERS, thread_name_prefix='hac_map') if self.map_thread
                 else _InlineExecutor())
         with pool:
             for topic, log_ns, raw, item in self._lookahead(pool, on_message):
