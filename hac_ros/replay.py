@@ -597,7 +597,8 @@ def _offline(feeder: 'CoreFeeder', handler: 'OutputHandler',
     from its accepted samples and resets, then the deferred outputs resolved with the schedule and
     written (hac_ros.core.metric: the same outputs as a second run with that schedule would give).
 
-    Memory: the run's outputs are kept until the schedule is known (about 1 kB per frame).
+    Memory: the run's outputs are kept until the schedule is known (about 1.9 kB per frame of one
+    person, docs/replay.md).
     """
     calibrator = feeder.calibrator
     calibrator.defer = True

@@ -103,10 +103,15 @@ class _CdrReader:
 
     def f64_block(self, count: int) -> np.ndarray:
         """``count`` float64 (aligned to 8 when count > 0) as a float64 array in native order."""
+        return self.f64_view(count).astype(np.float64)
+
+    def f64_view(self, count: int) -> np.ndarray:
+        """``count`` float64 (aligned to 8 when count > 0): a read-only view of the bytes, in the
+        message's byte order (copy what is kept: the view holds the whole message)."""
         if count == 0:
             return np.empty(0)
         self._align(8)
-        return np.frombuffer(self._take(8 * count), dtype=self.order + 'f8').astype(np.float64)
+        return np.frombuffer(self._take(8 * count), dtype=self.order + 'f8')
 
     def header(self) -> tuple[int, str]:
         """std_msgs/Header → (stamp ns, frame_id); nanosec must be < 1e9."""
@@ -183,5 +188,7 @@ def parse_joints_cdr(data: bytes | memoryview) -> tuple[int, str, np.ndarray]:
     count = reader.u32()
     if 56 * count > len(reader.view) - reader.pos:
         raise MessageError(f'PoseArray: {count} poses do not fit in the serialized message')
-    poses = reader.f64_block(7 * count).reshape(count, 7)
-    return stamp_ns, frame_id, positions_to_joints(poses[:, :3], 'PoseArray', JOINTS_PER_PERSON)
+    poses = reader.f64_view(7 * count).reshape(count, 7)
+    # a contiguous copy of the positions alone (native order): the frame keeps 24 x 3, not 24 x 7
+    positions = np.ascontiguousarray(poses[:, :3], dtype=np.float64)
+    return stamp_ns, frame_id, positions_to_joints(positions, 'PoseArray', JOINTS_PER_PERSON)

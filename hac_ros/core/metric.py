@@ -33,7 +33,7 @@ POSITION_VARIANCE_FLOOR = 1e-6  # m², keeps the published covariance positive d
 ScaleAt = Callable[[int], 'float | None']  # stamp ns -> published scale, or None (nothing metric)
 
 
-@dataclass
+@dataclass(slots=True)
 class PendingOdometry:
     """The odometry of one SLAM pose before a scale is applied.
 
@@ -49,7 +49,7 @@ class PendingOdometry:
     sigma_scale: float
 
 
-@dataclass
+@dataclass(slots=True)
 class PendingFrame:
     """A processed frame's world joints and scale before a scale is applied.
 
@@ -64,7 +64,7 @@ class PendingFrame:
     spread: float
 
 
-@dataclass
+@dataclass(slots=True)
 class PendingReset:
     """A SLAM re-initialisation: the new map is anchored at its first pose (R_wc (3, 3), c_map (3,)
     SLAM units, new map frame) so that the metric camera continues from the last metric pose."""
@@ -74,7 +74,7 @@ class PendingReset:
     c_map: np.ndarray
 
 
-@dataclass
+@dataclass(slots=True)
 class PendingStatus:
     """A /diagnostics status whose metric ground plane is still to be placed.
 

@@ -11,7 +11,7 @@ from typing import Union
 import numpy as np
 
 
-@dataclass
+@dataclass(slots=True)
 class OdometryOut:
     """The metric pose of the camera (or of ``base_frame``) at one SLAM pose stamp.
 
@@ -30,7 +30,7 @@ class OdometryOut:
     angular_velocity: np.ndarray
 
 
-@dataclass
+@dataclass(slots=True)
 class HumanJointsOut:
     """The frame's joints in the metric world. joints_metric: (P, 24, 3) float64, metres, metric_frame."""
 
@@ -38,7 +38,7 @@ class HumanJointsOut:
     joints_metric: np.ndarray
 
 
-@dataclass
+@dataclass(slots=True)
 class ScaleOut:
     """The current scale (metres per SLAM unit) after the frame of ``stamp_ns`` was processed."""
 
@@ -47,7 +47,7 @@ class ScaleOut:
     spread: float  # robust sigma of the window's samples (1.4826 MAD), metres per SLAM unit
 
 
-@dataclass
+@dataclass(slots=True)
 class SampleOut:
     """One per-person scale sample of one frame (for plots and analysis; not a ROS topic).
 
@@ -88,14 +88,14 @@ class Status:
         return self.ground_fallbacks / used if used else 0.0
 
 
-@dataclass
+@dataclass(slots=True)
 class DiagnosticsOut:
     """Emitted once per second of stamp time (the first input of each new second)."""
 
     status: Status
 
 
-@dataclass
+@dataclass(slots=True)
 class ResetOut:
     """The estimator was reset (SLAM re-initialisation). cause: 'pose_jump', 'pose_frame', 'map_frame', 'map_overlap'."""
 
@@ -103,7 +103,7 @@ class ResetOut:
     cause: str
 
 
-@dataclass
+@dataclass(slots=True)
 class NoticeOut:
     """Something a human should read once: the first rejection of each cause, a reset, a relock.
 
