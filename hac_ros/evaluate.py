@@ -7,8 +7,8 @@ Three rows, so that a number has something to be compared with:
 - ``true scale``: the same core on IN with the true scale of each moment (``/gt/scale``), the best
   any scale estimate could do with these SLAM poses and HMR joints.
 
-The two reference rows re-run the core on IN with ``output_scale`` set (the offline hook), so that
-resets are anchored as in OUT. Metrics (SPEC, "Metrics"; implemented in
+The two reference rows run the core once on IN with its metric outputs deferred and resolve them
+with each reference scale (:mod:`hac_ros.core.metric`), so that resets are anchored as in OUT. Metrics (SPEC, "Metrics"; implemented in
 :mod:`hac_ros.core.metrics`): ATE and ATE-S (m, camera centres, Sim(3) / SE(3) alignment, mean),
 W-MPJPE and WA-MPJPE (mm, 100-frame chunks), RTE (%), PA-MPJPE (mm), and the scale error (%) of
 the final estimate and of every frame against the truth of that moment.
@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from hac_ros.core.errors import HacError
+from hac_ros.core.metric import MetricStage, finite_scale
 from hac_ros.core.outputs import HumanJointsOut, OdometryOut, Output, ScaleOut
 from hac_ros.core.params import HacParams
 from hac_ros.messages import SAMPLE_FIELDS, SAMPLES
@@ -253,11 +254,17 @@ def reference_runs(gt_path: str | Path, params: HacParams, truth: Truth) -> dict
         true_scale = truth.scale
         scales['true scale'] = lambda stamp_ns: float(true_scale.at(np.array([stamp_ns]))[0])
     with Recording(gt_path) as rec:
-        topics = InputTopics.check(rec, params)
-        for name, output_scale in scales.items():
-            collect = _Collector()
-            CoreFeeder(rec, topics, params, output_scale=output_scale).run(collect)
-            runs[name] = collect.as_replayed()
+        # one run with the metric outputs deferred, resolved once per reference scale
+        # (hac_ros.core.metric: the same outputs as a run per scale)
+        feeder = CoreFeeder(rec, InputTopics.check(rec, params), params)
+        feeder.calibrator.defer = True
+        deferred: list[Any] = []
+        feeder.run(deferred.extend)
+    for name, output_scale in scales.items():
+        stage = MetricStage(feeder.calibrator.metric.base_from_camera, params.orientation_variance)
+        collect = _Collector()
+        collect(stage.resolve(deferred, lambda stamp_ns, f=output_scale: finite_scale(f(stamp_ns))))
+        runs[name] = collect.as_replayed()
     return runs
 
 
