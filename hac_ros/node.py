@@ -8,8 +8,10 @@ forwards every message to the calibrator with its header stamp, and publishes ex
 
 Threads. Everything that touches the calibrator runs on the executor's thread. The only other
 thread is the map builder: a map cloud arrives as raw CDR bytes, its header is read on the executor
-thread (microseconds), and decoding the points and building the :class:`MapIndex` (k-d tree) happen
-on the builder thread, so a 1M-point map does not stall the frames. The finished index is handed to
+thread (microseconds), and decoding the points, building the :class:`MapIndex` (k-d tree) and
+computing ahead what the first frame on the new map asks of it (:meth:`MapIndex.prepare`: the
+overlap with the map in use, the floor offset along the current ground normal) happen on the
+builder thread, so a 1M-point map does not stall the frames. The finished index is handed to
 the calibrator on the executor's thread (a guard condition wakes it). **While a map is being built,
 frames use the latest map already handed over** (the previous one); the new map is used from the
 first frame processed after it is ready whose stamp is not before the map's stamp. This is the one
@@ -184,6 +186,17 @@ def qos_hint(kind: str, policy: str) -> str:
 # Calibrator.build_index: (stamp_ns, points_map (N, 3) SLAM units, frame_id) -> MapIndex
 IndexBuilder = Callable[[int, Any, str], MapIndex]
 
+
+@dataclass
+class MapJob:
+    """One cloud to decode and index, and what to compute ahead for it (MapIndex.prepare)."""
+
+    cloud: RawCloud
+    build_index: IndexBuilder
+    previous: MapIndex | None = None  # the map in use when the cloud arrived
+    normal: Any = None  # (3,) the ground normal in use then (map frame, unit, down), or None
+
+
 @dataclass
 class MapBuilt:
     """A map index ready for the calibrator, or the reason its cloud could not be decoded."""
@@ -207,14 +220,14 @@ class MapBuilder:
     def __init__(self) -> None:
         self._frame_done = threading.Event()
         self._cond = threading.Condition()
-        self._waiting: deque[tuple[RawCloud, IndexBuilder]] = deque()
+        self._waiting: deque[MapJob] = deque()
         self._ready: deque[MapBuilt] = deque()
         self._closed = False
         self.superseded = 0
         self._thread = threading.Thread(target=self._run, name='hac_map_builder', daemon=True)
         self._thread.start()
 
-    def submit(self, cloud: RawCloud, build_index: IndexBuilder, keep_all: bool) -> None:
+    def submit(self, job: MapJob, keep_all: bool) -> None:
         with self._cond:
             if not keep_all:
                 self.superseded += len(self._waiting)
@@ -222,7 +235,7 @@ class MapBuilder:
             elif len(self._waiting) >= MAPS_WAITING_MAX:
                 self._waiting.popleft()
                 self.superseded += 1
-            self._waiting.append((cloud, build_index))
+            self._waiting.append(job)
             self._cond.notify()
 
     def frame_done(self) -> None:
@@ -250,26 +263,29 @@ class MapBuilder:
                     self._cond.wait()
                 if self._closed:
                     return
-                cloud, build_index = self._waiting.popleft()
+                job = self._waiting.popleft()
             # Start right after a frame, so that the build's GIL-holding parts (the point decoding,
             # scipy's bounds of the points) fall between frames, not on one (FRAME_WAIT_S: at most).
             self._frame_done.clear()
             self._frame_done.wait(FRAME_WAIT_S)
-            result = build_map(cloud, build_index)
+            result = build_map(job)
             with self._cond:
                 if self._closed:
                     return
                 self._ready.append(result)
 
 
-def build_map(cloud: RawCloud, build_index: IndexBuilder) -> MapBuilt:
-    """Decode and index one cloud (worker thread) with the calibrator's own (thread-safe) builder."""
+def build_map(job: MapJob) -> MapBuilt:
+    """Decode and index one cloud (worker thread) with the calibrator's own (thread-safe) builder,
+    then compute ahead what the first frame on it will ask (MapIndex.prepare)."""
     start = time.perf_counter()
+    cloud = job.cloud
     try:
         points_map = cloud_points(cloud)
     except MessageError as exc:
         return MapBuilt(cloud.stamp_ns, None, str(exc), time.perf_counter() - start)
-    index = build_index(cloud.stamp_ns, points_map, cloud.frame_id)
+    index = job.build_index(cloud.stamp_ns, points_map, cloud.frame_id)
+    index.prepare(job.previous, job.normal)
     return MapBuilt(cloud.stamp_ns, index, '', time.perf_counter() - start)
 
 
@@ -385,6 +401,8 @@ class HacNode(Node):
 
     def _on_joints(self, data: bytes) -> None:
         self._emit(add_joints_cdr(self.calibrator, data))
+        # after publishing, before the next frame: a new ground normal's floor offset
+        self.calibrator.ground.prefetch(self.calibrator.map)
         self._builder.frame_done()
 
     def _on_camera_info(self, msg: Any) -> None:
@@ -403,8 +421,19 @@ class HacNode(Node):
             self._emit(self.calibrator.reject('cloud_malformed', -1))
             return
         self._last_cloud = cloud
-        self._builder.submit(cloud, self.calibrator.build_index,
-                             keep_all=self.params.cloud_mode == 'accumulate')
+        self._submit(cloud)
+
+    def _submit(self, cloud: RawCloud) -> None:
+        """Queue a cloud for the builder with what its first frame will likely ask: in
+        ``replace`` mode, the overlap with the map in use and the floor offset along the current
+        normal (``accumulate`` merges maps on the executor's thread: nothing to compute ahead)."""
+        job = MapJob(cloud, self.calibrator.build_index)
+        keep_all = self.params.cloud_mode == 'accumulate'
+        if not keep_all:
+            normal = self.calibrator.ground.next_normal()
+            job.previous = self.calibrator.map
+            job.normal = None if normal is None else normal.copy()
+        self._builder.submit(job, keep_all)
 
     def _on_maps_ready(self) -> None:
         """Executor thread: hand the maps the builder finished to the calibrator, in order."""
@@ -490,8 +519,7 @@ class HacNode(Node):
         if current_map is not None:
             self._emit(self.calibrator.add_map_index(current_map))
         if 'index_max_points' in changed and self._last_cloud is not None:
-            self._builder.submit(self._last_cloud, self.calibrator.build_index,
-                                 keep_all=self.params.cloud_mode == 'accumulate')
+            self._submit(self._last_cloud)
         self.notices.clear()
         self.get_logger().warning(
             f'estimator parameter(s) {", ".join(changed)} changed: the estimator was rebuilt and '

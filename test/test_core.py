@@ -1,8 +1,10 @@
 """The core against SPEC's method: exact scenes, invariances, edge cases, the estimator."""
 from __future__ import annotations
 
+import gc
 import math
 import subprocess
+import weakref
 import sys
 
 import numpy as np
@@ -326,6 +328,48 @@ def test_hmr_normal_needs_no_scale_and_survives_a_handstand():
         n = ground.normal()
         true_down = scene.R0.T @ np.array([0.0, 0.0, -1.0])
         assert n @ true_down == pytest.approx(1.0, abs=1e-3)
+
+
+def test_map_statistics_computed_ahead_equal_the_ones_computed_on_demand():
+    """MapIndex.prepare (the node's builder thread) and GroundModel.prefetch change no value: what
+    they remember is used only for the exact same inputs (map object, normal bytes)."""
+    rng = np.random.default_rng(0)
+    room = np.c_[rng.uniform(-5, 5, (20000, 2)), rng.normal(0, 0.01, 20000)]
+    old = MapIndex(room, 'map', 1)
+    far = MapIndex(room + [100.0, 0.0, 0.0], 'map', 2)
+    new_points = np.vstack([room[:5000] + rng.normal(0, 0.001, (5000, 3)),
+                            room[5000:8000] + [20.0, 0.0, 0.0]])
+    normal = np.array([0.01, 0.0, -1.0]) / math.hypot(0.01, 1.0)
+    prepared, fresh = MapIndex(new_points, 'map', 3), MapIndex(new_points, 'map', 3)
+    prepared.prepare(old, normal)
+    assert prepared.overlap_fraction(old) == fresh.overlap_fraction(old)
+    assert 0.0 < fresh.overlap_fraction(old) < 1.0
+    assert prepared.overlap_fraction(far) == MapIndex(new_points).overlap_fraction(far) == 0.0
+    assert prepared.floor_offset(normal) == lowest_segment_offset(fresh.sample, normal)
+    other = np.array([0.0, 0.0, -1.0])
+    assert prepared.floor_offset(other) == lowest_segment_offset(fresh.sample, other)
+    # a map does not keep the previous one alive (1M-point maps replaced every second)
+    ref = weakref.ref(old)
+    del old
+    gc.collect()
+    assert ref() is None
+
+    scene = walking_scene(frames=10)
+    grounds = GroundModel('hmr', 0.05, 100), GroundModel('hmr', 0.05, 100)
+    for ground in grounds:
+        for t in range(10):
+            ground.add_camera(scene.R_wc_slam[t])
+            ground.add_body(scene.R_wc_slam[t], scene.joints_cam[t])
+            ground.normal()  # as the calibrator asks it every frame
+    planes = []
+    for k, ground in enumerate(grounds):
+        index = MapIndex(new_points, 'map', 3)
+        if k == 0:
+            ground.prefetch(index)
+        plane = ground.plane(index)
+        assert plane is not None
+        planes.append((plane.normal.tobytes(), plane.offset))
+    assert planes[0] == planes[1]
 
 
 # ---------------------------------------------------------------------- resets

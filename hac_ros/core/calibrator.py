@@ -42,8 +42,6 @@ PENDING_MAPS_MAX = 8  # maps waiting for a frame of their stamp
 JUMP_HISTORY = 30  # recent pose speeds whose median is the "normal" speed
 JUMP_MIN_HISTORY = 5  # steps needed before a jump can be told from normal motion
 TYPICAL_REFRESH_POSES = 10  # the typical speed is re-taken every this many poses
-OVERLAP_SAMPLE = 256  # new-map points checked against the previous map
-OVERLAP_DISTANCE_REL = 0.02  # a point overlaps when this close (fraction of the old map's extent)
 MEDIAN_STD_ERROR = 1.2533  # standard error of a median = 1.2533 sigma / sqrt(n) (normal samples)
 NS = 1_000_000_000
 
@@ -569,13 +567,9 @@ class Calibrator:
 
 
 def _overlaps(old: MapIndex, new: MapIndex, min_fraction: float) -> bool:
-    """Does ``new`` share at least ``min_fraction`` of its points with ``old`` (a scene-relative radius)?"""
-    if old.tree is None or len(new) == 0:
-        return True
-    step = max(1, len(new) // OVERLAP_SAMPLE)
-    sample = new.points_map[::step][:OVERLAP_SAMPLE]
-    dist, _ = old.tree.query(sample, k=1, distance_upper_bound=OVERLAP_DISTANCE_REL * old.extent)
-    return float(np.mean(np.isfinite(dist))) >= min_fraction
+    """Does ``new`` share at least ``min_fraction`` of its points with ``old`` (a scene-relative
+    radius, :meth:`MapIndex.overlap_fraction`; the map builder may have computed it ahead)?"""
+    return new.overlap_fraction(old) >= min_fraction
 
 
 def _base_from_camera(base_to_camera: list[float]) -> tuple[np.ndarray, np.ndarray]:

@@ -10,7 +10,7 @@ placed in the map refine it: RANSAC (3-point samples, a metric inlier distance),
 least-squares refit on the inliers. A person walking a straight line leaves contacts along a line,
 which fixes the normal only across the line: then the body normal is kept, made perpendicular to
 the line. The offset ``b`` comes from the map alone: the lowest dense segment of the points along
-``n`` (a histogram, not the single lowest point).
+``n`` (a histogram, not the single lowest point; :meth:`MapIndex.floor_offset`).
 
 Ablations: ``slam_y`` (the SLAM map's y axis as the normal), ``largest_plane`` (RANSAC's largest
 plane of the map), ``none``; and a known plane (``set_known``) for the upper bound.
@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hac_ros.core.reference import MapIndex
+from hac_ros.core.reference import MapIndex, lowest_segment_offset  # noqa: F401 (re-exported)
 
 COS_MIN_RAY_PLANE = np.cos(np.deg2rad(87.0))  # rays within 3° of parallel to the plane: no answer
 BODY_MIN_FRAMES = 5  # body up axes needed before the hmr normal is trusted
@@ -35,10 +35,6 @@ CONTACT_BUFFER = 3000  # contact joints kept for the refinement
 RANSAC_SAMPLE = 500  # contact joints a RANSAC hypothesis is scored on
 CONTACT_MAX_TILT_DEG = 10.0  # a contact plane tilted further than this from the body normal is refused
 CONTACT_LINE_RATIO = 0.15  # second/first singular value below this: the contacts form a line
-OFFSET_BINS = 100  # histogram bins over the map's robust range along n
-OFFSET_DENSE_FACTOR = 4.0  # a dense bin holds this many times the median non-empty bin
-OFFSET_MIN_COUNT = 5
-OFFSET_WINDOW_BINS = 3  # half width of the floor segment around its peak, in bins
 LARGEST_PLANE_INLIER_REL = 0.005  # largest_plane: inlier distance as a fraction of the map extent
 LARGEST_PLANE_SAMPLE = 5000  # map points used by the largest_plane RANSAC
 
@@ -100,45 +96,6 @@ def ransac_plane(points: np.ndarray, inlier_distance: float, iterations: int,
             best_count = int(counts[k])
             best_mask = dist[:, k] <= inlier_distance
     return best_mask
-
-
-def lowest_segment_offset(points_map: np.ndarray, normal: np.ndarray) -> float:
-    """Offset b of the floor along the down-pointing ``normal``: the lowest dense segment of the map.
-
-    A histogram of n·p over the map's robust range (0.5–99.5 %); walking up from the bottom, the
-    first bin holding OFFSET_DENSE_FACTOR times the median non-empty bin (and OFFSET_MIN_COUNT
-    points) belongs to the floor. Isolated points below the floor do not make a dense bin. The first
-    dense bin is the floor's lower noise tail, not its middle: climb to the segment's peak, then b is
-    the median of the points within OFFSET_WINDOW_BINS of it, re-centred once on that median (a
-    symmetric window around a symmetric noise gives an unbiased middle). Without a dense bin: the
-    0.99 quantile (the authors' code). SLAM units.
-    """
-    h = np.asarray(points_map) @ np.asarray(normal)
-    if h.size == 0:
-        return float('nan')
-    lo, hi = np.quantile(h, [0.005, 0.995])
-    if not hi - lo > 1e-9 * max(abs(lo), abs(hi), 1e-300):  # flat to rounding: one segment
-        return float(np.median(h))
-    counts, edges = np.histogram(h, bins=OFFSET_BINS, range=(lo, hi))
-    nonempty = counts[counts > 0]
-    threshold = max(OFFSET_MIN_COUNT, OFFSET_DENSE_FACTOR * float(np.median(nonempty)))
-    dense = np.flatnonzero(counts >= threshold)
-    if dense.size == 0:
-        return float(np.quantile(h, 0.99))
-    k = int(dense[-1])  # n points down: the largest n·p is the lowest
-    for _ in range(OFFSET_WINDOW_BINS):  # climb to the peak of the floor's segment
-        if k > 0 and counts[k - 1] >= counts[k]:
-            k -= 1
-        else:
-            break
-    width = edges[1] - edges[0]
-    centre = 0.5 * (edges[k] + edges[k + 1])
-    for _ in range(2):
-        seg = h[np.abs(h - centre) <= OFFSET_WINDOW_BINS * width]
-        if seg.size == 0:
-            break
-        centre = float(np.median(seg))
-    return float(centre)
 
 
 class GroundModel:
@@ -217,6 +174,26 @@ class GroundModel:
             return self._body_normal()
         return None
 
+    def next_normal(self) -> np.ndarray | None:
+        """The normal the next frame will most likely use (down-pointing unit, map frame), read
+        without side effects (:meth:`normal` may refresh the body normal): a hint for computing
+        the floor offset ahead, never for results. None when no normal yet or no offset is used."""
+        if self._known is not None or self.mode in ('none', 'largest_plane'):
+            return None  # a known plane has its offset; largest_plane finds its own
+        if self.mode == 'slam_y':
+            return np.array([0.0, 1.0, 0.0])
+        if self._contact_normal is not None:
+            return self._contact_normal
+        return self._body_cache[1]
+
+    def prefetch(self, map_index: MapIndex | None) -> None:
+        """Compute ahead the floor offset of ``map_index`` along :meth:`next_normal` (remembered by
+        the map for that exact normal): a frame after a new contact normal then finds it ready.
+        Changes no result, only when the work is done (the node calls it after publishing)."""
+        normal = self.next_normal()
+        if normal is not None and map_index is not None and len(map_index) >= 3:
+            map_index.floor_offset(normal)
+
     def plane(self, map_index: MapIndex | None) -> Plane | None:
         """The current plane for this map, cached per (map, normal)."""
         if self._known is not None:
@@ -233,7 +210,7 @@ class GroundModel:
         if self.mode == 'largest_plane':
             plane = self._largest_plane(map_index)
         else:
-            plane = Plane(normal, lowest_segment_offset(map_index.sample, normal))
+            plane = Plane(normal, map_index.floor_offset(normal))
         self._plane_cache = (map_index, key, plane)
         return plane
 
