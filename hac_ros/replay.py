@@ -237,9 +237,13 @@ class BuiltMap:
     error: str = ''
 
 
-def build_map(msg: Any, build_index: Callable[[int, np.ndarray, str], MapIndex]) -> BuiltMap:
+def build_map(msg: Any, build_index: Callable[[int, np.ndarray, str], MapIndex],
+              previous: Future | None = None, normal: np.ndarray | None = None) -> BuiltMap:
     """Decode and index one PointCloud2 as ``hac_node`` does, with the calibrator's own
-    (thread-safe) ``build_index``. points: (N, 3) float64, SLAM units, the cloud's (map) frame."""
+    (thread-safe) ``build_index``, then compute ahead the overlap with the map before it (the
+    BuiltMap of ``previous``, an earlier job of the same pool: waited for) and the floor offset
+    along ``normal`` (:meth:`MapIndex.prepare`: results unchanged, only computed earlier).
+    points: (N, 3) float64, SLAM units, the cloud's (map) frame."""
     from msg_adapters import MessageError, cloud_to_xyz, stamp_to_ns
 
     try:
@@ -250,7 +254,9 @@ def build_map(msg: Any, build_index: Callable[[int, np.ndarray, str], MapIndex])
         points = cloud_to_xyz(msg)  # zero-copy view of the CDR bytes, one np.frombuffer
     except MessageError as exc:
         return BuiltMap(stamp, None, str(exc))
-    return BuiltMap(stamp, build_index(stamp, points, msg.header.frame_id))
+    index = build_index(stamp, points, msg.header.frame_id)
+    index.prepare(previous.result().index if previous is not None else None, normal)
+    return BuiltMap(stamp, index)
 
 
 class CoreFeeder:
@@ -298,6 +304,7 @@ class CoreFeeder:
             wanted = list(self.recording.topics)  # --copy-inputs: every topic passes through
         queue: deque[tuple[str | None, int, Any, Any]] = deque()
         maps_waiting = 0
+        last_map: Future | None = None
         build_index = self.calibrator.build_index
         for topic, log_ns, raw in tie_ordered(self.recording.messages(wanted), self.kinds):
             if on_message is not None:
@@ -307,7 +314,12 @@ class CoreFeeder:
                 queue.append((None, log_ns, raw, None))
             elif kind == 'cloud':
                 msg = self.recording.deserialize(raw, topic, log_ns)
-                queue.append((topic, log_ns, raw, pool.submit(build_map, msg, build_index)))
+                # what the first frame on this map will most likely ask: its overlap with the map
+                # before it and the floor offset along the current normal (jobs start in order:
+                # the one before is running or done, never waiting for this one)
+                last_map = pool.submit(build_map, msg, build_index, last_map,
+                                       self.calibrator.ground.next_normal())
+                queue.append((topic, log_ns, raw, last_map))
                 maps_waiting += 1
             else:
                 queue.append((topic, log_ns, raw, raw))
