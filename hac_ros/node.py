@@ -55,7 +55,6 @@ from msg_adapters.cdr import RawCloud, cloud_points, parse_cloud_cdr  # noqa: F4
 
 TYPES = rclpy_types()  # rclpy's message classes by ROS name
 GIL_SWITCH_INTERVAL_S = 0.0005  # see main()
-FRAME_WAIT_S = 0.05  # a map build waits at most this long for the end of a frame (MapBuilder)
 MAP_POLL_S = 0.01  # the executor takes finished maps from the builder this often
 
 # ---------------------------------------------------------------------------------------- QoS
@@ -218,7 +217,6 @@ class MapBuilder:
     """
 
     def __init__(self) -> None:
-        self._frame_done = threading.Event()
         self._cond = threading.Condition()
         self._waiting: deque[MapJob] = deque()
         self._ready: deque[MapBuilt] = deque()
@@ -238,10 +236,6 @@ class MapBuilder:
             self._waiting.append(job)
             self._cond.notify()
 
-    def frame_done(self) -> None:
-        """A frame was just handled (executor thread): the next ~30 ms are free for a build."""
-        self._frame_done.set()
-
     def take(self) -> list[MapBuilt]:
         with self._cond:
             ready = list(self._ready)
@@ -253,7 +247,6 @@ class MapBuilder:
             self._closed = True
             self._waiting.clear()
             self._cond.notify()
-        self._frame_done.set()
         self._thread.join(BUILDER_JOIN_S)
 
     def _run(self) -> None:
@@ -264,10 +257,6 @@ class MapBuilder:
                 if self._closed:
                     return
                 job = self._waiting.popleft()
-            # Start right after a frame, so that the build's GIL-holding parts (the point decoding,
-            # scipy's bounds of the points) fall between frames, not on one (FRAME_WAIT_S: at most).
-            self._frame_done.clear()
-            self._frame_done.wait(FRAME_WAIT_S)
             result = build_map(job)
             with self._cond:
                 if self._closed:
@@ -403,7 +392,6 @@ class HacNode(Node):
         self._emit(add_joints_cdr(self.calibrator, data))
         # after publishing, before the next frame: a new ground normal's floor offset
         self.calibrator.ground.prefetch(self.calibrator.map)
-        self._builder.frame_done()
 
     def _on_camera_info(self, msg: Any) -> None:
         outputs, intrinsics = add_camera_info_msg(self.calibrator, msg)
