@@ -37,7 +37,6 @@ import signal  # noqa: E402
 import struct  # noqa: E402
 import subprocess  # noqa: E402
 import sys  # noqa: E402
-import tempfile  # noqa: E402
 import threading  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -270,7 +269,8 @@ except KeyboardInterrupt:
 """
 
 
-def run(map_points: int, duration: float, echo: bool = False) -> dict[str, Any]:
+def run(map_points: int, duration: float, echo: bool = False,
+        input_qos: str = 'best_effort') -> dict[str, Any]:
     total = WARMUP_S + duration
     sc = make_scenario('walk', seed=0, duration=total + 1.0, hmr_bias=0.0)
     base_map = max(sc.maps, key=lambda m: len(m.points_slam))
@@ -283,7 +283,8 @@ def run(map_points: int, duration: float, echo: bool = False) -> dict[str, Any]:
     params = REPO / 'config' / 'hac.yaml'
     env = {**os.environ, 'PYTHONUNBUFFERED': '1', 'RCUTILS_COLORIZED_OUTPUT': '0'}
     command = ([sys.executable, '-c', ECHO_NODE] if echo else
-               [sys.executable, '-m', 'hac_ros.node', '--ros-args', '--params-file', str(params)])
+               [sys.executable, '-m', 'hac_ros.node', '--ros-args', '--params-file', str(params),
+                '-p', f'input_qos:={input_qos}'])
     node = subprocess.Popen(command, cwd=REPO, env=env, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
     try:
@@ -367,10 +368,11 @@ def _stop(node: subprocess.Popen) -> tuple[int | None, str, str]:
 
 def report(runs: dict[str, dict[str, Any]], info: dict[str, Any]) -> str:
     rows = []
-    for key in sorted(runs, key=lambda k: (k.startswith('echo'), runs[k]['map_points'])):
+    for key in sorted(runs, key=lambda k: (k.startswith('echo'), runs[k]['map_points'], k)):
         r = runs[key]
         lat, ing = r['latency_ms'], r['ingest_ms']
-        rows.append([r.get('node', 'hac_node'), f"{r['map_points']:,}", f"{r['duration_s']:.0f}",
+        rows.append([r.get('node', 'hac_node'), r.get('input_qos', 'best_effort'),
+                     f"{r['map_points']:,}", f"{r['duration_s']:.0f}",
                      r['frames_sent'],
                      r['frames_dropped'], lat['p50'], lat['p99'], lat['max'],
                      lat['p99_near_map'], lat['p99_away_from_map'],
@@ -378,7 +380,7 @@ def report(runs: dict[str, dict[str, Any]], info: dict[str, Any]) -> str:
                      ing['decode_points_ms'], ing['index_build_ms'],
                      ing['take_raw_ms'] + ing['cdr_header_ms'], ing['take_deserialized_ms'],
                      ing['deserialize_message_ms']])
-    headers = ['node', 'map points', 'seconds', 'frames', 'dropped', 'p50 ms', 'p99 ms', 'max ms',
+    headers = ['node', 'input_qos', 'map points', 'seconds', 'frames', 'dropped', 'p50 ms', 'p99 ms', 'max ms',
                f'p99 ms, < {NEAR_MAP_S:g} s after a map', 'p99 ms, other frames',
                'node CPU % of a core', 'builder: decode ms', 'builder: thin+index ms',
                'executor: raw take + header ms', 'executor: typed take ms (not used)',
@@ -399,8 +401,9 @@ def report(runs: dict[str, dict[str, Any]], info: dict[str, Any]) -> str:
         'the same way.', '',
         table(headers, rows), '',
         machine_line(info),
-        'Re-run: `python bench/node_latency.py --map-points 100000` and `--map-points 1000000` '
-        '(add `--echo` for the floor).',
+        'Re-run: `python bench/node_latency.py --map-points 100000 --duration 60` and '
+        '`--map-points 1000000 --duration 60` (add `--echo` for the floor, `--input-qos reliable` '
+        'for reliable joints delivery).',
     ])
 
 
@@ -410,12 +413,18 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--duration', type=float, default=20.0, help='measured seconds')
     parser.add_argument('--echo', action='store_true',
                         help='measure a node that only echoes the joints (the rclpy + DDS floor)')
+    parser.add_argument('--input-qos', choices=('best_effort', 'reliable'), default='best_effort',
+                        help="hac_node's input_qos (config/hac.yaml: best_effort); the benchmark "
+                        'publishes reliably, so reliable makes the joints delivery reliable')
     args = parser.parse_args(argv)
-    result = run(args.map_points, args.duration, args.echo)
+    result = run(args.map_points, args.duration, args.echo, args.input_qos)
+    result['input_qos'] = args.input_qos
     info = machine()
     path = RESULTS / f'{NAME}.json'
     previous = json.loads(path.read_text()) if path.exists() else {}
     key = f'echo_{args.map_points}' if args.echo else str(args.map_points)
+    if args.input_qos != 'best_effort' and not args.echo:
+        key += f'_{args.input_qos}'
     runs = {**previous.get('runs', {}), key: result}
     write_json(NAME, {'machine': info, 'runs': runs})
     markdown = report(runs, info)

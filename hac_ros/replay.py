@@ -238,11 +238,11 @@ class BuiltMap:
 
 
 def build_map(msg: Any, build_index: Callable[[int, np.ndarray, str], MapIndex],
-              previous: Future | None = None, normal: np.ndarray | None = None) -> BuiltMap:
+              previous: Future | None = None) -> BuiltMap:
     """Decode and index one PointCloud2 as ``hac_node`` does, with the calibrator's own
     (thread-safe) ``build_index``, then compute ahead the overlap with the map before it (the
-    BuiltMap of ``previous``, an earlier job of the same pool: waited for) and the floor offset
-    along ``normal`` (:meth:`MapIndex.prepare`: results unchanged, only computed earlier).
+    BuiltMap of ``previous``, an earlier job of the same pool: waited for; :meth:`MapIndex.prepare`:
+    results unchanged, only computed earlier).
     points: (N, 3) float64, SLAM units, the cloud's (map) frame."""
     from msg_adapters import MessageError, cloud_to_xyz, stamp_to_ns
 
@@ -255,7 +255,7 @@ def build_map(msg: Any, build_index: Callable[[int, np.ndarray, str], MapIndex],
     except MessageError as exc:
         return BuiltMap(stamp, None, str(exc))
     index = build_index(stamp, points, msg.header.frame_id)
-    index.prepare(previous.result().index if previous is not None else None, normal)
+    index.prepare(previous.result().index if previous is not None else None, None)
     return BuiltMap(stamp, index)
 
 
@@ -314,11 +314,12 @@ class CoreFeeder:
                 queue.append((None, log_ns, raw, None))
             elif kind == 'cloud':
                 msg = self.recording.deserialize(raw, topic, log_ns)
-                # what the first frame on this map will most likely ask: its overlap with the map
-                # before it and the floor offset along the current normal (jobs start in order:
-                # the one before is running or done, never waiting for this one)
-                last_map = pool.submit(build_map, msg, build_index, last_map,
-                                       self.calibrator.ground.next_normal())
+                # what the first frame on this map will ask: its overlap with the map before it
+                # (jobs start in order: the one before is running or done, never waiting for this
+                # one). Not the floor offset: read this far ahead, the ground normal is stale by
+                # the time the map is used (the contact plane is refitted every second; measured:
+                # no offset computed ahead was ever used), so it would only be extra work.
+                last_map = pool.submit(build_map, msg, build_index, last_map)
                 queue.append((topic, log_ns, raw, last_map))
                 maps_waiting += 1
             else:

@@ -24,7 +24,7 @@ from hac_ros.simulate.feed import scenario_events
 from msg_adapters import MessageError, cdr_write
 
 try:
-    from rclpy.serialization import deserialize_message, serialize_message
+    from rclpy.serialization import deserialize_message
 
     from msg_adapters import rclpy_types
     RCLPY_TYPES = rclpy_types()

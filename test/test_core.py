@@ -14,11 +14,11 @@ from hypothesis import strategies as st
 
 from hac_ros.core.calibrator import Calibrator
 from hac_ros.core.estimator import RollingScale, SortedWindow, centred_rolling_median
-from hac_ros.core.ground import GroundModel, Plane, lowest_segment_offset
+from hac_ros.core.ground import GroundModel, Plane
 from hac_ros.core.outputs import (HumanJointsOut, OdometryOut, ResetOut, SampleOut, ScaleOut)
 from hac_ros.core.numeric import median_1d
 from hac_ros.core.params import HacParams
-from hac_ros.core.reference import MapIndex, literal_cone_median
+from hac_ros.core.reference import MapIndex, literal_cone_median, lowest_segment_offset
 from scenes import NS, Scene, walking_scene
 
 K = np.array([[500.0, 0.0, 320.0], [0.0, 500.0, 240.0], [0.0, 0.0, 1.0]])

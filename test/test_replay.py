@@ -6,7 +6,6 @@ tests need neither the simulator nor ROS.
 from __future__ import annotations
 
 import hashlib
-import os
 import signal
 import subprocess
 import sys

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hac_ros.core.reference import MapIndex, lowest_segment_offset  # noqa: F401 (re-exported)
+from hac_ros.core.reference import MapIndex
 
 COS_MIN_RAY_PLANE = np.cos(np.deg2rad(87.0))  # rays within 3° of parallel to the plane: no answer
 BODY_MIN_FRAMES = 5  # body up axes needed before the hmr normal is trusted
