@@ -355,7 +355,8 @@ class HacNode(Node):
                     'camera_info': self._on_camera_info, 'cloud': self._on_cloud}[kind]
         events = SubscriptionEventCallbacks(
             incompatible_qos=lambda info, kind=kind, topic=topic: self._on_incompatible_qos(
-                kind, topic, info))
+                kind, topic, info),
+            message_lost=lambda info, kind=kind: self._on_message_lost(kind, info))
         self._subscriptions_by_kind[kind] = self.create_subscription(
             msg_type, topic, self._guarded(kind, callback), qos, event_callbacks=events, raw=raw)
 
@@ -365,6 +366,12 @@ class HacNode(Node):
         self.get_logger().warning(
             f'QoS mismatch on {topic}: a publisher offers an incompatible {policy} policy, so no '
             f'messages from it will arrive; {qos_hint(kind, policy)}')
+
+    def _on_message_lost(self, kind: str, info: Any) -> None:
+        """The middleware saw messages that never reached this subscription (best-effort input
+        under load): counted as ``<kind>_lost`` in /diagnostics, logged once."""
+        for _ in range(max(int(info.total_count_change), 0)):
+            self._emit(self.calibrator.reject(f'{kind}_lost', -1))
 
     def _guarded(self, kind: str, callback: Callable[[Any], None]) -> Callable[[Any], None]:
         """The node never dies on input: an unexpected error is logged once and counted."""

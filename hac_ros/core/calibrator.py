@@ -65,6 +65,11 @@ REASONS = {
     'cloud_wrong_frame': 'map cloud in a frame other than the SLAM pose frame',
     'map_late': 'map cloud older than the map in use',
     'camera_info_invalid': 'CameraInfo with invalid intrinsics',
+    # counted by hac_node from the middleware's message-lost events (never reached the node)
+    'pose_lost': 'SLAM pose lost in transport (best-effort input_qos)',
+    'joints_lost': 'joints message lost in transport (best-effort input_qos)',
+    'camera_info_lost': 'CameraInfo lost in transport (best-effort input_qos)',
+    'cloud_lost': 'map cloud lost in transport',
 }
 
 
