@@ -149,13 +149,13 @@ class Recording:
         """A message of ``topic``; a ROS 1 message is converted to its ROS 2 Jazzy type first
         (``std_msgs/Header`` loses ``seq``, ``CameraInfo.K`` becomes ``k``, ...)."""
         msgtype = self.topics[topic]
+        data = self.to_cdr(raw, topic, log_ns)  # raises the same HacError for a ROS 1 message
         try:
             if self.is_ros2:
-                return self.reader.deserialize(raw, msgtype)
-            return self.jazzy.deserialize_cdr(self.to_cdr(raw, topic, log_ns), msgtype)
+                return self.reader.deserialize(data, msgtype)
+            return self.jazzy.deserialize_cdr(data, msgtype)
         except Exception as exc:
-            raise HacError(f'{self.path} is corrupt: a {topic} message (log time {log_ns} ns) does '
-                           f'not decode as {msgtype}: {_reason(exc)}') from None
+            raise self._corrupt(topic, log_ns, exc) from None
 
     @property
     def typestore(self) -> Any:
@@ -170,12 +170,14 @@ class Recording:
         """
         if self.is_ros2:
             return raw
-        msgtype = self.topics[topic]
         try:
-            return self.jazzy.ros1_to_cdr(raw, msgtype)
+            return self.jazzy.ros1_to_cdr(raw, self.topics[topic])
         except Exception as exc:
-            raise HacError(f'{self.path} is corrupt: a {topic} message (log time {log_ns} ns) does '
-                           f'not decode as {msgtype}: {_reason(exc)}') from None
+            raise self._corrupt(topic, log_ns, exc) from None
+
+    def _corrupt(self, topic: str, log_ns: int, exc: BaseException) -> HacError:
+        return HacError(f'{self.path} is corrupt: a {topic} message (log time {log_ns} ns) does '
+                        f'not decode as {self.topics[topic]}: {_reason(exc)}')
 
     def read(self, topic: str) -> list[tuple[int, Any]]:
         """Every message of ``topic``, deserialized: [(log time ns, message)]."""
