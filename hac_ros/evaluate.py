@@ -26,7 +26,6 @@ from typing import Any
 import numpy as np
 
 from hac_ros.core.errors import HacError
-from hac_ros.core.metric import MetricStage, finite_scale
 from hac_ros.core.outputs import HumanJointsOut, OdometryOut, Output, ScaleOut
 from hac_ros.core.params import HacParams
 from hac_ros.messages import SAMPLE_FIELDS, SAMPLES
@@ -261,9 +260,8 @@ def reference_runs(gt_path: str | Path, params: HacParams, truth: Truth) -> dict
         deferred: list[Any] = []
         feeder.run(deferred.extend)
     for name, output_scale in scales.items():
-        stage = MetricStage(feeder.calibrator.metric.base_from_camera, params.orientation_variance)
         collect = _Collector()
-        collect(stage.resolve(deferred, lambda stamp_ns, f=output_scale: finite_scale(f(stamp_ns))))
+        collect(feeder.calibrator.metric.fresh().resolve(deferred, output_scale))
         runs[name] = collect.as_replayed()
     return runs
 

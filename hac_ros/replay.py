@@ -39,7 +39,7 @@ import numpy as np
 
 from hac_ros.core.calibrator import Calibrator
 from hac_ros.core.errors import HacError
-from hac_ros.core.metric import MetricStage, finite_scale
+from hac_ros.core.metric import finite_scale
 from hac_ros.core.offline import OfflineScale, offline_scale
 from hac_ros.core.outputs import (NoticeOut, OdometryOut, Output, ResetOut, SampleOut, Status)
 from hac_ros.core.params import POSE_MSGTYPES, HacParams
@@ -652,19 +652,15 @@ def _offline(feeder: 'CoreFeeder', handler: 'OutputHandler',
     schedule = offline_scale(np.array([s.stamp_ns for s in samples], dtype=np.int64),
                              np.array([s.scale for s in samples]), resets, p.window_s,
                              p.min_samples)
-
-    def scale_at(stamp_ns: int) -> float | None:
-        return finite_scale(schedule(stamp_ns))
-
-    stage = MetricStage(calibrator.metric.base_from_camera, p.orientation_variance)
+    stage = calibrator.metric.fresh()
     with _progress(progress, len(recorded), 'write') as bar:
         for outputs in recorded:
-            handler(stage.resolve(outputs, scale_at, schedule.error))
+            handler(stage.resolve(outputs, schedule, schedule.error))
             if bar is not None:
                 bar.update(1)
     recorded.clear()
     pending = calibrator.pending_status()
-    return stage.status(pending, scale_at(pending.status.stamp_ns)), schedule
+    return stage.status(pending, finite_scale(schedule(pending.status.stamp_ns))), schedule
 
 
 def check_output_path(input_path: Path, output_path: Path) -> None:

@@ -547,7 +547,6 @@ def test_deferred_outputs_resolved_with_the_schedule_equal_a_run_with_that_sched
     across a SLAM reset (the anchor) and with a base frame (the odometry's base offset)."""
     from dataclasses import fields
 
-    from hac_ros.core.metric import MetricStage, finite_scale
     from hac_ros.core.outputs import ResetOut, SampleOut
     from hac_ros.replay import CoreFeeder, InputTopics, Recording
 
@@ -565,8 +564,7 @@ def test_deferred_outputs_resolved_with_the_schedule_equal_a_run_with_that_sched
         schedule = offline_scale(np.array([s.stamp_ns for s in samples]),
                                  np.array([s.scale for s in samples]), resets, params.window_s,
                                  params.min_samples)
-        stage = MetricStage(feeder.calibrator.metric.base_from_camera, params.orientation_variance)
-        resolved = stage.resolve(deferred, lambda stamp: finite_scale(schedule(stamp)))
+        resolved = feeder.calibrator.metric.fresh().resolve(deferred, schedule)
         direct: list = []
         CoreFeeder(recording, topics, params, output_scale=schedule).run(direct.extend)
     assert [type(o).__name__ for o in resolved] == [type(o).__name__ for o in direct]

@@ -30,7 +30,8 @@ from hac_ros.core.transforms import Anchor, rotation_log
 NS = 1_000_000_000
 POSITION_VARIANCE_FLOOR = 1e-6  # m², keeps the published covariance positive definite
 
-ScaleAt = Callable[[int], 'float | None']  # stamp ns -> published scale, or None (nothing metric)
+# stamp ns -> published scale (metres per SLAM unit); None, NaN or <= 0: nothing metric then
+ScaleAt = Callable[[int], 'float | None']
 
 
 @dataclass(slots=True)
@@ -101,10 +102,15 @@ class MetricStage:
                  orientation_variance: float) -> None:
         self.anchor = Anchor()
         self.base_from_camera = base_from_camera
+        self.orientation_variance = orientation_variance
         # camera, metric frame: (stamp ns, R camera->metric (3, 3), centre (3,) metres)
         self.last_metric: tuple[int, np.ndarray, np.ndarray] | None = None
         # the odometry covariance without the scale's share: position floor, orientation variance
         self._covariance_floor = np.diag([POSITION_VARIANCE_FLOOR] * 3 + [orientation_variance] * 3)
+
+    def fresh(self) -> 'MetricStage':
+        """A new stage with this one's configuration (identity anchor, no metric pose yet)."""
+        return MetricStage(self.base_from_camera, self.orientation_variance)
 
     def resolve(self, outputs: Iterable[Output | object], scale_at: ScaleAt,
                 error_at: Callable[[int], float] | None = None) -> list[Output]:
@@ -126,9 +132,9 @@ class MetricStage:
         """One pending record -> its outputs with the scale ``scale_at`` gives at its stamp."""
         if isinstance(pending, PendingOdometry):
             sigma = pending.sigma_scale if error_at is None else error_at(pending.stamp_ns)
-            return self._odometry(pending, scale_at(pending.stamp_ns), sigma)
+            return self._odometry(pending, finite_scale(scale_at(pending.stamp_ns)), sigma)
         if isinstance(pending, PendingFrame):
-            scale = scale_at(pending.stamp_ns)
+            scale = finite_scale(scale_at(pending.stamp_ns))
             if scale is None:
                 return []
             joints = self.anchor.joints(pending.R_wc, pending.c_map, scale, pending.joints_cam)
@@ -140,7 +146,8 @@ class MetricStage:
                 self.anchor = Anchor.continuing(R_metric, p_metric, pending.R_wc, pending.c_map)
             return []
         if isinstance(pending, PendingStatus):
-            return [DiagnosticsOut(self.status(pending, scale_at(pending.status.stamp_ns)))]
+            scale = finite_scale(scale_at(pending.status.stamp_ns))
+            return [DiagnosticsOut(self.status(pending, scale))]
         raise TypeError(f'not a pending output: {type(pending).__name__}')
 
     def status(self, pending: PendingStatus, scale: float | None) -> Status:
@@ -183,7 +190,9 @@ class MetricStage:
         return [OdometryOut(stamp, pending.child_frame_id, R_out, p_out, cov, linear, angular)]
 
 
-def finite_scale(value: float) -> float | None:
-    """A published scale, or None when it is not a finite positive number."""
+def finite_scale(value: float | None) -> float | None:
+    """A published scale, or None when there is none or it is not a finite positive number."""
+    if value is None:
+        return None
     value = float(value)
     return value if math.isfinite(value) and value > 0.0 else None
