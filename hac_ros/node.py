@@ -12,7 +12,7 @@ thread (microseconds), and decoding the points, building the :class:`MapIndex` (
 computing ahead what the first frame on the new map asks of it (:meth:`MapIndex.prepare`: the
 overlap with the map in use, the floor offset along the current ground normal) happen on the
 builder thread, so a 1M-point map does not stall the frames. The finished index is handed to
-the calibrator on the executor's thread (a guard condition wakes it). **While a map is being built,
+the calibrator on the executor's thread (a 10 ms timer takes it, MAP_POLL_S). **While a map is being built,
 frames use the latest map already handed over** (the previous one); the new map is used from the
 first frame processed after it is ready whose stamp is not before the map's stamp. This is the one
 place where the node may differ from ``hac replay``, which always has the map at its stamp.

@@ -18,7 +18,6 @@ plane of the map), ``none``; and a known plane (``set_known``) for the upper bou
 from __future__ import annotations
 
 import math
-
 from dataclasses import dataclass
 
 import numpy as np
