@@ -372,6 +372,7 @@ def report(runs: dict[str, dict[str, Any]], info: dict[str, Any]) -> str:
         r = runs[key]
         lat, ing = r['latency_ms'], r['ingest_ms']
         rows.append([r.get('node', 'hac_node'), r.get('input_qos', 'best_effort'),
+                     r.get('dds_profile') or 'built-in',
                      f"{r['map_points']:,}", f"{r['duration_s']:.0f}",
                      r['frames_sent'],
                      r['frames_dropped'], lat['p50'], lat['p99'], lat['max'],
@@ -380,7 +381,7 @@ def report(runs: dict[str, dict[str, Any]], info: dict[str, Any]) -> str:
                      ing['decode_points_ms'], ing['index_build_ms'],
                      ing['take_raw_ms'] + ing['cdr_header_ms'], ing['take_deserialized_ms'],
                      ing['deserialize_message_ms']])
-    headers = ['node', 'input_qos', 'map points', 'seconds', 'frames', 'dropped', 'p50 ms', 'p99 ms', 'max ms',
+    headers = ['node', 'input_qos', 'DDS transports', 'map points', 'seconds', 'frames', 'dropped', 'p50 ms', 'p99 ms', 'max ms',
                f'p99 ms, < {NEAR_MAP_S:g} s after a map', 'p99 ms, other frames',
                'node CPU % of a core', 'builder: decode ms', 'builder: thin+index ms',
                'executor: raw take + header ms', 'executor: typed take ms (not used)',
@@ -403,7 +404,8 @@ def report(runs: dict[str, dict[str, Any]], info: dict[str, Any]) -> str:
         machine_line(info),
         'Re-run: `python bench/node_latency.py --map-points 100000 --duration 60` and '
         '`--map-points 1000000 --duration 60` (add `--echo` for the floor, `--input-qos reliable` '
-        'for reliable joints delivery).',
+        'for reliable joints delivery, `--dds-profile config/fastdds_large_data.xml` for the Fast '
+        'DDS profile with a 64 MiB shared-memory segment, docs/node.md).',
     ])
 
 
@@ -416,15 +418,24 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--input-qos', choices=('best_effort', 'reliable'), default='best_effort',
                         help="hac_node's input_qos (config/hac.yaml: best_effort); the benchmark "
                         'publishes reliably, so reliable makes the joints delivery reliable')
+    parser.add_argument('--dds-profile', metavar='XML',
+                        help='a Fast DDS profile loaded by this process and the node (e.g. '
+                        'config/fastdds_large_data.xml); default: the built-in transports')
     args = parser.parse_args(argv)
+    if args.dds_profile:  # read once per process, when rclpy starts; the node inherits it
+        profile = str(Path(args.dds_profile).resolve(strict=True))
+        os.environ['FASTRTPS_DEFAULT_PROFILES_FILE'] = os.environ['FASTDDS_DEFAULT_PROFILES_FILE'] = profile
     result = run(args.map_points, args.duration, args.echo, args.input_qos)
     result['input_qos'] = args.input_qos
+    result['dds_profile'] = Path(args.dds_profile).name if args.dds_profile else ''
     info = machine()
     path = RESULTS / f'{NAME}.json'
     previous = json.loads(path.read_text()) if path.exists() else {}
     key = f'echo_{args.map_points}' if args.echo else str(args.map_points)
     if args.input_qos != 'best_effort' and not args.echo:
         key += f'_{args.input_qos}'
+    if args.dds_profile:
+        key += '_' + Path(args.dds_profile).stem
     runs = {**previous.get('runs', {}), key: result}
     write_json(NAME, {'machine': info, 'runs': runs})
     markdown = report(runs, info)

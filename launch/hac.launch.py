@@ -3,6 +3,10 @@
     ros2 launch hac_ros hac.launch.py
     ros2 launch hac_ros hac.launch.py params_file:=/path/to/my.yaml rviz:=true
     ros2 launch hac_ros hac.launch.py pose_topic:=/orb_slam3/camera_pose joints_topic:=/hmr/joints
+    ros2 launch hac_ros hac.launch.py dds_profile:=true   # Fast DDS profile for 1M-point maps
+
+``dds_profile:=true`` loads config/fastdds_large_data.xml (Fast DDS only) into the processes this
+launch file starts; the process publishing the map needs it too (see the file's comment).
 
 Needs a full ROS 2 install (launch, launch_ros, rviz2): never imported by the tests.
 """
@@ -10,7 +14,7 @@ from pathlib import Path
 
 from ament_index_python.packages import get_package_share_directory
 from launch import LaunchDescription
-from launch.actions import DeclareLaunchArgument
+from launch.actions import DeclareLaunchArgument, SetEnvironmentVariable
 from launch.conditions import IfCondition
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
@@ -31,7 +35,14 @@ def generate_launch_description() -> LaunchDescription:
         DeclareLaunchArgument('joints_topic', default_value='/hmr/joints',
                               description='HMR joints (PoseArray, camera optical frame)'),
         DeclareLaunchArgument('log_level', default_value='info', description='ROS log level'),
+        DeclareLaunchArgument('dds_profile', default_value='false',
+                              description='load config/fastdds_large_data.xml (Fast DDS: large maps '
+                                          'beside best-effort joints)'),
     ]
+    profile = str(share / 'config' / 'fastdds_large_data.xml')
+    dds_profile = [  # Fast DDS 2.x reads the first name, 3.x the second
+        SetEnvironmentVariable(name, profile, condition=IfCondition(LaunchConfiguration('dds_profile')))
+        for name in ('FASTRTPS_DEFAULT_PROFILES_FILE', 'FASTDDS_DEFAULT_PROFILES_FILE')]
     node = Node(
         package=PACKAGE, executable='hac_node', name='hac_node', output='screen',
         parameters=[LaunchConfiguration('params_file'), {
@@ -46,4 +57,4 @@ def generate_launch_description() -> LaunchDescription:
         arguments=['-d', str(share / 'rviz' / 'hac.rviz')],
         condition=IfCondition(LaunchConfiguration('rviz')),
     )
-    return LaunchDescription([*arguments, node, rviz])
+    return LaunchDescription([*arguments, *dds_profile, node, rviz])

@@ -41,7 +41,8 @@ def test_colcon_build_installs_the_node_and_the_ament_marker(tmp_path):
     config = install / 'share' / 'hac_ros' / 'config' / 'hac.yaml'
     for path in (config, install / 'share' / 'hac_ros' / 'package.xml',
                  install / 'share' / 'hac_ros' / 'launch' / 'hac.launch.py',
-                 install / 'share' / 'hac_ros' / 'rviz' / 'hac.rviz'):
+                 install / 'share' / 'hac_ros' / 'rviz' / 'hac.rviz',
+                 install / 'share' / 'hac_ros' / 'config' / 'fastdds_large_data.xml'):
         assert path.is_file(), path
 
     # the installed executable runs from the install space with the installed parameters file

@@ -13,6 +13,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 import yaml
 
@@ -32,11 +33,12 @@ VOLATILE = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                       durability=DurabilityPolicy.VOLATILE)
 
 
-def start_node(tmp_path: Path, params: dict[str, Any]) -> subprocess.Popen:
+def start_node(tmp_path: Path, params: dict[str, Any],
+               env: dict[str, str] | None = None) -> subprocess.Popen:
     path = tmp_path / 'hac.yaml'
     path.write_text(yaml.safe_dump({'hac_node': {'ros__parameters': params}}))
     env = {**os.environ, 'PYTHONUNBUFFERED': '1', 'PYTHONFAULTHANDLER': '1',
-           'RCUTILS_COLORIZED_OUTPUT': '0'}
+           'RCUTILS_COLORIZED_OUTPUT': '0', **(env or {})}
     return subprocess.Popen([sys.executable, '-m', 'hac_ros.node', '--ros-args', '--params-file',
                              str(path)], cwd=REPO, env=env, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
@@ -151,3 +153,49 @@ def test_node_process_refuses_invalid_parameters(tmp_path, params, reason):
     out, err = node.communicate(timeout=STARTUP_S)
     assert node.returncode == 2, out + err
     assert reason in err and 'Traceback' not in err
+
+
+def _shm_segments() -> dict[str, int]:
+    """Fast DDS shared-memory segments on this host: name -> size in bytes."""
+    shm = Path('/dev/shm')
+    return {p.name: p.stat().st_size for p in shm.glob('fastrtps_*')
+            if not p.name.startswith('fastrtps_port') and not p.name.endswith('_el')}
+
+
+@pytest.mark.skipif(os.environ.get('RMW_IMPLEMENTATION', 'rmw_fastrtps_cpp') != 'rmw_fastrtps_cpp'
+                    or not Path('/dev/shm').is_dir(), reason='a Fast DDS shared-memory profile')
+def test_node_process_runs_with_the_large_data_dds_profile(tmp_path, client):
+    """config/fastdds_large_data.xml is a profile this Fast DDS loads: the node gets its 64 MiB
+    segment, still talks to a participant on the built-in transports (this process), and uses a
+    map much larger than the built-in 512 KiB segment."""
+    from msg_adapters import cloud_to_xyz, stamp_to_ns, xyz_to_cloud
+
+    profile = str(REPO / 'config' / 'fastdds_large_data.xml')
+    walk = scenario_recording('walk', duration=4.0)
+    before = _shm_segments()
+    node = start_node(tmp_path, {}, {'FASTRTPS_DEFAULT_PROFILES_FILE': profile,
+                                     'FASTDDS_DEFAULT_PROFILES_FILE': profile})
+    try:
+        assert wait_for(client.node_is_up, STARTUP_S), 'hac_node did not come up'
+        new = {name: size for name, size in _shm_segments().items() if name not in before}
+        assert any(size >= 64 * 2**20 for size in new.values()), new
+        rng = np.random.default_rng(0)
+        for event in walk.events:
+            msg = event.msg
+            if event.kind == 'cloud':  # the walk's map made 250k points (4 MB, not thinned), same header
+                points = cloud_to_xyz(msg)
+                points = (points[rng.integers(0, len(points), 250_000)]
+                          + rng.normal(0, 1e-3, (250_000, 3)))
+                msg = xyz_to_cloud(points, stamp_to_ns(msg.header.stamp), msg.header.frame_id, TYPES)
+            client.publishers[event.kind].publish(msg)
+            time.sleep(0.5 if event.kind == 'cloud' else FRAME_PERIOD_S if event.kind == 'joints' else 0)
+
+        def indexed() -> bool:
+            diagnostics = client.received['/diagnostics']
+            return bool(diagnostics) and any(kv.key == 'map_points' and kv.value == '250000'
+                                             for kv in diagnostics[-1].status[0].values)
+        assert wait_for(indexed, 10.0), 'the large map was not used'
+    finally:
+        code, log = stop(node, signal.SIGINT)
+    assert code == 0, log
+    assert 'Traceback' not in log and 'XMLPARSER' not in log and 'Error' not in log, log
