@@ -420,6 +420,39 @@ def test_map_statistics_computed_ahead_equal_the_ones_computed_on_demand():
     assert planes[0] == planes[1]
 
 
+def test_a_contact_refit_waits_for_the_next_read_and_gives_the_same_normal():
+    """The frame that completes CONTACT_REFIT_EVERY contacts does not pay for the refit: it runs
+    when the model is next read or changed, or on prefetch (the node, after publishing). Run
+    either way, the refits see the same state and random draws: the same normals, bit for bit."""
+    from hac_ros.core.ground import CONTACT_REFIT_EVERY
+
+    scene = walking_scene(frames=60)
+    rng = np.random.default_rng(0)  # two contacts a frame, on the floor (world z = 0) around the walk
+    floor = scene.contact_world()[:, None, :] + np.c_[rng.uniform(-1, 1, (120, 2)), np.zeros(120)
+                                                     ].reshape(60, 2, 3)
+    contacts = scene.to_slam(floor.reshape(-1, 3)).reshape(60, 2, 3)
+    eager, lazy = GroundModel('hmr', 0.05, 100), GroundModel('hmr', 0.05, 100)
+    normals: tuple[list, list] = ([], [])
+    refits_seen_due = 0
+    for t in range(60):
+        for k, ground in enumerate((eager, lazy)):
+            ground.add_camera(scene.R_wc_slam[t])
+            ground.add_body(scene.R_wc_slam[t], scene.joints_cam[t])
+            normal = ground.normal()
+            normals[k].append(None if normal is None else normal.tobytes())
+            for point in contacts[t]:
+                before = ground._contact_normal
+                ground.add_contact(point, scene.true_scale)
+                if k == 0:
+                    ground.prefetch(None)  # as the node does after publishing
+                elif ground._refit_due is not None:
+                    refits_seen_due += 1
+                    assert ground._contact_normal is before  # not run by the contact itself
+    assert refits_seen_due == (60 * 2 - 30) // CONTACT_REFIT_EVERY + 1
+    assert eager._contact_normal is not None
+    assert normals[0] == normals[1]
+
+
 # ---------------------------------------------------------------------- resets
 def test_a_persistent_pose_jump_resets_and_odometry_stays_continuous():
     scene = walking_scene(frames=80, true_scale=2.0)
