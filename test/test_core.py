@@ -16,9 +16,9 @@ from hac_ros.core.calibrator import Calibrator
 from hac_ros.core.estimator import RollingScale, SortedWindow, centred_rolling_median
 from hac_ros.core.ground import GroundModel, Plane
 from hac_ros.core.outputs import (HumanJointsOut, OdometryOut, ResetOut, SampleOut, ScaleOut)
-from hac_ros.core.numeric import median_1d
+from hac_ros.core.numeric import median_1d, quantile_1d
 from hac_ros.core.params import HacParams
-from hac_ros.core.reference import MapIndex, _quantiles, literal_cone_median, lowest_segment_offset
+from hac_ros.core.reference import MapIndex, literal_cone_median, lowest_segment_offset
 from scenes import NS, Scene, walking_scene
 
 K = np.array([[500.0, 0.0, 320.0], [0.0, 500.0, 240.0], [0.0, 0.0, 1.0]])
@@ -358,10 +358,10 @@ def test_lowest_segment_offset_equals_numpy_quantile_histogram_median():
         assert lowest_segment_offset(points, normal) == pytest.approx(
             _lowest_segment_offset_with_numpy(points, normal), rel=1e-12, abs=1e-12), trial
     assert math.isnan(lowest_segment_offset(np.empty((0, 3)), np.array([0.0, 0.0, -1.0])))
-    for n in (1, 2, 3, 201, 1000, 16384):  # the two-partition quantiles are numpy's, exactly
+    for n in (1, 2, 3, 201, 1000, 16384):  # quantile_1d is numpy's quantile, exactly
         values = rng.normal(size=n)
         for q in ((0.005, 0.995), (0.99, 0.99), (0.0, 1.0), (0.3, 0.7)):
-            assert _quantiles(values, *q) == tuple(np.quantile(values, q))
+            assert (quantile_1d(values, q[0]), quantile_1d(values, q[1])) == tuple(np.quantile(values, q))
 
 
 def test_hmr_normal_needs_no_scale_and_survives_a_handstand():
