@@ -397,7 +397,8 @@ class HacNode(Node):
 
     def _on_joints(self, data: bytes) -> None:
         self._emit(add_joints_cdr(self.calibrator, data))
-        # after publishing, before the next frame: a new ground normal's floor offset
+        # after publishing, before the next frame: a due contact-plane refit and the floor offset
+        # along the resulting normal (GroundModel.prefetch)
         self.calibrator.ground.prefetch(self.calibrator.map)
 
     def _on_camera_info(self, msg: Any) -> None:

@@ -416,8 +416,10 @@ class Calibrator:
             chosen = self.build_index(chosen.stamp_ns, chosen.points_map[-self.params.cloud_max_points:],
                                       chosen.frame_id)
         if (self.map is not None and not self._expect_new_map and self.params.cloud_mode == 'replace'
-                and self.params.map_overlap_min > 0 and not _overlaps(self.map, chosen,
-                                                                      self.params.map_overlap_min)):
+                and self.params.map_overlap_min > 0
+                and chosen.overlap_fraction(self.map) < self.params.map_overlap_min):
+            # the new map shares too few points with the old (within a scene-relative radius;
+            # MapIndex.overlap_fraction, computed ahead by the map builder where it could)
             pose = self._poses[-1] if self._poses else None
             if pose is not None:
                 out += self._reset(pose, 'map_overlap', 'the new map does not overlap the previous '
@@ -569,12 +571,6 @@ class Calibrator:
             return []
         self._diag_second = second
         return self._metric(self.pending_status(stamp_ns))
-
-
-def _overlaps(old: MapIndex, new: MapIndex, min_fraction: float) -> bool:
-    """Does ``new`` share at least ``min_fraction`` of its points with ``old`` (a scene-relative
-    radius, :meth:`MapIndex.overlap_fraction`; the map builder may have computed it ahead)?"""
-    return new.overlap_fraction(old) >= min_fraction
 
 
 def _base_from_camera(base_to_camera: list[float]) -> tuple[np.ndarray, np.ndarray]:
