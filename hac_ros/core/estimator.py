@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-MAD_TO_SIGMA = 1.4826  # sigma of a normal distribution per unit of MAD
+from hac_ros.core.numeric import MAD_TO_SIGMA
 
 
 @dataclass

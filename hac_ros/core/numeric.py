@@ -1,9 +1,15 @@
-"""Small numeric helpers for the per-frame path (numpy's generic versions cost tens of µs here)."""
+"""Small numeric helpers for the per-frame path (numpy's generic versions cost tens of µs here) and
+the robust-statistics constants the estimator, the odometry covariance and the offline schedule share."""
 from __future__ import annotations
 
 import math
 
 import numpy as np
+
+# normal samples: sigma per unit of median absolute deviation, and the standard error of a median
+# of n samples, MEDIAN_STD_ERROR * sigma / sqrt(n)
+MAD_TO_SIGMA = 1.4826
+MEDIAN_STD_ERROR = 1.2533
 
 
 def median_1d(values: np.ndarray) -> float:

@@ -38,9 +38,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from hac_ros.core.numeric import MAD_TO_SIGMA, MEDIAN_STD_ERROR
+
 NS = 1_000_000_000
-MAD_TO_SIGMA = 1.4826  # sigma of a normal distribution per unit of median absolute deviation
-MEDIAN_STD_ERROR = 1.2533  # standard error of a median = 1.2533 sigma / sqrt(n) (normal samples)
 # A window median this many standard errors from the segment median is not noise. With one window
 # per half window over a long recording (hundreds of windows), 5 sigma keeps false alarms rare.
 DRIFT_Z = 5.0
