@@ -12,7 +12,8 @@ thread (microseconds), and decoding the points, building the :class:`MapIndex` (
 computing ahead what the first frame on the new map asks of it (:meth:`MapIndex.prepare`: the
 overlap with the map in use, the floor offset along the current ground normal) happen on the
 builder thread, so a 1M-point map does not stall the frames. The finished index is handed to
-the calibrator on the executor's thread (a 10 ms timer takes it, MAP_POLL_S). **While a map is being built,
+the calibrator on the executor's thread (a 10 ms timer takes it, MAP_POLL_S). The builder runs at
+nice BUILDER_NICE, so frames take the CPU from it. **While a map is being built,
 frames use the latest map already handed over** (the previous one); the new map is used from the
 first frame processed after it is ready whose stamp is not before the map's stamp. This is the one
 place where the node may differ from ``hac replay``, which always has the map at its stamp.
@@ -66,6 +67,11 @@ DIAGNOSTICS_DEPTH = 10
 # ---------------------------------------------------------------------------------------- maps
 MAPS_WAITING_MAX = 8  # accumulate mode: clouds waiting for the builder (older ones are dropped)
 BUILDER_JOIN_S = 5.0  # how long shutdown waits for a map being built
+# The builder thread's nice value (Linux: per thread). A frame that arrives while a map is being
+# built then takes the CPU from the builder at once; the build only takes longer when the CPU is
+# busy. Not SCHED_IDLE: a builder starved while holding the GIL would stall the frames
+# (measured: docs/benchmarks.md, node latency).
+BUILDER_NICE = 19
 
 # ---------------------------------------------------------------------------------------- parameters
 # ROS types `window_s: 30` (YAML, `ros2 param set`) as an integer and would refuse it for a double;
@@ -249,7 +255,13 @@ class MapBuilder:
             self._cond.notify()
         self._thread.join(BUILDER_JOIN_S)
 
+    @property
+    def native_id(self) -> int | None:
+        """The builder thread's id in the OS (None before it started)."""
+        return self._thread.native_id
+
     def _run(self) -> None:
+        lower_thread_priority(BUILDER_NICE)
         while True:
             with self._cond:
                 while not self._waiting and not self._closed:
@@ -262,6 +274,22 @@ class MapBuilder:
                 if self._closed:
                     return
                 self._ready.append(result)
+
+
+def lower_thread_priority(nice: int) -> bool:
+    """Give the calling thread this nice value (only lowering is allowed without privileges).
+
+    Linux gives each thread its own nice value; elsewhere (or where the call is refused) nothing
+    changes. Returns whether it took effect.
+    """
+    if not sys.platform.startswith('linux'):
+        return False
+    try:
+        tid = threading.get_native_id()
+        os.setpriority(os.PRIO_PROCESS, tid, max(nice, os.getpriority(os.PRIO_PROCESS, tid)))
+    except OSError:
+        return False
+    return True
 
 
 def build_map(job: MapJob) -> MapBuilt:

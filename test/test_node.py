@@ -5,7 +5,9 @@ simulated recording into it and records its outputs; one executor thread spins b
 """
 from __future__ import annotations
 
+import os
 import re
+import sys
 import threading
 import time
 from dataclasses import dataclass, field
@@ -584,3 +586,33 @@ def test_messages_the_middleware_lost_are_counted_in_diagnostics(harness):
     handler.callback(SimpleNamespace(total_count=3, total_count_change=1))
     assert node.calibrator.status().rejected['joints_lost'] == 3
     assert node.notices['joints_lost'] == 1  # logged once
+
+
+def test_the_map_builder_runs_at_a_low_priority_and_the_frames_do_not(harness):
+    """The builder thread lowers its own nice value to BUILDER_NICE (Linux: per thread), so a frame
+    arriving during a build takes the CPU from it (docs/benchmarks.md, node latency); the executor's
+    thread, here this one, keeps the process's priority."""
+    from hac_ros.node import BUILDER_NICE, lower_thread_priority
+
+    if not sys.platform.startswith('linux'):
+        pytest.skip('per-thread nice values are a Linux feature')
+    h = harness()
+    builder = h.node._builder
+    assert wait_for(lambda: builder.native_id is not None, 5.0)
+    assert wait_for(lambda: os.getpriority(os.PRIO_PROCESS, builder.native_id) == BUILDER_NICE, 5.0)
+    assert os.getpriority(os.PRIO_PROCESS, threading.get_native_id()) == os.getpriority(
+        os.PRIO_PROCESS, 0) < BUILDER_NICE
+
+    # the helper lowers a thread's priority but never raises it (that needs privileges)
+    seen: list[tuple[bool, int]] = []
+
+    def lower_twice(first: int) -> None:
+        for nice in (first, 5):
+            done = lower_thread_priority(nice)
+            seen.append((done, os.getpriority(os.PRIO_PROCESS, threading.get_native_id())))
+
+    for first in (10, 5):
+        worker = threading.Thread(target=lower_twice, args=(first,))
+        worker.start()
+        worker.join()
+    assert seen == [(True, 10), (True, 10), (True, 5), (True, 5)]
