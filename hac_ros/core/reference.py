@@ -88,13 +88,14 @@ class MapIndex:
         # an evenly strided subset for whole-map statistics (the extent, the floor's offset)
         self.sample = points[::max(1, self.size // SAMPLE_POINTS)]
         if self.size:
-            self.tree: cKDTree | None = build_tree(points)
             if self.size >= 100:  # percentiles of ~4k points: a scene size, not a measurement
                 few = self.sample[::max(1, len(self.sample) // EXTENT_POINTS)]
                 lo, hi = np.percentile(few, [1.0, 99.0], axis=0)
             else:
                 lo, hi = points.min(axis=0), points.max(axis=0)
             self.extent = float(np.linalg.norm(hi - lo))
+            # the points again, sorted by cell: tree.data (the indices of its queries refer to it)
+            self.tree: cKDTree | None = build_tree(points, lo, hi)
         else:
             self.tree = None
             self.extent = 0.0
@@ -213,7 +214,7 @@ class MapIndex:
         if total == 0:
             return _EMPTY, _EMPTY
         idx = np.fromiter(chain.from_iterable(lists), dtype=np.intp, count=total)
-        v = self.points_map[idx] - o
+        v = self.tree.data[idx] - o
         dist = np.sqrt(np.einsum('ij,ij->i', v, v))
         along = v @ d
         lower = near * bounds[:-1]
