@@ -33,10 +33,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _report import machine, machine_line, table, write_json, write_section  # noqa: E402
 from core_speed import TRUE_SCALE, room_scene  # noqa: E402
 
+from hac_ros.core.numeric import NS  # noqa: E402
 from hac_ros.replay import replay  # noqa: E402
 
 NAME = 'replay_throughput'
-NS = 1_000_000_000
 TARGET_RTF = 50.0  # issue 6: at least 50x real time
 GOAL_RTF = 100.0
 # Where the time goes: the cumulative time of these functions (disjoint parts of the replay loop).

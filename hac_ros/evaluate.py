@@ -32,7 +32,6 @@ from hac_ros.messages import SAMPLE_FIELDS, SAMPLES
 from hac_ros.replay import (GT_CAMERA, GT_JOINTS, GT_SCALE, CoreFeeder, InputTopics, Recording,
                             load_params)
 
-NS = 1_000_000_000
 ODOMETRY_TOPIC = '/hac/odometry'
 JOINTS_TOPIC = '/hac/human_joints'
 SCALE_TOPIC = '/hac/scale'

@@ -22,12 +22,12 @@ from typing import Any
 import numpy as np
 
 from hac_ros.core.errors import HacError
+from hac_ros.core.numeric import NS
 from hac_ros.evaluate import (CameraTrack, JointsTrack, Replayed, Truth, match, person_tracks,
                               read_camera, read_output, read_truth)
 from hac_ros.core.params import POSE_MSGTYPES
 from hac_ros.replay import Recording
 
-NS = 1_000_000_000
 DPI = 100
 FIGSIZE = {'trajectories': (8.0, 8.0), 'scale': (11.0, 6.0), 'fallback': (11.0, 6.0)}  # inches
 PELVIS, NECK = 0, 12  # SMPL-24

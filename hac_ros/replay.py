@@ -40,6 +40,7 @@ import numpy as np
 from hac_ros.core.calibrator import Calibrator
 from hac_ros.core.errors import HacError
 from hac_ros.core.metric import finite_scale
+from hac_ros.core.numeric import NS
 from hac_ros.core.offline import OfflineScale, offline_scale
 from hac_ros.core.outputs import (NoticeOut, OdometryOut, Output, ResetOut, SampleOut, Status)
 from hac_ros.core.params import POSE_MSGTYPES, HacParams
@@ -48,7 +49,6 @@ from hac_ros.inputs import add_camera_info_msg, add_joints_cdr, add_pose_cdr
 from hac_ros.messages import (OUTPUT_TOPICS, SAMPLES, Message, OutputMessages,
                               samples_message)
 
-NS = 1_000_000_000
 INPUT_TYPES = {'joints': 'geometry_msgs/msg/PoseArray', 'cloud': 'sensor_msgs/msg/PointCloud2',
                'camera_info': 'sensor_msgs/msg/CameraInfo'}
 GT_CAMERA = ('/gt/camera_pose', 'geometry_msgs/msg/PoseStamped')

@@ -20,9 +20,9 @@ from typing import Iterable, Sequence
 import numpy as np
 
 from msg_adapters.errors import MessageError
+from msg_adapters.stamps import NS_PER_S
 
 ENCAPSULATION_LE = b'\x00\x01\x00\x00'  # CDR_LE, no options
-NS_PER_S = 1_000_000_000
 _I32_U32 = struct.Struct('<iI')
 _U32 = struct.Struct('<I')
 _I32X3 = struct.Struct('<iii')

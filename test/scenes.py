@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-NS = 1_000_000_000
+from hac_ros.core.numeric import NS
 
 # A standing SMPL-24 skeleton, world metres, pelvis above the origin, facing -y (towards the camera)
 STANDING = np.array([

@@ -28,6 +28,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E
 from rclpy.serialization import deserialize_message, serialize_message  # noqa: E402
 
 from hac_ros.core.calibrator import Calibrator  # noqa: E402
+from hac_ros.core.numeric import NS  # noqa: E402
 from hac_ros.core.outputs import HumanJointsOut, OdometryOut, ScaleOut  # noqa: E402
 from hac_ros.core.params import HacParams, describe, names  # noqa: E402
 from hac_ros.node import HacNode, parameter_table, parse_cloud_cdr  # noqa: E402
@@ -37,7 +38,6 @@ from msg_adapters import (cloud_to_xyz, intrinsics_to_camera_info, joints_to_pos
                           stamp_to_ns, xyz_from_buffer, xyz_to_cloud)
 
 TYPES = rclpy_types()
-NS = 1_000_000_000
 REPO = Path(__file__).resolve().parents[1]
 INPUTS = {  # kind -> (default topic, type)
     'pose': ('/slam/pose', 'geometry_msgs/msg/PoseStamped'),

@@ -31,7 +31,7 @@ from hac_ros.core.estimator import RollingScale
 from hac_ros.core.ground import GroundModel, Plane
 from hac_ros.core.metric import (MetricStage, PendingFrame, PendingOdometry, PendingReset,
                                  PendingStatus, finite_scale)
-from hac_ros.core.numeric import MEDIAN_STD_ERROR, median_1d
+from hac_ros.core.numeric import MEDIAN_STD_ERROR, NS, median_1d
 from hac_ros.core.outputs import NoticeOut, Output, ResetOut, SampleOut, Status
 from hac_ros.core.params import HacParams
 from hac_ros.core.reference import MapIndex
@@ -42,7 +42,6 @@ PENDING_MAPS_MAX = 8  # maps waiting for a frame of their stamp
 JUMP_HISTORY = 30  # recent pose speeds whose median is the "normal" speed
 JUMP_MIN_HISTORY = 5  # steps needed before a jump can be told from normal motion
 TYPICAL_REFRESH_POSES = 10  # the typical speed is re-taken every this many poses
-NS = 1_000_000_000
 
 # Human-readable text of each rejection cause (the first occurrence is logged).
 REASONS = {

@@ -23,11 +23,11 @@ from typing import Callable, Iterable
 import numpy as np
 
 from hac_ros.core.ground import Plane
+from hac_ros.core.numeric import NS
 from hac_ros.core.outputs import (DiagnosticsOut, HumanJointsOut, OdometryOut, Output, ScaleOut,
                                   Status)
 from hac_ros.core.transforms import Anchor, rotation_log
 
-NS = 1_000_000_000
 POSITION_VARIANCE_FLOOR = 1e-6  # m², keeps the published covariance positive definite
 
 # stamp ns -> published scale (metres per SLAM unit); None, NaN or <= 0: nothing metric then

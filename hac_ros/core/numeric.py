@@ -1,5 +1,6 @@
-"""Small numeric helpers for the per-frame path (numpy's generic versions cost tens of µs here) and
-the robust-statistics constants the estimator, the odometry covariance and the offline schedule share."""
+"""Small numeric helpers for the per-frame path (numpy's generic versions cost tens of µs here),
+the robust-statistics constants the estimator, the odometry covariance and the offline schedule share,
+and the nanoseconds in a second (stamps are integer nanoseconds everywhere)."""
 from __future__ import annotations
 
 import math
@@ -10,6 +11,7 @@ import numpy as np
 # of n samples, MEDIAN_STD_ERROR * sigma / sqrt(n)
 MAD_TO_SIGMA = 1.4826
 MEDIAN_STD_ERROR = 1.2533
+NS = 1_000_000_000  # nanoseconds per second
 
 
 def median_1d(values: np.ndarray) -> float:

@@ -38,9 +38,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from hac_ros.core.numeric import MAD_TO_SIGMA, MEDIAN_STD_ERROR
+from hac_ros.core.numeric import MAD_TO_SIGMA, MEDIAN_STD_ERROR, NS
 
-NS = 1_000_000_000
 # A window median this many standard errors from the segment median is not noise. With one window
 # per half window over a long recording (hundreds of windows), 5 sigma keeps false alarms rare.
 DRIFT_Z = 5.0
