@@ -532,7 +532,7 @@ class Calibrator:
             if d_slam > plane_distance * (1.0 + tol):
                 return False
             # before a scale: a hit well above a trusted floor may be an occluder
-            if scale is None and self.ground.refined and d_slam * (1.0 + tol) < plane_distance:
+            if scale is None and self.ground.is_refined() and d_slam * (1.0 + tol) < plane_distance:
                 return False
         if scale is not None and abs(scale * d_slam - distance_metric) > tol * distance_metric:
             return False

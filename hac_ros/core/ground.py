@@ -168,9 +168,9 @@ class GroundModel:
         self._plane_cache = None
 
     # ------------------------------------------------------------------ queries
-    @property
-    def refined(self) -> bool:
-        """Whether the normal comes from contact joints (or is known), not the body axis alone."""
+    def is_refined(self) -> bool:
+        """Whether the normal comes from contact joints (or is known), not the body axis alone
+        (a method, not a property: a contact refit that is due runs first)."""
         self._settle()
         return self._known is not None or self._contact_normal is not None
 
