@@ -12,7 +12,7 @@ time. :func:`install_column_extrema` gives that module (only it) a copy of the n
 which ``amax``/``amin`` over axis 0 of a plain 2-D array reduce each column separately: the same
 values (a maximum is exact, whatever the order), so the same tree. Any other call goes to numpy
 unchanged. Where the module is not laid out this way (another scipy version), nothing changes and
-the tree is built the ordinary way. tests/test_fast_path.py checks that the trees are identical.
+the tree is built the ordinary way. test/test_fast_path.py checks that the trees are identical.
 
 The tree is also built over the points sorted by cell of a coarse grid (:func:`cell_order`, 0.6 ms
 at 100k points plus 0.25 ms to reorder): scipy partitions the points in place while it builds, and
@@ -41,7 +41,7 @@ def _column_wise(reduce: Any) -> Any:
     """``reduce`` (np.amax or np.amin), one column at a time for axis 0 of a plain 2-D array."""
     def column_wise(a: Any, axis: Any = None, *args: Any, **kwargs: Any) -> Any:
         if (axis == 0 and not args and not kwargs and type(a) is np.ndarray and a.ndim == 2
-                and a.shape[0] > 0 and a.shape[1] <= 8):
+                and a.shape[0] > 0 and a.shape[1] <= 8):  # few columns: numpy's slow case
             return np.array([reduce(a[:, j]) for j in range(a.shape[1])], dtype=a.dtype)
         return reduce(a, axis, *args, **kwargs)
     column_wise.__name__ = reduce.__name__

@@ -9,12 +9,11 @@ not depend on the SLAM unit). Only points in front of the camera count; fewer th
 
 Speed: the index is a k-d tree built once per map update (:mod:`hac_ros.core.kdtree`). Once a
 scale exists the contact is expected at ``d_A / scale`` SLAM units, and the query looks only
-within a depth window around it
-(``ray_window_rel``): a chain of balls that covers the cone between the window's ends, so the cost is
-a few tree look-ups plus the points actually in the cone, whatever the map's size. Before a scale
-exists the query scans every point (the literal method). Points outside the window are the only
-difference from the literal method: they are occluders or far walls, which the plausibility rule
-would refuse anyway.
+within a depth window around it (``ray_window_rel``): a chain of balls that covers the cone
+between the window's ends, so the cost is a few tree look-ups plus the points actually in the
+cone, whatever the map's size. Before a scale exists the query scans every point (the literal
+method). Points outside the window are the only difference from the literal method: they are
+occluders or far walls, which the plausibility rule would refuse anyway.
 
 The number of points in a cone grows with the map's density, and a median needs a few hundred of
 them, not thousands: maps larger than ``index_max_points`` are thinned uniformly at random (a
@@ -68,7 +67,8 @@ class MapIndex:
     drop them). extent: the diagonal of the points' robust bounding box (1st–99th percentile),
     SLAM units: the scene's size, for scene-relative thresholds. max_points: above it the map is
     thinned uniformly at random before indexing (``index_max_points``); ``received`` counts the
-    points before thinning.
+    points before thinning. The k-d tree keeps its own copy of the points, sorted by cell
+    (``tree.data``, :func:`hac_ros.core.kdtree.build_tree`).
     """
 
     def __init__(self, points_map: np.ndarray, frame_id: str = '', stamp_ns: int = 0,
