@@ -54,7 +54,7 @@ from rclpy.serialization import deserialize_message, serialize_message  # noqa: 
 
 from hac_ros.core.calibrator import Calibrator  # noqa: E402
 from hac_ros.core.params import HacParams  # noqa: E402
-from hac_ros.node import cloud_points, parse_cloud_cdr  # noqa: E402
+from hac_ros.node import DDS_PROFILE_VARIABLES, cloud_points, parse_cloud_cdr  # noqa: E402
 from hac_ros.simulate import make_scenario  # noqa: E402
 from msg_adapters import (joints_to_pose_array, rclpy_types, rt_to_pose_stamped,  # noqa: E402
                           stamp_to_ns, xyz_to_cloud)
@@ -381,7 +381,8 @@ def report(runs: dict[str, dict[str, Any]], info: dict[str, Any]) -> str:
                      ing['decode_points_ms'], ing['index_build_ms'],
                      ing['take_raw_ms'] + ing['cdr_header_ms'], ing['take_deserialized_ms'],
                      ing['deserialize_message_ms']])
-    headers = ['node', 'input_qos', 'DDS transports', 'map points', 'seconds', 'frames', 'dropped', 'p50 ms', 'p99 ms', 'max ms',
+    headers = ['node', 'input_qos', 'DDS transports', 'map points', 'seconds', 'frames', 'dropped',
+               'p50 ms', 'p99 ms', 'max ms',
                f'p99 ms, < {NEAR_MAP_S:g} s after a map', 'p99 ms, other frames',
                'node CPU % of a core', 'builder: decode ms', 'builder: thin+index ms',
                'executor: raw take + header ms', 'executor: typed take ms (not used)',
@@ -424,7 +425,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.dds_profile:  # read once per process, when rclpy starts; the node inherits it
         profile = str(Path(args.dds_profile).resolve(strict=True))
-        os.environ['FASTRTPS_DEFAULT_PROFILES_FILE'] = os.environ['FASTDDS_DEFAULT_PROFILES_FILE'] = profile
+        os.environ.update(dict.fromkeys(DDS_PROFILE_VARIABLES, profile))
     result = run(args.map_points, args.duration, args.echo, args.input_qos)
     result['input_qos'] = args.input_qos
     result['dds_profile'] = Path(args.dds_profile).name if args.dds_profile else ''

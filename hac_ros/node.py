@@ -57,6 +57,9 @@ from msg_adapters.cdr import RawCloud, cloud_points, parse_cloud_cdr  # noqa: F4
 TYPES = rclpy_types()  # rclpy's message classes by ROS name
 GIL_SWITCH_INTERVAL_S = 0.0005  # see main()
 MAP_POLL_S = 0.01  # the executor takes finished maps from the builder this often
+# Environment variables naming a Fast DDS XML profile (config/fastdds_large_data.xml): Fast DDS
+# 2.x reads the first, 3.x the second; read once per process, when rclpy starts
+DDS_PROFILE_VARIABLES = ('FASTRTPS_DEFAULT_PROFILES_FILE', 'FASTDDS_DEFAULT_PROFILES_FILE')
 
 # ---------------------------------------------------------------------------------------- QoS
 INPUT_DEPTH = 100  # pose/joints/camera_info kept per subscription: > 3 s at 30 Hz, absorbs bursts

@@ -40,7 +40,8 @@ def generate_launch_description() -> LaunchDescription:
                                           'beside best-effort joints)'),
     ]
     profile = str(share / 'config' / 'fastdds_large_data.xml')
-    dds_profile = [  # Fast DDS 2.x reads the first name, 3.x the second
+    # Fast DDS 2.x reads the first name, 3.x the second (as hac_ros.node.DDS_PROFILE_VARIABLES)
+    dds_profile = [
         SetEnvironmentVariable(name, profile, condition=IfCondition(LaunchConfiguration('dds_profile')))
         for name in ('FASTRTPS_DEFAULT_PROFILES_FILE', 'FASTDDS_DEFAULT_PROFILES_FILE')]
     node = Node(

@@ -23,6 +23,8 @@ from rclpy.context import Context  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
 
+from hac_ros.node import DDS_PROFILE_VARIABLES  # noqa: E402
+
 from test_node import (FRAME_PERIOD_S, INPUTS, LATCHED, OUTPUTS, RELIABLE, SCALE_TOL,  # noqa: E402
                        TYPES, scenario_recording, wait_for)
 
@@ -173,8 +175,7 @@ def test_node_process_runs_with_the_large_data_dds_profile(tmp_path, client):
     profile = str(REPO / 'config' / 'fastdds_large_data.xml')
     walk = scenario_recording('walk', duration=4.0)
     before = _shm_segments()
-    node = start_node(tmp_path, {}, {'FASTRTPS_DEFAULT_PROFILES_FILE': profile,
-                                     'FASTDDS_DEFAULT_PROFILES_FILE': profile})
+    node = start_node(tmp_path, {}, dict.fromkeys(DDS_PROFILE_VARIABLES, profile))
     try:
         assert wait_for(client.node_is_up, STARTUP_S), 'hac_node did not come up'
         new = {name: size for name, size in _shm_segments().items() if name not in before}
