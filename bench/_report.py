@@ -10,6 +10,8 @@ import os
 import platform
 import re
 import subprocess
+import time
+from importlib import metadata
 from pathlib import Path
 from typing import Any
 
@@ -36,12 +38,69 @@ def machine() -> dict[str, Any]:
     except OSError:
         commit = ''
     return {'cpu': cpu, 'cores': os.cpu_count(), 'python': platform.python_version(),
-            'platform': platform.platform(), 'commit': commit}
+            'platform': platform.platform(), 'commit': commit, 'versions': versions(),
+            'speed_reference_ms': speed_reference()}
+
+
+VERSIONED = ('numpy', 'scipy', 'rosbags', 'rclpy')
+
+
+def versions() -> dict[str, str]:
+    """The installed versions of the libraries the figures depend on ('' when not installed)."""
+    found = {}
+    for name in VERSIONED:
+        try:
+            found[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            found[name] = ''
+    return found
+
+
+def speed_reference(repeats: int = 7) -> dict[str, float]:
+    """This machine's speed now, to compare runs made on different hosts or days: the median ms of
+    a fixed pure-Python loop (1M additions) and of the literal cone median over 1M fixed points
+    (one ray; numpy). The issue's targets were set where the literal method cost ~180 ms per
+    frame at 1M points (bench/core_speed.py measures that per frame)."""
+    import numpy as np
+
+    rng = np.random.default_rng(0)
+    points = rng.random((1_000_000, 3)) - 0.5
+    direction = np.array([0.0, 0.0, 1.0])
+    python_ms, numpy_ms = [], []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        total = 0
+        for i in range(1_000_000):
+            total += i
+        python_ms.append((time.perf_counter() - start) * 1e3)
+        start = time.perf_counter()
+        dist = np.sqrt(np.einsum('ij,ij->i', points, points))
+        cos = (points @ direction) / dist
+        np.median(dist[cos > 0.99])
+        numpy_ms.append((time.perf_counter() - start) * 1e3)
+    return {'python_loop_1m_ms': float(np.median(python_ms)),
+            'numpy_cone_1m_ms': float(np.median(numpy_ms))}
+
+
+def run_machine(info: dict[str, Any]) -> str:
+    """A short name of the machine and commit of one run, for a table column."""
+    cpu = str(info.get('cpu', '?')).replace('(R)', '').replace(' Processor', '').replace('  ', ' ')
+    ref = info.get('speed_reference_ms')
+    speed = f", ref {ref['numpy_cone_1m_ms']:.0f} ms" if ref else ''
+    return f"{cpu.strip()}{speed}, {info.get('commit') or '?'}"
 
 
 def machine_line(info: dict[str, Any]) -> str:
-    return (f"Machine: {info['cpu']}, {info['cores']} cores, Python {info['python']}, "
+    line = (f"Machine: {info['cpu']}, {info['cores']} cores, Python {info['python']}, "
             f"commit {info['commit'] or 'uncommitted'}.")
+    if info.get('versions'):
+        line += ' ' + ', '.join(f'{k} {v}' for k, v in info['versions'].items() if v) + '.'
+    ref = info.get('speed_reference_ms')
+    if ref:
+        line += (f" Speed reference (median ms, `bench/_report.py` speed_reference): Python loop "
+                 f"{ref['python_loop_1m_ms']:.0f}, numpy cone over 1M points "
+                 f"{ref['numpy_cone_1m_ms']:.1f}.")
+    return line
 
 
 def write_json(name: str, data: dict[str, Any]) -> Path:

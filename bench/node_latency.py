@@ -45,7 +45,7 @@ from typing import Any  # noqa: E402
 import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _report import RESULTS, machine, machine_line, table, write_json, write_section  # noqa: E402
+from _report import RESULTS, machine, machine_line, run_machine, table, write_json, write_section  # noqa: E402
 
 import rclpy  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
@@ -380,13 +380,13 @@ def report(runs: dict[str, dict[str, Any]], info: dict[str, Any]) -> str:
                      r['node_cpu_percent_of_one_core'],
                      ing['decode_points_ms'], ing['index_build_ms'],
                      ing['take_raw_ms'] + ing['cdr_header_ms'], ing['take_deserialized_ms'],
-                     ing['deserialize_message_ms']])
+                     ing['deserialize_message_ms'], run_machine(r.get('machine', {}))])
     headers = ['node', 'input_qos', 'DDS transports', 'map points', 'seconds', 'frames', 'dropped',
                'p50 ms', 'p99 ms', 'max ms',
                f'p99 ms, < {NEAR_MAP_S:g} s after a map', 'p99 ms, other frames',
                'node CPU % of a core', 'builder: decode ms', 'builder: thin+index ms',
                'executor: raw take + header ms', 'executor: typed take ms (not used)',
-               'deserialize_message ms (not used)']
+               'deserialize_message ms (not used)', 'machine, commit']
     return '\n'.join([
         '## Node latency (`bench/node_latency.py`)', '',
         f'`hac_node` in its own process with config/hac.yaml; joints → `/hac/human_joints` latency '
@@ -402,6 +402,7 @@ def report(runs: dict[str, dict[str, Any]], info: dict[str, Any]) -> str:
         'subscriptions, same QoS): the latency rclpy and DDS alone cost on this machine, measured '
         'the same way.', '',
         table(headers, rows), '',
+        'Rows keep their own run\'s machine: each command replaces only its row. The last run\'s:',
         machine_line(info),
         'Re-run: `python bench/node_latency.py --map-points 100000 --duration 60` and '
         '`--map-points 1000000 --duration 60` (add `--echo` for the floor, `--input-qos reliable` '
@@ -426,12 +427,16 @@ def main(argv: list[str] | None = None) -> int:
     if args.dds_profile:  # read once per process, when rclpy starts; the node inherits it
         profile = str(Path(args.dds_profile).resolve(strict=True))
         os.environ.update(dict.fromkeys(DDS_PROFILE_VARIABLES, profile))
+    info = machine()  # before the run: its speed reference must not overlap the measurement
     result = run(args.map_points, args.duration, args.echo, args.input_qos)
     result['input_qos'] = args.input_qos
     result['dds_profile'] = Path(args.dds_profile).name if args.dds_profile else ''
-    info = machine()
+    result['machine'] = info
     path = RESULTS / f'{NAME}.json'
     previous = json.loads(path.read_text()) if path.exists() else {}
+    for kept in previous.get('runs', {}).values():  # runs recorded before runs named their machine:
+        old = previous.get('machine', {})  # the last one's machine; their commit: that one or older
+        kept.setdefault('machine', {**old, 'commit': f"<= {old.get('commit', '?')}"})
     key = f'echo_{args.map_points}' if args.echo else str(args.map_points)
     if args.input_qos != 'best_effort' and not args.echo:
         key += f'_{args.input_qos}'
