@@ -54,7 +54,8 @@ from rclpy.serialization import deserialize_message, serialize_message  # noqa: 
 
 from hac_ros.core.calibrator import Calibrator  # noqa: E402
 from hac_ros.core.params import HacParams  # noqa: E402
-from hac_ros.node import DDS_PROFILE_VARIABLES, cloud_points, parse_cloud_cdr  # noqa: E402
+from hac_ros.node import DDS_PROFILE_VARIABLES  # noqa: E402
+from msg_adapters.cdr import cloud_points, parse_cloud_cdr  # noqa: E402
 from hac_ros.simulate import make_scenario  # noqa: E402
 from msg_adapters import (joints_to_pose_array, rclpy_types, rt_to_pose_stamped,  # noqa: E402
                           stamp_to_ns, xyz_to_cloud)

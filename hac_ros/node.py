@@ -26,7 +26,6 @@ from __future__ import annotations
 import os
 import sys
 import threading
-import time
 import traceback
 from collections import Counter, deque
 from dataclasses import dataclass
@@ -50,9 +49,10 @@ from hac_ros.core.outputs import NoticeOut, OdometryOut, Output, ResetOut
 from hac_ros.core.params import NODE_NAME, POSE_MSGTYPES, HacParams, describe, names
 from hac_ros.core.reference import MapIndex
 from hac_ros.messages import OUTPUT_TOPICS, OutputMessages
-from hac_ros.inputs import add_camera_info_msg, add_joints_cdr, add_pose_cdr
+from hac_ros.inputs import (IndexBuilder, MapBuilt, add_camera_info_msg, add_joints_cdr,
+                            add_pose_cdr, index_cloud)
 from msg_adapters import MessageError, rclpy_types
-from msg_adapters.cdr import RawCloud, cloud_points, parse_cloud_cdr  # noqa: F401 (re-exported)
+from msg_adapters.cdr import RawCloud, parse_cloud_cdr
 
 TYPES = rclpy_types()  # rclpy's message classes by ROS name
 GIL_SWITCH_INTERVAL_S = 0.0005  # see main()
@@ -191,10 +191,6 @@ def qos_hint(kind: str, policy: str) -> str:
 
 
 # ---------------------------------------------------------------------------------------- map builder
-# Calibrator.build_index: (stamp_ns, points_map (N, 3) SLAM units, frame_id) -> MapIndex
-IndexBuilder = Callable[[int, Any, str], MapIndex]
-
-
 @dataclass
 class MapJob:
     """One cloud to decode and index, and what to compute ahead for it (MapIndex.prepare)."""
@@ -203,16 +199,6 @@ class MapJob:
     build_index: IndexBuilder
     previous: MapIndex | None = None  # the map in use when the cloud arrived
     normal: Any = None  # (3,) the ground normal in use then (map frame, unit, down), or None
-
-
-@dataclass
-class MapBuilt:
-    """A map index ready for the calibrator, or the reason its cloud could not be decoded."""
-
-    stamp_ns: int
-    index: MapIndex | None
-    error: str
-    build_s: float  # wall seconds spent decoding and indexing
 
 
 class MapBuilder:
@@ -296,17 +282,8 @@ def lower_thread_priority(nice: int) -> bool:
 
 
 def build_map(job: MapJob) -> MapBuilt:
-    """Decode and index one cloud (worker thread) with the calibrator's own (thread-safe) builder,
-    then compute ahead what the first frame on it will ask (MapIndex.prepare)."""
-    start = time.perf_counter()
-    cloud = job.cloud
-    try:
-        points_map = cloud_points(cloud)
-    except MessageError as exc:
-        return MapBuilt(cloud.stamp_ns, None, str(exc), time.perf_counter() - start)
-    index = job.build_index(cloud.stamp_ns, points_map, cloud.frame_id)
-    index.prepare(job.previous, job.normal)
-    return MapBuilt(cloud.stamp_ns, index, '', time.perf_counter() - start)
+    """Decode and index one job's cloud (builder thread): :func:`hac_ros.inputs.index_cloud`."""
+    return index_cloud(job.cloud, job.build_index, job.previous, job.normal)
 
 
 # ---------------------------------------------------------------------------------------- the node

@@ -44,10 +44,12 @@ from hac_ros.core.numeric import NS
 from hac_ros.core.offline import OfflineScale, offline_scale
 from hac_ros.core.outputs import (NoticeOut, OdometryOut, Output, ResetOut, SampleOut, Status)
 from hac_ros.core.params import POSE_MSGTYPES, HacParams
-from hac_ros.core.reference import MapIndex
-from hac_ros.inputs import add_camera_info_msg, add_joints_cdr, add_pose_cdr
+from hac_ros.inputs import (IndexBuilder, MapBuilt, add_camera_info_msg, add_joints_cdr,
+                            add_pose_cdr, index_cloud)
 from hac_ros.messages import (OUTPUT_TOPICS, SAMPLES, Message, OutputMessages,
                               samples_message)
+from msg_adapters import MessageError
+from msg_adapters.cdr import RawCloud, parse_cloud_cdr
 
 INPUT_TYPES = {'joints': 'geometry_msgs/msg/PoseArray', 'cloud': 'sensor_msgs/msg/PointCloud2',
                'camera_info': 'sensor_msgs/msg/CameraInfo'}
@@ -230,35 +232,12 @@ class InputTopics:
         return out
 
 
-@dataclass
-class BuiltMap:
-    """A decoded, indexed map cloud (or why it could not be decoded)."""
-
-    stamp_ns: int
-    index: MapIndex | None
-    error: str = ''
-
-
-def build_map(msg: Any, build_index: Callable[[int, np.ndarray, str], MapIndex],
-              previous: Future | None = None) -> BuiltMap:
-    """Decode and index one PointCloud2 as ``hac_node`` does, with the calibrator's own
-    (thread-safe) ``build_index``, then compute ahead the overlap with the map before it (the
-    BuiltMap of ``previous``, an earlier job of the same pool: waited for; :meth:`MapIndex.prepare`:
-    results unchanged, only computed earlier).
-    points: (N, 3) float64, SLAM units, the cloud's (map) frame."""
-    from msg_adapters import MessageError, cloud_to_xyz, stamp_to_ns
-
-    try:
-        stamp = stamp_to_ns(msg.header.stamp)
-    except MessageError as exc:
-        return BuiltMap(-1, None, str(exc))
-    try:
-        points = cloud_to_xyz(msg)  # zero-copy view of the CDR bytes, one np.frombuffer
-    except MessageError as exc:
-        return BuiltMap(stamp, None, str(exc))
-    index = build_index(stamp, points, msg.header.frame_id)
-    index.prepare(previous.result().index if previous is not None else None, None)
-    return BuiltMap(stamp, index)
+def index_after(cloud: RawCloud, build_index: IndexBuilder, previous: Future | None) -> MapBuilt:
+    """:func:`hac_ros.inputs.index_cloud` on a pool thread, as ``hac_node``'s builder, with the map
+    before it (the MapBuilt of ``previous``, an earlier job of the same pool: waited for) as the
+    one whose overlap is computed ahead."""
+    before = previous.result().index if previous is not None else None
+    return index_cloud(cloud, build_index, before)
 
 
 class CoreFeeder:
@@ -300,7 +279,7 @@ class CoreFeeder:
     def _lookahead(self, pool: Any,
                    on_message: Callable[[str, int, Any], None] | None
                    ) -> Iterator[tuple[str | None, int, Any, Any]]:
-        """Messages in order; a cloud's item is the Future of its BuiltMap, started early."""
+        """Messages in order; a cloud's item is the Future of its MapBuilt, started early."""
         wanted = list(self.kinds)
         if on_message is not None:
             wanted = list(self.recording.topics)  # --copy-inputs: every topic passes through
@@ -315,13 +294,22 @@ class CoreFeeder:
             if kind is None:
                 queue.append((None, log_ns, raw, None))
             elif kind == 'cloud':
-                msg = self.recording.deserialize(raw, topic, log_ns)
+                # the header here, the points on a pool thread: as hac_node (a cloud whose header
+                # does not decode is rejected at its place in the order, stamp -1)
+                try:
+                    cloud = parse_cloud_cdr(self.recording.to_cdr(raw, topic, log_ns))
+                except MessageError as exc:
+                    unread: Future = Future()
+                    unread.set_result(MapBuilt(-1, None, str(exc)))
+                    queue.append((topic, log_ns, raw, unread))
+                    maps_waiting += 1
+                    continue
                 # what the first frame on this map will ask: its overlap with the map before it
                 # (jobs start in order: the one before is running or done, never waiting for this
                 # one). Not the floor offset: read this far ahead, the ground normal is stale by
                 # the time the map is used (the contact plane is refitted every second; measured:
                 # no offset computed ahead was ever used), so it would only be extra work.
-                last_map = pool.submit(build_map, msg, build_index, last_map)
+                last_map = pool.submit(index_after, cloud, build_index, last_map)
                 queue.append((topic, log_ns, raw, last_map))
                 maps_waiting += 1
             else:
@@ -338,7 +326,7 @@ class CoreFeeder:
         """One input message (raw bytes, or the Future of a built map) -> calibrator outputs."""
         cal = self.calibrator
         if kind == 'cloud':
-            built: BuiltMap = item.result()
+            built: MapBuilt = item.result()
             if built.index is None:
                 return cal.reject('cloud_malformed', built.stamp_ns)
             return cal.add_map_index(built.index)

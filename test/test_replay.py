@@ -415,6 +415,55 @@ def test_corrupt_recordings_are_errors(walk_bag, tmp_path):
     assert not list(tmp_path.glob('.*partial'))
 
 
+def _with_clouds_broken(source: Path, target: Path, broken: dict[int, Callable[[bytes], bytes]]
+                        ) -> Path:
+    """A copy of ``source`` whose k-th /slam/cloud message's bytes are ``broken[k](bytes)``."""
+    from rosbags.rosbag2 import Reader, StoragePlugin, Writer
+
+    writer = Writer(target, version=9, storage_plugin=StoragePlugin.MCAP)
+    writer.open()
+    clouds = 0
+    with Reader(source) as reader:
+        conns = {c.id: writer.add_connection(c.topic, c.msgtype, typestore=None,
+                                             msgdef=c.msgdef.data, rihs01=c.digest)
+                 for c in reader.connections}
+        for conn, log_ns, raw in reader.messages():
+            if conn.topic == '/slam/cloud':
+                raw = broken.get(clouds, bytes)(bytes(raw))
+                clouds += 1
+            writer.write(conns[conn.id], log_ns, bytes(raw))
+    writer.close()
+    return target
+
+
+@pytest.mark.parametrize('mode', ['online', 'offline'])
+def test_a_malformed_map_cloud_is_a_counted_rejection_as_in_the_node(tmp_path, mode):
+    """A cloud whose points do not decode (its width says one point more than its data holds)
+    and one whose header does not (cut inside its frame_id) are rejected as ``cloud_malformed``,
+    at their place in the order, and the replay goes on with the map before them (hac_node counts
+    the same bytes the same way)."""
+    from rosbags.typesys import Stores, get_typestore
+
+    typestore = get_typestore(Stores.ROS2_JAZZY)
+    cloud_type = 'sensor_msgs/msg/PointCloud2'
+
+    def one_point_short(data: bytes) -> bytes:
+        msg = typestore.deserialize_cdr(data, cloud_type)
+        msg.width += 1
+        msg.row_step += msg.point_step
+        return bytes(typestore.serialize_cdr(msg, cloud_type))
+
+    source = write_recording(tmp_path / 'rec', walking_scene(frames=80), cloud_every=20)
+    bad = _with_clouds_broken(source, tmp_path / 'bad', {1: one_point_short, 2: lambda b: b[:14]})
+    good = replay(source, tmp_path / 'good', mode=mode, progress=False)
+    summary = replay(bad, tmp_path / 'out', mode=mode, progress=False)
+    assert summary.status.rejected.get('cloud_malformed') == 2
+    assert good.status.rejected.get('cloud_malformed') is None
+    assert summary.status.frames == good.status.frames == 80
+    # the floor is the same in every cloud: the map before the broken ones serves as well
+    assert summary.status.scale == pytest.approx(good.status.scale, rel=1e-9)
+
+
 def test_invalid_parameter_is_an_error(walk_bag, tmp_path):
     params_file = tmp_path / 'hac.yaml'
     params_file.write_text('hac_node:\n  ros__parameters:\n    window_s: -3.0\n')
