@@ -138,3 +138,40 @@ def test_the_tree_over_points_sorted_by_cell_finds_the_same_points():
     assert np.array_equal(build_tree(small, lo, hi).data, small)
     flat = np.zeros((5000, 3))  # no extent at all: one cell, the order kept
     assert np.array_equal(cell_order(flat, flat.min(0), flat.max(0)), np.arange(5000))
+
+
+def test_a_window_query_with_few_candidates_keeps_the_same_points_to_the_bit(monkeypatch):
+    """Up to FEW_CANDIDATES candidates the window query selects them on Python floats
+    (_few_in_window): the same distances and cosines, bit for bit and in the same order, as the
+    array path, for windows that hold none, a few and many points, near the cone's edge and at the
+    window's ends."""
+    from hac_ros.core import reference
+
+    rng = np.random.default_rng(11)
+    floor = np.c_[rng.uniform(-4, 4, (30_000, 2)), rng.normal(0, 0.002, 30_000)]
+    index = MapIndex(floor)
+    origin = np.array([0.3, -0.2, 1.6])
+    queries = []
+    for _ in range(300):
+        target = np.r_[rng.uniform(-3, 3, 2), 0.0]
+        direction = (target - origin) / np.linalg.norm(target - origin)
+        depth = float(np.linalg.norm(target - origin))
+        cos_min = float(rng.choice([0.9999, 0.999, 0.99]))
+        width = float(rng.choice([1.05, 1.3, 2.0]))
+        queries.append((direction, cos_min, (depth / width, depth * width)))
+
+    def run(few: int) -> list[tuple[np.ndarray, np.ndarray]]:
+        monkeypatch.setattr(reference, 'FEW_CANDIDATES', few)
+        return [index.cone_distances(origin, d, c, window) for d, c, window in queries]
+
+    few_calls = []
+    select = reference._few_in_window
+    monkeypatch.setattr(reference, '_few_in_window',
+                        lambda *args: few_calls.append(len(args[0])) or select(*args))
+    default = reference.FEW_CANDIDATES
+    array_path, mixed = run(0), run(default)
+    assert 50 < len(few_calls) < len(queries) - 50  # both paths taken, on both sides of the limit
+    counts = [len(dist) for dist, _ in array_path]
+    assert min(counts) == 0 and 0 < np.median(counts) and max(counts) > default
+    for (dist_a, cos_a), (dist_b, cos_b) in zip(array_path, mixed):
+        assert np.array_equal(dist_a, dist_b) and np.array_equal(cos_a, cos_b)

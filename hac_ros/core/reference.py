@@ -41,6 +41,7 @@ from hac_ros.core.numeric import median_1d, quantile_1d
 # The chain's balls advance geometrically by (1 + 2 tan θ): each ball then covers one cone segment
 # with about twice the segment's volume, a good trade between look-ups and excess points.
 _MIN_WINDOW_NEAR_REL = 1e-6  # a window never starts closer than this fraction of the map extent
+FEW_CANDIDATES = 48  # up to this many candidates a window query tests them on Python floats
 SAMPLE_POINTS = 16384  # points of the map kept for whole-map statistics (extent, floor offset)
 EXTENT_POINTS = 4096  # points of the sample whose 1st-99th percentiles give the extent
 OFFSET_BINS = 100  # histogram bins over the map's robust range along n
@@ -217,6 +218,8 @@ class MapIndex:
         v = self.tree.data[idx] - o
         dist = np.sqrt(np.einsum('ij,ij->i', v, v))
         along = v @ d
+        if total <= FEW_CANDIDATES:
+            return _few_in_window(dist.tolist(), along.tolist(), sizes, cos_min, near, bounds, far)
         lower = near * bounds[:-1]
         upper = near * bounds[1:]
         upper[-1] = np.nextafter(far, math.inf)  # the window's end is included
@@ -230,6 +233,37 @@ class MapIndex:
 
 _EMPTY = np.empty(0)
 _EMPTY.flags.writeable = False
+
+
+def _few_in_window(dist: list[float], along: list[float], sizes: list[int], cos_min: float,
+                   near: float, bounds: np.ndarray, far: float) -> tuple[np.ndarray, np.ndarray]:
+    """:meth:`MapIndex._window_cone`'s selection of a few candidates, on Python floats.
+
+    dist, along: each candidate's distance from the ray's origin and its component along the ray
+    (SLAM units), ball after ball, ``sizes[k]`` from ball k; bounds: the chain's segment bounds for
+    a window starting at depth 1. The array path's very operations, one candidate at a time (so the
+    same results to the bit): for up to FEW_CANDIDATES candidates its dozen numpy calls cost more.
+    """
+    front = max(cos_min, 0.0)
+    depths = bounds.tolist()
+    last = len(sizes) - 1
+    dist_kept: list[float] = []
+    cos_kept: list[float] = []
+    start = 0
+    for ball, count in enumerate(sizes):
+        if not count:
+            continue
+        lower = near * depths[ball]
+        upper = math.nextafter(far, math.inf) if ball == last else near * depths[ball + 1]
+        for k in range(start, start + count):
+            r, a = dist[k], along[k]
+            if a > front * r and lower <= r < upper:
+                dist_kept.append(r)
+                cos_kept.append(a / r)
+        start += count
+    if not dist_kept:
+        return _EMPTY, _EMPTY
+    return np.array(dist_kept), np.array(cos_kept)
 
 
 @lru_cache(maxsize=64)
