@@ -296,21 +296,21 @@ class CoreFeeder:
             elif kind == 'cloud':
                 # the header here, the points on a pool thread: as hac_node (a cloud whose header
                 # does not decode is rejected at its place in the order, stamp -1)
+                built: Future
                 try:
                     cloud = parse_cloud_cdr(self.recording.to_cdr(raw, topic, log_ns))
                 except MessageError as exc:
-                    unread: Future = Future()
-                    unread.set_result(MapBuilt(-1, None, str(exc)))
-                    queue.append((topic, log_ns, raw, unread))
-                    maps_waiting += 1
-                    continue
-                # what the first frame on this map will ask: its overlap with the map before it
-                # (jobs start in order: the one before is running or done, never waiting for this
-                # one). Not the floor offset: read this far ahead, the ground normal is stale by
-                # the time the map is used (the contact plane is refitted every second; measured:
-                # no offset computed ahead was ever used), so it would only be extra work.
-                last_map = pool.submit(index_after, cloud, build_index, last_map)
-                queue.append((topic, log_ns, raw, last_map))
+                    built = Future()
+                    built.set_result(MapBuilt(-1, None, str(exc)))
+                else:
+                    # what the first frame on this map will ask: its overlap with the map before
+                    # it (jobs start in order: the one before is running or done, never waiting
+                    # for this one). Not the floor offset: read this far ahead, the ground normal
+                    # is stale by the time the map is used (the contact plane is refitted every
+                    # second; measured: no offset computed ahead was ever used), so it would only
+                    # be extra work.
+                    built = last_map = pool.submit(index_after, cloud, build_index, last_map)
+                queue.append((topic, log_ns, raw, built))
                 maps_waiting += 1
             else:
                 queue.append((topic, log_ns, raw, raw))
