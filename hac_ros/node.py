@@ -258,7 +258,7 @@ class MapBuilder:
                 if self._closed:
                     return
                 job = self._waiting.popleft()
-            result = build_map(job)
+            result = index_cloud(job.cloud, job.build_index, job.previous, job.normal)
             with self._cond:
                 if self._closed:
                     return
@@ -279,11 +279,6 @@ def lower_thread_priority(nice: int) -> bool:
     except OSError:
         return False
     return True
-
-
-def build_map(job: MapJob) -> MapBuilt:
-    """Decode and index one job's cloud (builder thread): :func:`hac_ros.inputs.index_cloud`."""
-    return index_cloud(job.cloud, job.build_index, job.previous, job.normal)
 
 
 # ---------------------------------------------------------------------------------------- the node
