@@ -60,7 +60,8 @@ def speed_reference(repeats: int = 7) -> dict[str, float]:
     """This machine's speed now, to compare runs made on different hosts or days: the median ms of
     a fixed pure-Python loop (1M additions) and of the literal cone median over 1M fixed points
     (one ray; numpy). The issue's targets were set where the literal method cost ~180 ms per
-    frame at 1M points (bench/core_speed.py measures that per frame)."""
+    frame at 1M points (bench/core_speed.py measures that per frame). Written out here, not
+    hac_ros.core.reference.literal_cone_median: a reference must not change when the package does."""
     import numpy as np
 
     rng = np.random.default_rng(0)

@@ -435,8 +435,9 @@ def main(argv: list[str] | None = None) -> int:
     result['machine'] = info
     path = RESULTS / f'{NAME}.json'
     previous = json.loads(path.read_text()) if path.exists() else {}
-    for kept in previous.get('runs', {}).values():  # runs recorded before runs named their machine:
-        old = previous.get('machine', {})  # the last one's machine; their commit: that one or older
+    # runs recorded before runs named their machine: the last one's, their commit that or older
+    old = previous.get('machine', {})
+    for kept in previous.get('runs', {}).values():
         kept.setdefault('machine', {**old, 'commit': f"<= {old.get('commit', '?')}"})
     key = f'echo_{args.map_points}' if args.echo else str(args.map_points)
     if args.input_qos != 'best_effort' and not args.echo:
