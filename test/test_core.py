@@ -615,3 +615,24 @@ def test_core_and_adapters_import_without_rclpy():
     code = ('import sys, hac_ros, hac_ros.core.calibrator, hac_ros.core.metrics, msg_adapters; '
             'assert "rclpy" not in sys.modules, "rclpy imported"')
     subprocess.run([sys.executable, '-c', code], check=True)
+
+
+def test_the_odometry_twist_in_plain_floats_matches_the_matrix_formula():
+    """MetricStage's twist (metric._velocities, plain floats) against R_bᵀ(p_b − p_a)/dt and
+    log(R_aᵀ R_b)/dt in numpy, for small, moderate and near-pi relative rotations and none."""
+    from scipy.spatial.transform import Rotation
+
+    from hac_ros.core.metric import _velocities
+    from hac_ros.core.transforms import rotation_log
+
+    rng = np.random.default_rng(5)
+    for angle in [0.0, 1e-10, 1e-4, 0.3, 2.0, 2.99, 3.05, math.pi - 1e-6]:
+        for _ in range(20):
+            R_a = Rotation.random(random_state=rng).as_matrix()
+            axis = rng.normal(size=3)
+            R_b = R_a @ Rotation.from_rotvec(angle * axis / np.linalg.norm(axis)).as_matrix()
+            p_a, p_b, dt = rng.normal(size=3), rng.normal(size=3), float(rng.uniform(0.01, 1.0))
+            linear, angular = _velocities(R_a, p_a, R_b, p_b, dt)
+            assert np.allclose(linear, R_b.T @ (p_b - p_a) / dt, rtol=1e-12, atol=1e-12)
+            assert np.allclose(angular, rotation_log(R_a.T @ R_b) / dt, rtol=1e-9, atol=1e-9)
+            assert np.isclose(np.linalg.norm(angular) * dt, angle, atol=1e-6)

@@ -112,7 +112,8 @@ class Calibrator:
         self._last_frame_ns = -1
         self._steps: deque[float] = deque(maxlen=JUMP_HISTORY)
         self._typical_speed, self._typical_age = 0.0, 0
-        self._bbox_lo = self._bbox_hi = None
+        # the camera centres' bounding box (SLAM units, map frame): lower and upper corners
+        self._bbox: tuple[list[float], list[float]] | None = None
         self._suspects: list[_Pose] = []
         self._diag_second: int | None = None
         # the anchor of each SLAM map and the last metric pose: what depends on the published scale
@@ -290,13 +291,18 @@ class Calibrator:
         out: list[Output] = []
         if self._poses:
             last = self._poses[-1]
-            delta = pose.c_map - last.c_map
-            step = math.sqrt(float(delta @ delta))
-            self._steps.append(step / max(pose.stamp_ns - last.stamp_ns, 1))  # speed per ns
+            self._steps.append(_distance(pose.c_map, last.c_map)
+                               / max(pose.stamp_ns - last.stamp_ns, 1))  # speed per ns
         self._poses.append(pose)
         self._pose_stamps.append(pose.stamp_ns)
-        self._bbox_lo = pose.c_map if self._bbox_lo is None else np.minimum(self._bbox_lo, pose.c_map)
-        self._bbox_hi = pose.c_map if self._bbox_hi is None else np.maximum(self._bbox_hi, pose.c_map)
+        c = pose.c_map.tolist()
+        if self._bbox is None:
+            self._bbox = (c, list(c))
+        else:
+            lo, hi = self._bbox
+            for axis in range(3):
+                lo[axis] = min(lo[axis], c[axis])
+                hi[axis] = max(hi[axis], c[axis])
         self.ground.add_camera(pose.R_wc)
         # frames before this stamp first, then this pose's odometry, then the frame of this stamp
         while self._pending and self._pending[0].stamp_ns < pose.stamp_ns:
@@ -315,16 +321,15 @@ class Calibrator:
         if not self._poses or len(self._steps) < JUMP_MIN_HISTORY:
             return False
         last = self._poses[-1]
-        delta = pose.c_map - last.c_map
-        step = math.sqrt(float(delta @ delta))
+        step = _distance(pose.c_map, last.c_map)
         speed = step / max(pose.stamp_ns - last.stamp_ns, 1)
         if self._typical_age <= 0:  # the median of recent speeds, refreshed every few poses
             self._typical_speed = median_1d(np.fromiter(self._steps, float, len(self._steps)))
             self._typical_age = TYPICAL_REFRESH_POSES
         self._typical_age -= 1
         typical = self._typical_speed
-        diagonal = self._bbox_hi - self._bbox_lo
-        extent = math.sqrt(float(diagonal @ diagonal))
+        assert self._bbox is not None  # set with the first accepted pose
+        extent = math.dist(*self._bbox)
         return speed > self.params.reset_jump_factor * typical and \
             step > self.params.reset_jump_min_rel * extent
 
@@ -359,7 +364,7 @@ class Calibrator:
         self._pose_stamps.clear()
         self._steps.clear()
         self._typical_age = 0
-        self._bbox_lo = self._bbox_hi = None
+        self._bbox = None
         if cause != 'map_overlap':
             self.map = None
             self._maps.clear()
@@ -459,13 +464,13 @@ class Calibrator:
         scale_now = self.scale if self.converged else None
         normal = self.ground.normal()
         candidates = candidate_joints(self.params.contact_mode, joints, R_wc, normal)
-        if candidates.size == 0:
+        if not candidates:
             return self._rejected_sample(stamp, person, 'behind_camera')
         visible = in_view(joints[candidates], self._K, *self._image_size)
         plane = self.ground.plane(self.map)
-        ratios = np.full(len(candidates), np.nan)
+        ratios = [math.nan] * len(candidates)  # d_A / d_S of each candidate, metres per SLAM unit
         from_map = [False] * len(candidates)
-        for k, j in enumerate(candidates.tolist()):
+        for k, j in enumerate(candidates):
             joint = joints[j]
             distance_metric = math.sqrt(float(joint @ joint))
             direction_map = R_wc @ (joint / distance_metric)
@@ -478,12 +483,14 @@ class Calibrator:
                     continue
             if math.isfinite(plane_distance):
                 ratios[k] = distance_metric / plane_distance
-        if not np.isfinite(ratios).any():
+        finite = [k for k, r in enumerate(ratios) if math.isfinite(r)]
+        if not finite:
             reason = 'no_map' if self.map is None and plane is None else 'no_reference'
             return self._rejected_sample(stamp, person, reason)
         sample = combine_ratios(self.params.contact_mode, ratios)
-        chosen = int(np.nanargmax(ratios)) if len(ratios) > 1 and \
-            self.params.contact_mode == 'max_ratio' else 0
+        chosen = 0
+        if len(ratios) > 1 and self.params.contact_mode == 'max_ratio':
+            chosen = max(finite, key=ratios.__getitem__)  # the first of equals, as nanargmax
         source = 'map' if from_map[chosen] else 'ground'
         if source == 'map':
             self.map_hits += 1
@@ -569,6 +576,11 @@ class Calibrator:
             return []
         self._diag_second = second
         return self._metric(self.pending_status(stamp_ns))
+
+
+def _distance(a: np.ndarray, b: np.ndarray) -> float:
+    """Euclidean distance of two (3,) points (plain floats: one call per pose)."""
+    return math.dist(a.tolist(), b.tolist())
 
 
 def _base_from_camera(base_to_camera: list[float]) -> tuple[np.ndarray, np.ndarray]:

@@ -9,6 +9,8 @@ hits, so every ratio is at most the true scale and the largest is the contact. `
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from hac_ros.core.numeric import median_1d
@@ -19,41 +21,43 @@ FIXED_JOINTS = {'feet': (LEFT_FOOT, RIGHT_FOOT), 'pelvis': (PELVIS,), 'head': (H
 
 
 def candidate_joints(mode: str, joints_cam: np.ndarray, R_wc: np.ndarray,
-                     normal_map: np.ndarray | None) -> np.ndarray:
+                     normal_map: np.ndarray | None) -> list[int]:
     """Indices of the joints whose rays are queried for one person.
 
     joints_cam: (24, 3) metres, camera optical frame, finite, the person in front of the camera.
     R_wc: (3, 3) camera to map. normal_map: (3,) down-pointing ground normal in the map, or None.
-    Only joints in front of the camera (z > 0) are candidates.
+    Only joints in front of the camera (z > 0) are candidates. Plain Python over the 24 joints:
+    numpy's per-call cost dominates at this size.
     """
-    in_front = joints_cam[:, 2] > 0.0
+    depth = joints_cam[:, 2].tolist()
     if mode in FIXED_JOINTS:
-        idx = np.array(FIXED_JOINTS[mode])
-        return idx[in_front[idx]]
+        return [j for j in FIXED_JOINTS[mode] if depth[j] > 0.0]
     if mode == 'max_ratio':
-        return np.flatnonzero(in_front)
+        return [j for j, z in enumerate(depth) if z > 0.0]
     if mode == 'lowest_gravity' and normal_map is not None:
-        height_down = joints_cam @ (R_wc.T @ normal_map)  # along gravity, camera-centred
+        height_down = (joints_cam @ (R_wc.T @ normal_map)).tolist()  # along gravity, camera-centred
     else:  # 'lowest' (and lowest_gravity before a normal exists)
-        height_down = joints_cam[:, 1]
-    height_down = np.where(in_front, height_down, -np.inf)
-    best = int(np.argmax(height_down))
-    return np.array([best]) if in_front[best] else np.array([], dtype=int)
+        height_down = joints_cam[:, 1].tolist()
+    best, lowest = -1, -math.inf
+    for j, z in enumerate(depth):
+        if z > 0.0 and (best < 0 or height_down[j] > lowest):  # the first of equals, as argmax
+            best, lowest = j, height_down[j]
+    return [best] if best >= 0 else []
 
 
-def combine_ratios(mode: str, ratios: np.ndarray) -> float:
-    """One person's scale from the per-joint ratios d_A / d_S (metres per SLAM unit).
+def combine_ratios(mode: str, ratios: list[float]) -> float:
+    """One person's scale from the per-joint ratios d_A / d_S (metres per SLAM unit, NaN: none).
 
     max_ratio: the maximum (authors' code); fixed multi-joint sets (feet): the median; one joint: it.
     """
-    if ratios.size == 1:
+    if len(ratios) == 1:
         return float(ratios[0])
-    ratios = ratios[np.isfinite(ratios)]
-    if ratios.size == 0:
+    finite = [r for r in ratios if math.isfinite(r)]
+    if not finite:
         return float('nan')
     if mode == 'max_ratio':
-        return float(ratios.max())
-    return median_1d(ratios)
+        return max(finite)
+    return median_1d(np.array(finite))
 
 
 def in_view(joints_cam: np.ndarray, K: np.ndarray | None, width: int, height: int) -> list[bool]:

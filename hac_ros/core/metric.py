@@ -172,15 +172,13 @@ class MetricStage:
         if self.base_from_camera is not None:
             R_cb, t_cb = self.base_from_camera  # base pose in the camera frame
             R_out, p_out = R_metric @ R_cb, p_metric + R_metric @ t_cb
-        linear = np.zeros(3)
-        angular = np.zeros(3)
+        linear, angular = np.zeros(3), np.zeros(3)
         if last is not None and last[0] < stamp:
             dt = (stamp - last[0]) / NS
             R_prev, p_prev = last[1], last[2]
             if self.base_from_camera is not None:
                 R_prev, p_prev = R_prev @ R_cb, p_prev + R_prev @ t_cb
-            linear = R_out.T @ (p_out - p_prev) / dt
-            angular = rotation_log(R_prev.T @ R_out) / dt
+            linear, angular = _velocities(R_prev, p_prev, R_out, p_out, dt)
         # position uncertainty from the scale's: sigma_s * |metric lever arm per unit scale|
         # (a scale without a known error, e.g. a given one before any sample: the floor alone)
         cov = self._covariance_floor.copy()
@@ -188,6 +186,38 @@ class MetricStage:
             lever = self.anchor.rotation @ (pending.c_map - self.anchor.centre_slam)
             cov[:3, :3] += sigma_scale ** 2 * (lever[:, None] * lever)
         return [OdometryOut(stamp, pending.child_frame_id, R_out, p_out, cov, linear, angular)]
+
+
+def _velocities(R_a: np.ndarray, p_a: np.ndarray, R_b: np.ndarray, p_b: np.ndarray,
+                dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """Twist from pose a to pose b, dt seconds apart, in b's frame: linear (3,) m/s
+    ``R_bᵀ (p_b − p_a) / dt`` and angular (3,) rad/s ``log(R_aᵀ R_b) / dt``.
+
+    R_a, R_b: (3, 3) child frame to metric frame; p_a, p_b: (3,) metres, metric frame. Plain
+    Python floats: every published pose pays for this, and numpy's per-call cost dominates 3x3
+    algebra (the same values as numpy to rounding: numpy's products may use fused multiply-adds).
+    """
+    a0, a1, a2, a3, a4, a5, a6, a7, a8 = R_a.ravel().tolist()
+    b0, b1, b2, b3, b4, b5, b6, b7, b8 = R_b.ravel().tolist()
+    x, y, z = (p_b - p_a).tolist()
+    linear = np.array([(b0 * x + b3 * y + b6 * z) / dt, (b1 * x + b4 * y + b7 * z) / dt,
+                       (b2 * x + b5 * y + b8 * z) / dt])
+    # M = R_aᵀ R_b: the trace and the skew part are all rotation_log reads
+    m00 = a0 * b0 + a3 * b3 + a6 * b6
+    m11 = a1 * b1 + a4 * b4 + a7 * b7
+    m22 = a2 * b2 + a5 * b5 + a8 * b8
+    m01 = a0 * b1 + a3 * b4 + a6 * b7
+    m10 = a1 * b0 + a4 * b3 + a7 * b6
+    m02 = a0 * b2 + a3 * b5 + a6 * b8
+    m20 = a2 * b0 + a5 * b3 + a8 * b6
+    m12 = a1 * b2 + a4 * b5 + a7 * b8
+    m21 = a2 * b1 + a5 * b4 + a8 * b7
+    angle = math.acos(min(max((m00 + m11 + m22 - 1.0) * 0.5, -1.0), 1.0))
+    if angle > 3.0:  # near pi the closed form is ill-conditioned
+        return linear, rotation_log(R_a.T @ R_b) / dt
+    factor = 0.5 if angle < 1e-8 else angle / (2.0 * math.sin(angle))
+    factor /= dt
+    return linear, np.array([(m21 - m12) * factor, (m02 - m20) * factor, (m10 - m01) * factor])
 
 
 def finite_scale(value: float | None) -> float | None:

@@ -167,6 +167,28 @@ class MapIndex:
         origin_map: (3,) camera centre, SLAM units, map frame; direction_map: (3,) unit ray
         direction, map frame; window: (near, far) SLAM units along the ray, or None for all depths.
         """
+        dist, cos = self._cone(origin_map, direction_map, cos_min, window)
+        return np.asarray(dist, dtype=np.float64), np.asarray(cos, dtype=np.float64)
+
+    def query(self, origin_map: np.ndarray, direction_map: np.ndarray, *, mode: str,
+              cos_min: float, min_points: int,
+              window: tuple[float, float] | None = None) -> RayHit | None:
+        """``d_S`` along one ray (SPEC step 3) or None for "no hit"."""
+        dist, cos = self._cone(origin_map, direction_map, cos_min, window)
+        count = len(dist)
+        if count < min_points or count == 0:
+            return None
+        if isinstance(dist, list):  # a few points (_few_in_window): plain Python, same values
+            if mode == 'nearest_to_ray':
+                return RayHit(dist[cos.index(max(cos))], count)
+            return RayHit(_median_of_list(dist), count)
+        if mode == 'nearest_to_ray':
+            return RayHit(float(dist[int(np.argmax(cos))]), count)
+        return RayHit(median_1d(dist), count)
+
+    def _cone(self, origin_map: np.ndarray, direction_map: np.ndarray, cos_min: float,
+              window: tuple[float, float] | None) -> tuple[np.ndarray | list[float], np.ndarray | list[float]]:
+        """:meth:`cone_distances` as arrays, or as lists when a window holds few candidates."""
         if self.size == 0:
             return _EMPTY, _EMPTY
         o = np.asarray(origin_map, dtype=np.float64)
@@ -181,24 +203,14 @@ class MapIndex:
             return dist[keep], cos[keep]
         return self._window_cone(o, d, cos_min, window)
 
-    def query(self, origin_map: np.ndarray, direction_map: np.ndarray, *, mode: str,
-              cos_min: float, min_points: int,
-              window: tuple[float, float] | None = None) -> RayHit | None:
-        """``d_S`` along one ray (SPEC step 3) or None for "no hit"."""
-        dist, cos = self.cone_distances(origin_map, direction_map, cos_min, window)
-        if dist.size < min_points or dist.size == 0:
-            return None
-        if mode == 'nearest_to_ray':
-            return RayHit(float(dist[int(np.argmax(cos))]), int(dist.size))
-        return RayHit(median_1d(dist), int(dist.size))
-
     def _window_cone(self, o: np.ndarray, d: np.ndarray, cos_min: float,
-                     window: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
+                     window: tuple[float, float]) -> tuple[np.ndarray | list[float], np.ndarray | list[float]]:
         """The cone's points between window[0] and window[1], found with a chain of balls.
 
         Ball k covers the depth segment [bounds[k], bounds[k+1]) of the cone (the last one up to
         ``far`` included); the balls overlap, so a point is kept only from the ball whose segment
-        holds its depth: no sort, no duplicates.
+        holds its depth: no sort, no duplicates. Up to FEW_CANDIDATES candidates, the result is two
+        lists (:func:`_few_in_window`).
         """
         assert self.tree is not None
         near = max(window[0], _MIN_WINDOW_NEAR_REL * max(self.extent, 1e-300))
@@ -236,13 +248,14 @@ _EMPTY.flags.writeable = False
 
 
 def _few_in_window(dist: list[float], along: list[float], sizes: list[int], cos_min: float,
-                   near: float, bounds: np.ndarray, far: float) -> tuple[np.ndarray, np.ndarray]:
+                   near: float, bounds: np.ndarray, far: float) -> tuple[list[float], list[float]]:
     """:meth:`MapIndex._window_cone`'s selection of a few candidates, on Python floats.
 
     dist, along: each candidate's distance from the ray's origin and its component along the ray
     (SLAM units), ball after ball, ``sizes[k]`` from ball k; bounds: the chain's segment bounds for
     a window starting at depth 1. The array path's very operations, one candidate at a time (so the
     same results to the bit): for up to FEW_CANDIDATES candidates its dozen numpy calls cost more.
+    Returns the kept points' distances and cosines as lists.
     """
     front = max(cos_min, 0.0)
     depths = bounds.tolist()
@@ -261,9 +274,16 @@ def _few_in_window(dist: list[float], along: list[float], sizes: list[int], cos_
                 dist_kept.append(r)
                 cos_kept.append(a / r)
         start += count
-    if not dist_kept:
-        return _EMPTY, _EMPTY
-    return np.array(dist_kept), np.array(cos_kept)
+    return dist_kept, cos_kept
+
+
+def _median_of_list(values: list[float]) -> float:
+    """The median of a non-empty list of floats, as :func:`median_1d` gives it (the same value)."""
+    ordered = sorted(values)
+    half = len(ordered) // 2
+    if len(ordered) % 2:
+        return ordered[half]
+    return 0.5 * (ordered[half - 1] + ordered[half])
 
 
 @lru_cache(maxsize=64)
