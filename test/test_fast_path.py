@@ -142,7 +142,7 @@ def test_the_tree_over_points_sorted_by_cell_finds_the_same_points():
 
 def test_a_window_query_with_few_candidates_keeps_the_same_points_to_the_bit(monkeypatch):
     """Up to FEW_CANDIDATES candidates the window query selects them on Python floats
-    (_few_in_window): the same distances and cosines, bit for bit and in the same order, as the
+    (_few_in_window): the same distances and cosines (and hits), bit for bit and in the same order, as the
     array path, for windows that hold none, a few and many points, near the cone's edge and at the
     window's ends."""
     from hac_ros.core import reference
@@ -164,6 +164,15 @@ def test_a_window_query_with_few_candidates_keeps_the_same_points_to_the_bit(mon
         monkeypatch.setattr(reference, 'FEW_CANDIDATES', few)
         return [index.cone_distances(origin, d, c, window) for d, c, window in queries]
 
+    def hits(few: int) -> list[tuple[float, int] | None]:
+        monkeypatch.setattr(reference, 'FEW_CANDIDATES', few)
+        found = []
+        for d, c, window in queries:
+            for mode in ('cone_median', 'nearest_to_ray'):
+                hit = index.query(origin, d, mode=mode, cos_min=c, min_points=1, window=window)
+                found.append(None if hit is None else (hit.distance, hit.points))
+        return found
+
     few_calls = []
     select = reference._few_in_window
     monkeypatch.setattr(reference, '_few_in_window',
@@ -175,3 +184,5 @@ def test_a_window_query_with_few_candidates_keeps_the_same_points_to_the_bit(mon
     assert min(counts) == 0 and 0 < np.median(counts) and max(counts) > default
     for (dist_a, cos_a), (dist_b, cos_b) in zip(array_path, mixed):
         assert np.array_equal(dist_a, dist_b) and np.array_equal(cos_a, cos_b)
+    # and the hits: the median (or nearest) of the few path's lists is the array path's, to the bit
+    assert hits(0) == hits(default)
