@@ -636,3 +636,5 @@ def test_the_odometry_twist_in_plain_floats_matches_the_matrix_formula():
             assert np.allclose(linear, R_b.T @ (p_b - p_a) / dt, rtol=1e-12, atol=1e-12)
             assert np.allclose(angular, rotation_log(R_a.T @ R_b) / dt, rtol=1e-9, atol=1e-9)
             assert np.isclose(np.linalg.norm(angular) * dt, angle, atol=1e-6)
+            # and the rotation vector itself (rotation_log's closed form and scipy's beyond 3 rad)
+            assert np.allclose(angular * dt, angle * axis / np.linalg.norm(axis), atol=1e-6)

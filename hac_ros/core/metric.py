@@ -26,7 +26,7 @@ from hac_ros.core.ground import Plane
 from hac_ros.core.numeric import NS
 from hac_ros.core.outputs import (DiagnosticsOut, HumanJointsOut, OdometryOut, Output, ScaleOut,
                                   Status)
-from hac_ros.core.transforms import Anchor, rotation_log
+from hac_ros.core.transforms import Anchor, rotation_log_entries
 
 POSITION_VARIANCE_FLOOR = 1e-6  # m², keeps the published covariance positive definite
 
@@ -202,22 +202,11 @@ def _velocities(R_a: np.ndarray, p_a: np.ndarray, R_b: np.ndarray, p_b: np.ndarr
     x, y, z = (p_b - p_a).tolist()
     linear = np.array([(b0 * x + b3 * y + b6 * z) / dt, (b1 * x + b4 * y + b7 * z) / dt,
                        (b2 * x + b5 * y + b8 * z) / dt])
-    # M = R_aᵀ R_b: the trace and the skew part are all rotation_log reads
-    m00 = a0 * b0 + a3 * b3 + a6 * b6
-    m11 = a1 * b1 + a4 * b4 + a7 * b7
-    m22 = a2 * b2 + a5 * b5 + a8 * b8
-    m01 = a0 * b1 + a3 * b4 + a6 * b7
-    m10 = a1 * b0 + a4 * b3 + a7 * b6
-    m02 = a0 * b2 + a3 * b5 + a6 * b8
-    m20 = a2 * b0 + a5 * b3 + a8 * b6
-    m12 = a1 * b2 + a4 * b5 + a7 * b8
-    m21 = a2 * b1 + a5 * b4 + a8 * b7
-    angle = math.acos(min(max((m00 + m11 + m22 - 1.0) * 0.5, -1.0), 1.0))
-    if angle > 3.0:  # near pi the closed form is ill-conditioned
-        return linear, rotation_log(R_a.T @ R_b) / dt
-    factor = 0.5 if angle < 1e-8 else angle / (2.0 * math.sin(angle))
-    factor /= dt
-    return linear, np.array([(m21 - m12) * factor, (m02 - m20) * factor, (m10 - m01) * factor])
+    # M = R_aᵀ R_b, row-major
+    m = [a0 * b0 + a3 * b3 + a6 * b6, a0 * b1 + a3 * b4 + a6 * b7, a0 * b2 + a3 * b5 + a6 * b8,
+         a1 * b0 + a4 * b3 + a7 * b6, a1 * b1 + a4 * b4 + a7 * b7, a1 * b2 + a4 * b5 + a7 * b8,
+         a2 * b0 + a5 * b3 + a8 * b6, a2 * b1 + a5 * b4 + a8 * b7, a2 * b2 + a5 * b5 + a8 * b8]
+    return linear, rotation_log_entries(*m) / dt
 
 
 def finite_scale(value: float | None) -> float | None:

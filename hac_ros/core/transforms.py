@@ -81,13 +81,19 @@ def rotation_angle(R_a: np.ndarray, R_b: np.ndarray) -> float:
 
 def rotation_log(R: np.ndarray) -> np.ndarray:
     """Rotation vector (3,) rad of R (closed form; scipy beyond 3 rad where it is ill-conditioned)."""
-    a, b, c, d, e, f, g, h, i = np.asarray(R, dtype=float).ravel().tolist()
+    return rotation_log_entries(*np.asarray(R, dtype=float).ravel().tolist())
+
+
+def rotation_log_entries(a: float, b: float, c: float, d: float, e: float, f: float, g: float,
+                         h: float, i: float) -> np.ndarray:
+    """:func:`rotation_log` of the rotation matrix with these entries (row-major, plain floats),
+    for a caller that computed them in plain floats."""
     angle = math.acos(min(max((a + e + i - 1.0) * 0.5, -1.0), 1.0))
     skew = np.array([h - f, c - g, d - b])
     if angle < 1e-8:
         return 0.5 * skew
     if angle > 3.0:
-        return Rotation.from_matrix(R).as_rotvec()
+        return Rotation.from_matrix([[a, b, c], [d, e, f], [g, h, i]]).as_rotvec()
     return skew * (angle / (2.0 * math.sin(angle)))
 
 
