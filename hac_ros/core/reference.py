@@ -36,7 +36,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from hac_ros.core.kdtree import build_tree
-from hac_ros.core.numeric import median_1d, quantile_1d
+from hac_ros.core.numeric import median_1d, median_of_list, quantile_1d
 
 # The chain's balls advance geometrically by (1 + 2 tan θ): each ball then covers one cone segment
 # with about twice the segment's volume, a good trade between look-ups and excess points.
@@ -181,7 +181,7 @@ class MapIndex:
         if isinstance(dist, list):  # a few points (_few_in_window): plain Python, same values
             if mode == 'nearest_to_ray':
                 return RayHit(dist[cos.index(max(cos))], count)
-            return RayHit(_median_of_list(dist), count)
+            return RayHit(median_of_list(dist), count)
         if mode == 'nearest_to_ray':
             return RayHit(float(dist[int(np.argmax(cos))]), count)
         return RayHit(median_1d(dist), count)
@@ -275,15 +275,6 @@ def _few_in_window(dist: list[float], along: list[float], sizes: list[int], cos_
                 cos_kept.append(a / r)
         start += count
     return dist_kept, cos_kept
-
-
-def _median_of_list(values: list[float]) -> float:
-    """The median of a non-empty list of floats, as :func:`median_1d` gives it (the same value)."""
-    ordered = sorted(values)
-    half = len(ordered) // 2
-    if len(ordered) % 2:
-        return ordered[half]
-    return 0.5 * (ordered[half - 1] + ordered[half])
 
 
 @lru_cache(maxsize=64)
