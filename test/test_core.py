@@ -453,6 +453,45 @@ def test_a_contact_refit_waits_for_the_next_read_and_gives_the_same_normal():
     assert normals[0] == normals[1]
 
 
+def test_next_normal_is_the_normal_read_without_running_what_is_due():
+    """GroundModel.next_normal (the node's hint for the floor offset) is the normal the next frame
+    uses once nothing is due, in every mode that has an offset, and None where the offset is not
+    used (a known plane, largest_plane, none); reading it runs no due refit."""
+    scene = walking_scene(frames=60)
+    rng = np.random.default_rng(0)  # two contacts a frame, on the floor (world z = 0) around the walk
+    floor = scene.contact_world()[:, None, :] + np.c_[rng.uniform(-1, 1, (120, 2)), np.zeros(120)
+                                                     ].reshape(60, 2, 3)
+    contacts = scene.to_slam(floor.reshape(-1, 3)).reshape(60, 2, 3)
+    for mode in ('hmr', 'slam_y', 'largest_plane', 'none'):
+        ground = GroundModel(mode, 0.05, 100)
+        assert ground.next_normal() is None or mode == 'slam_y'
+        refits_checked = 0
+        for t in range(60):
+            ground.add_camera(scene.R_wc_slam[t])
+            ground.add_body(scene.R_wc_slam[t], scene.joints_cam[t])
+            body = ground._body_cache
+            ground.next_normal()
+            assert ground._body_cache is body  # not refreshed by the hint
+            normal = ground.normal()
+            hint = ground.next_normal()
+            if mode in ('largest_plane', 'none') or normal is None:
+                assert hint is None
+            else:
+                assert hint is not None and hint.tobytes() == normal.tobytes()
+            for point in contacts[t]:
+                ground.add_contact(point, scene.true_scale)
+                if ground._refit_due is not None:  # due, not run by reading the hint
+                    before = ground._contact_normal
+                    assert ground.next_normal() is not None
+                    assert ground._refit_due is not None and ground._contact_normal is before
+                    refits_checked += 1
+        assert ground.is_refined() == (mode == 'hmr')
+        assert (refits_checked > 0) == (mode == 'hmr')
+    ground = GroundModel('hmr', 0.05, 100)
+    ground.set_known(Plane(np.array([0.0, 1.0, 0.0]), 1.0))
+    assert ground.next_normal() is None and ground.normal() is not None
+
+
 # ---------------------------------------------------------------------- resets
 def test_a_persistent_pose_jump_resets_and_odometry_stays_continuous():
     scene = walking_scene(frames=80, true_scale=2.0)

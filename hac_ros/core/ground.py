@@ -186,28 +186,16 @@ class GroundModel:
     def normal(self) -> np.ndarray | None:
         """The current down-pointing unit normal in the map frame, or None (not enough evidence)."""
         self._settle()
-        if self._known is not None:
-            return self._known.normal
-        if self.mode == 'slam_y':
-            return np.array([0.0, 1.0, 0.0])
-        if self.mode in ('hmr', 'largest_plane'):
-            if self.mode == 'hmr' and self._contact_normal is not None:
-                return self._contact_normal
-            return self._body_normal()
-        return None
+        return self._normal(refresh=True)
 
     def next_normal(self) -> np.ndarray | None:
         """The normal the next frame will most likely use (down-pointing unit, map frame), read
-        without side effects (:meth:`normal` may refresh the body normal; a refit that is due is
-        not run): a hint for computing the floor offset ahead, never for results. None when no
-        normal yet or no offset is used."""
+        without side effects (a refit that is due is not run, the body normal is not refreshed): a
+        hint for computing the floor offset ahead, never for results. None when no normal yet or
+        no offset is used (a known plane has its offset; largest_plane finds its own)."""
         if self._known is not None or self.mode in ('none', 'largest_plane'):
-            return None  # a known plane has its offset; largest_plane finds its own
-        if self.mode == 'slam_y':
-            return np.array([0.0, 1.0, 0.0])
-        if self._contact_normal is not None:
-            return self._contact_normal
-        return self._body_cache[1]
+            return None
+        return self._normal(refresh=False)
 
     def prefetch(self, map_index: MapIndex | None) -> None:
         """Do ahead what the next frame would otherwise wait for: a contact refit that is due, then
@@ -253,6 +241,19 @@ class GroundModel:
         if np.linalg.norm(down) > 0 and abs(normal @ down) > 0.3 * np.linalg.norm(down):
             return normal if normal @ down > 0 else -normal
         return normal if normal @ np.array(self._body_up_sum) <= 0 else -normal
+
+    def _normal(self, refresh: bool) -> np.ndarray | None:
+        """:meth:`normal` after the settling; ``refresh``: the body normal may be recomputed
+        (:meth:`_body_normal`), else its last value is read."""
+        if self._known is not None:
+            return self._known.normal
+        if self.mode == 'slam_y':
+            return np.array([0.0, 1.0, 0.0])
+        if self.mode in ('hmr', 'largest_plane'):
+            if self.mode == 'hmr' and self._contact_normal is not None:
+                return self._contact_normal
+            return self._body_normal() if refresh else self._body_cache[1]
+        return None
 
     def _body_normal(self) -> np.ndarray | None:
         """The bodies' axis, recomputed when the evidence grew by BODY_REFRESH_REL (so that the
