@@ -162,9 +162,12 @@ class Calibrator:
             out += self._follow_suspects(pose)
             if self._suspects:
                 return out + self._diagnostics(stamp_ns)
-        elif self._is_jump(pose):
-            self._suspects = [pose]
-            return out + self._diagnostics(stamp_ns)
+        else:
+            step = self._step(pose)
+            if self._is_jump(step):
+                self._suspects = [pose]
+                return out + self._diagnostics(stamp_ns)
+            return out + self._accept_pose(pose, step) + self._diagnostics(stamp_ns)
 
         out += self._accept_pose(pose)
         return out + self._diagnostics(stamp_ns)
@@ -287,12 +290,22 @@ class Calibrator:
         return self.params.base_frame or self._child_frame
 
     # ================================================================== poses
-    def _accept_pose(self, pose: _Pose) -> list[Output]:
+    def _step(self, pose: _Pose) -> tuple[float, float] | None:
+        """The camera's step from the last accepted pose (SLAM units) and its speed (SLAM units
+        per stamp ns); None before the first pose."""
+        if not self._poses:
+            return None
+        last = self._poses[-1]
+        step = _distance(pose.c_map, last.c_map)
+        return step, step / max(pose.stamp_ns - last.stamp_ns, 1)
+
+    def _accept_pose(self, pose: _Pose, step: tuple[float, float] | None = None) -> list[Output]:
+        """Take ``pose`` as the camera's next one; ``step``: its :meth:`_step`, if computed."""
         out: list[Output] = []
-        if self._poses:
-            last = self._poses[-1]
-            self._steps.append(_distance(pose.c_map, last.c_map)
-                               / max(pose.stamp_ns - last.stamp_ns, 1))  # speed per ns
+        if step is None:
+            step = self._step(pose)
+        if step is not None:
+            self._steps.append(step[1])
         self._poses.append(pose)
         self._pose_stamps.append(pose.stamp_ns)
         c = pose.c_map.tolist()
@@ -312,17 +325,15 @@ class Calibrator:
             out += self._process(self._pending.pop(0))
         return out
 
-    def _is_jump(self, pose: _Pose) -> bool:
+    def _is_jump(self, move: tuple[float, float] | None) -> bool:
         """A speed far above the recent ones, over a step that is a fraction of the trajectory.
 
-        Speeds (SLAM units per stamp second), not steps: keyframe-rate SLAMs publish irregularly,
-        and a long gap between two poses is not a jump.
+        move: the new pose's :meth:`_step`. Speeds (SLAM units per stamp second), not steps:
+        keyframe-rate SLAMs publish irregularly, and a long gap between two poses is not a jump.
         """
-        if not self._poses or len(self._steps) < JUMP_MIN_HISTORY:
+        if move is None or len(self._steps) < JUMP_MIN_HISTORY:
             return False
-        last = self._poses[-1]
-        step = _distance(pose.c_map, last.c_map)
-        speed = step / max(pose.stamp_ns - last.stamp_ns, 1)
+        step, speed = move
         if self._typical_age <= 0:  # the median of recent speeds, refreshed every few poses
             self._typical_speed = median_1d(np.fromiter(self._steps, float, len(self._steps)))
             self._typical_age = TYPICAL_REFRESH_POSES
