@@ -151,6 +151,7 @@ class Calibrator:
             self._child_frame = child_frame_id
         pose = _Pose(int(stamp_ns), R_wc, c_map)
 
+        step = None  # the pose's _step, when the jump test computed it
         if self._map_frame is None:
             self._map_frame = frame_id
         elif frame_id != self._map_frame:
@@ -167,9 +168,8 @@ class Calibrator:
             if self._is_jump(step):
                 self._suspects = [pose]
                 return out + self._diagnostics(stamp_ns)
-            return out + self._accept_pose(pose, step) + self._diagnostics(stamp_ns)
 
-        out += self._accept_pose(pose)
+        out += self._accept_pose(pose, step)
         return out + self._diagnostics(stamp_ns)
 
     def add_map(self, stamp_ns: int, points_map: np.ndarray, frame_id: str = '') -> list[Output]:
