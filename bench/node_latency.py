@@ -1,13 +1,15 @@
 #!/usr/bin/env python3
 """Node latency: joints in → world joints out over DDS, with a large map republished at 1 Hz.
 
-    python bench/node_latency.py [--map-points 100000] [--duration 20]
+    python bench/node_latency.py [--map-points 100000] [--duration 20] [--publishers one|split]
 
 ``hac_node`` runs in a subprocess with the installed defaults (config/hac.yaml: best-effort
 pose/joints, transient-local map, markers on). This process plays the simulator's ``walk`` live at
 30 Hz (SLAM pose, then the HMR joints of the same stamp, stamped with the wall clock) and
 republishes a map of N points every second (the walk's map resampled to N points, pre-serialized
-once, its stamp patched into the CDR bytes). Measured after a warm-up:
+once, its stamp patched into the CDR bytes). With ``--publishers split`` the joints come from a
+process of their own (bench/hmr_publisher.py), as from an HMR model beside the SLAM system: this
+process then plays the SLAM side (poses and map). Measured after a warm-up:
 
 - latency: from just before a joints message is published to the arrival of the
   ``/hac/human_joints`` of the same stamp (p50, p99, max), both ends in this process: in the
@@ -41,6 +43,7 @@ import signal  # noqa: E402
 import struct  # noqa: E402
 import subprocess  # noqa: E402
 import sys  # noqa: E402
+import tempfile  # noqa: E402
 import threading  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -73,6 +76,8 @@ DRAIN_S = 2.0  # after the last frame: wait for the last outputs
 STARTUP_S = 30.0
 NEAR_MAP_S = 0.3  # a frame sent within this long after a map publish is "near a map"
 TAKE_SETTLE_S = 0.3  # a published map is in the subscriber's queue after this long
+SPLIT_LEAD_S = 0.5  # split publishers: the first frame is due this long after the plan is sent
+HMR_DELAY_S = 0.002  # split publishers: the joints follow the pose of their stamp by this long
 MAP_JITTER_REL = 1e-3  # resampled map points move by this fraction of the map's extent
 TYPES = rclpy_types()
 CLK_TCK = os.sysconf('SC_CLK_TCK')
@@ -170,13 +175,14 @@ def executor_take_costs(raw: bytes, repeats: int = 5) -> dict[str, float]:
 class Bench:
     """The playing and recording side, in this process."""
 
-    def __init__(self, scenario: Any, map_raw: bytearray) -> None:
+    def __init__(self, scenario: Any, map_raw: bytearray, split: bool = False) -> None:
         rclpy.init()
         self.node = rclpy.create_node('hac_latency_bench')
         self.pose_pub = self.node.create_publisher(TYPES.get('geometry_msgs/msg/PoseStamped'),
                                                    '/slam/pose', INPUT_QOS)
-        self.joints_pub = self.node.create_publisher(TYPES.get('geometry_msgs/msg/PoseArray'),
-                                                     '/hmr/joints', INPUT_QOS)
+        # split: the joints come from a process of their own (bench/hmr_publisher.py)
+        self.joints_pub = None if split else self.node.create_publisher(
+            TYPES.get('geometry_msgs/msg/PoseArray'), '/hmr/joints', INPUT_QOS)
         self.map_pub = self.node.create_publisher(TYPES.get('sensor_msgs/msg/PointCloud2'),
                                                   '/slam/cloud', LATCHED)
         self.sent: dict[int, int] = {}  # joints stamp -> perf_counter_ns just before publishing
@@ -213,7 +219,7 @@ class Bench:
 
     def node_is_up(self) -> bool:
         return (self.pose_pub.get_subscription_count() > 0 and
-                self.joints_pub.get_subscription_count() > 0 and
+                (self.joints_pub is None or self.joints_pub.get_subscription_count() > 0) and
                 self.map_pub.get_subscription_count() > 0 and
                 self.node.count_publishers('/hac/human_joints') > 0)
 
@@ -227,10 +233,14 @@ class Bench:
         while not self.stop.wait(MAP_PERIOD_S):
             self.publish_map()
 
+    def frame_count(self, seconds: float) -> int:
+        sc = self.scenario
+        return min(len(sc.pose_stamps_ns), len(sc.joints_stamps_ns), int(seconds * RATE_HZ))
+
     def play(self, seconds: float) -> tuple[int, int]:
         """Frames at RATE_HZ for ``seconds`` of wall time; returns (first, end) perf_counter_ns."""
         sc = self.scenario
-        frames = min(len(sc.pose_stamps_ns), len(sc.joints_stamps_ns), int(seconds * RATE_HZ))
+        frames = self.frame_count(seconds)
         poses = [rt_to_pose_stamped(sc.slam_R_wc[i], sc.slam_c[i], 0, self.map_frame, TYPES)
                  for i in range(frames)]
         joints = [joints_to_pose_array(np.asarray(sc.joints_cam[i]), 0, sc.camera_frame, TYPES)
@@ -250,6 +260,36 @@ class Bench:
             self.sent[stamp] = time.perf_counter_ns()
             self.joints_pub.publish(joints[i])
         return begin, time.perf_counter_ns()
+
+    def play_split(self, seconds: float, hmr: subprocess.Popen) -> None:
+        """The SLAM side of a split run: poses at RATE_HZ, the joints of the same stamps from
+        ``hmr`` (bench/hmr_publisher.py, ready), HMR_DELAY_S after each pose; the joints' publish
+        instants are read back from it into ``sent`` and ``sent_wall``."""
+        sc = self.scenario
+        frames = self.frame_count(seconds)
+        poses = [rt_to_pose_stamped(sc.slam_R_wc[i], sc.slam_c[i], 0, self.map_frame, TYPES)
+                 for i in range(frames)]
+        period = int(round(1e9 / RATE_HZ))
+        start_perf = time.perf_counter_ns() + int(SPLIT_LEAD_S * 1e9)
+        start_stamp = time.time_ns() + int(SPLIT_LEAD_S * 1e9)
+        plan = {'start_perf_ns': start_perf, 'start_stamp_ns': start_stamp, 'period_ns': period,
+                'delay_ns': int(HMR_DELAY_S * 1e9), 'frames': frames}
+        hmr.stdin.write(json.dumps(plan) + '\n')
+        hmr.stdin.flush()
+        for i in range(frames):
+            delay = (start_perf + i * period - time.perf_counter_ns()) / 1e9
+            if delay > 0:
+                time.sleep(delay)
+            msg = poses[i]
+            msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(start_stamp + i * period,
+                                                                    1_000_000_000)
+            self.pose_pub.publish(msg)
+        line = hmr.stdout.readline()
+        if not line:
+            raise RuntimeError('the HMR publisher ended without its report')
+        for stamp, perf_ns, wall_ns in json.loads(line)['sent']:
+            self.sent[stamp] = perf_ns
+            self.sent_wall[stamp] = wall_ns
 
     def close(self) -> None:
         self.stop.set()
@@ -284,14 +324,14 @@ except KeyboardInterrupt:
 
 
 def run(map_points: int, duration: float, echo: bool = False,
-        input_qos: str = 'best_effort') -> dict[str, Any]:
+        input_qos: str = 'best_effort', split: bool = False) -> dict[str, Any]:
     total = WARMUP_S + duration
     sc = make_scenario('walk', seed=0, duration=total + 1.0, hmr_bias=0.0)
     base_map = max(sc.maps, key=lambda m: len(m.points_slam))
     points = resample_map(np.asarray(base_map.points_slam, dtype=float), map_points)
     map_raw = bytearray(serialize_message(xyz_to_cloud(points, 0, base_map.frame_id, TYPES)))
     costs = ingest_costs(bytes(map_raw))
-    bench = Bench(sc, map_raw)
+    bench = Bench(sc, map_raw, split)
     costs.update(executor_take_costs(bytes(map_raw)))
 
     params = REPO / 'config' / 'hac.yaml'
@@ -301,12 +341,23 @@ def run(map_points: int, duration: float, echo: bool = False,
                 '-p', f'input_qos:={input_qos}'])
     node = subprocess.Popen(command, cwd=REPO, env=env, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
+    hmr = None
+    scratch = tempfile.TemporaryDirectory(prefix='hac_latency_')
     try:
         deadline = time.monotonic() + STARTUP_S
         while not bench.node_is_up():
             if time.monotonic() > deadline or node.poll() is not None:
                 raise RuntimeError('hac_node did not come up: ' + ' '.join(_stop(node)[1:]))
             time.sleep(0.05)
+        if split:
+            joints_file = Path(scratch.name) / 'joints.npy'
+            np.save(joints_file, np.stack([np.asarray(j, dtype=float) for j in
+                                           sc.joints_cam[:bench.frame_count(total)]]))
+            hmr = subprocess.Popen([sys.executable, str(REPO / 'bench' / 'hmr_publisher.py'),
+                                    str(joints_file), sc.camera_frame], cwd=REPO, env=env,
+                                   stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+            if json.loads(hmr.stdout.readline() or '{}').get('ready') is not True:
+                raise RuntimeError('the HMR publisher did not match the node\'s subscription')
         bench.publish_map()
         mapper = threading.Thread(target=bench.map_loop, daemon=True)
         mapper.start()
@@ -318,10 +369,13 @@ def run(map_points: int, duration: float, echo: bool = False,
             measure_from[0] = time.perf_counter_ns()
             t_cpu0, w_cpu0 = cpu_seconds(node.pid), time.perf_counter()
 
-        timer = threading.Timer(WARMUP_S, start_measuring)
+        timer = threading.Timer(WARMUP_S + (SPLIT_LEAD_S if split else 0.0), start_measuring)
         timer.start()
         own0 = time.process_time()
-        _, end = bench.play(total)
+        if split:
+            bench.play_split(total, hmr)
+        else:
+            bench.play(total)
         node_cpu = cpu_seconds(node.pid) - t_cpu0
         wall = time.perf_counter() - w_cpu0
         own_cpu = (time.process_time() - own0) / total
@@ -329,6 +383,9 @@ def run(map_points: int, duration: float, echo: bool = False,
     finally:
         bench.close()
         code, out, err = _stop(node)
+        if hmr is not None:
+            _stop(hmr)
+        scratch.cleanup()
     measured = {s: t for s, t in bench.sent.items() if t >= measure_from[0]}
     answered = [(s, t) for s, t in measured.items() if s in bench.received]
     latencies = np.array([(bench.received[s] - t) / 1e6 for s, t in answered])
@@ -342,6 +399,7 @@ def run(map_points: int, duration: float, echo: bool = False,
                 if k.startswith('rejected.')}
     result = {
         'node': 'echo (the rclpy + DDS floor)' if echo else 'hac_node',
+        'publishers': 'split' if split else 'one',
         'map_points': map_points, 'duration_s': duration, 'rate_hz': RATE_HZ,
         'frames_sent': len(measured), 'frames_answered': int(latencies.size),
         'frames_dropped': len(measured) - int(latencies.size),
@@ -390,8 +448,8 @@ def report(runs: dict[str, dict[str, Any]], info: dict[str, Any]) -> str:
         r = runs[key]
         lat, ing = r['latency_ms'], r['ingest_ms']
         reader = r.get('latency_at_reader_ms', {})
-        rows.append([r.get('node', 'hac_node'), r.get('input_qos', 'best_effort'),
-                     r.get('dds_profile') or 'built-in',
+        rows.append([r.get('node', 'hac_node'), r.get('publishers', 'one'),
+                     r.get('input_qos', 'best_effort'), r.get('dds_profile') or 'built-in',
                      f"{r['map_points']:,}", f"{r['duration_s']:.0f}",
                      r['frames_sent'],
                      r['frames_dropped'], lat['p50'], lat['p99'], lat['max'],
@@ -401,7 +459,7 @@ def report(runs: dict[str, dict[str, Any]], info: dict[str, Any]) -> str:
                      ing['decode_points_ms'], ing['index_build_ms'],
                      ing['take_raw_ms'] + ing['cdr_header_ms'], ing['take_deserialized_ms'],
                      ing['deserialize_message_ms'], run_machine(r.get('machine', {}))])
-    headers = ['node', 'input_qos', 'DDS transports', 'map points', 'seconds', 'frames', 'dropped',
+    headers = ['node', 'publishers', 'input_qos', 'DDS transports', 'map points', 'seconds', 'frames', 'dropped',
                'p50 ms', 'p99 ms', 'max ms', 'at the reader: p50 ms', 'p99 ms',
                f'p99 ms, < {NEAR_MAP_S:g} s after a map', 'p99 ms, other frames',
                'node CPU % of a core', 'builder: decode ms', 'builder: thin+index ms',
@@ -426,13 +484,18 @@ def report(runs: dict[str, dict[str, Any]], info: dict[str, Any]) -> str:
         'and `rclpy.serialization.deserialize_message` on the same bytes. The "echo" rows replace '
         'hac_node by a node that only republishes each joints message\'s bytes (raw '
         'subscriptions, same QoS): the latency rclpy and DDS alone cost on this machine, measured '
-        'the same way.', '',
+        'the same way. "publishers": `one` = this process publishes the map, the poses and the '
+        'joints (as a bridge replaying every input would, or a SLAM node that also publishes the '
+        'joints); `split` = the joints come from a process of their own (bench/hmr_publisher.py), '
+        'stamped as the pose of the same image and published '
+        f'{HMR_DELAY_S * 1e3:g} ms after it, as an HMR model beside a SLAM system.', '',
         table(headers, rows), '',
         'Rows keep their own run\'s machine: each command replaces only its row. The last run\'s:',
         machine_line(info),
         'Re-run: `python bench/node_latency.py --map-points 100000 --duration 60` and '
         '`--map-points 1000000 --duration 60` (add `--echo` for the floor, `--input-qos reliable` '
-        'for reliable joints delivery, `--dds-profile config/fastdds_large_data.xml` for the Fast '
+        'for reliable joints delivery, `--publishers split` for the joints from a process of '
+        'their own, `--dds-profile config/fastdds_large_data.xml` for the Fast '
         'DDS profile with a 64 MiB shared-memory segment, docs/node.md).',
     ])
 
@@ -446,6 +509,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--input-qos', choices=('best_effort', 'reliable'), default='best_effort',
                         help="hac_node's input_qos (config/hac.yaml: best_effort); the benchmark "
                         'publishes reliably, so reliable makes the joints delivery reliable')
+    parser.add_argument('--publishers', choices=('one', 'split'), default='one',
+                        help='one: this process publishes the map, the poses and the joints; '
+                        'split: the joints come from a process of their own '
+                        '(bench/hmr_publisher.py), as from an HMR model beside a SLAM system')
     parser.add_argument('--dds-profile', metavar='XML',
                         help='a Fast DDS profile loaded by this process and the node (e.g. '
                         'config/fastdds_large_data.xml); default: the built-in transports')
@@ -454,7 +521,8 @@ def main(argv: list[str] | None = None) -> int:
         profile = str(Path(args.dds_profile).resolve(strict=True))
         os.environ.update(dict.fromkeys(DDS_PROFILE_VARIABLES, profile))
     info = machine()  # before the run: its speed reference must not overlap the measurement
-    result = run(args.map_points, args.duration, args.echo, args.input_qos)
+    result = run(args.map_points, args.duration, args.echo, args.input_qos,
+                 args.publishers == 'split')
     result['input_qos'] = args.input_qos
     result['dds_profile'] = Path(args.dds_profile).name if args.dds_profile else ''
     result['machine'] = info
@@ -469,6 +537,8 @@ def main(argv: list[str] | None = None) -> int:
         key += f'_{args.input_qos}'
     if args.dds_profile:
         key += '_' + Path(args.dds_profile).stem
+    if args.publishers == 'split':
+        key += '_split'
     runs = {**previous.get('runs', {}), key: result}
     write_json(NAME, {'machine': info, 'runs': runs})
     markdown = report(runs, info)
