@@ -64,6 +64,7 @@ from hac_ros.core.params import HacParams  # noqa: E402
 from hac_ros.node import DDS_PROFILE_VARIABLES  # noqa: E402
 from msg_adapters.cdr import cloud_points, parse_cloud_cdr  # noqa: E402
 from hac_ros.simulate import make_scenario  # noqa: E402
+from hac_ros.spin_thread import SpinThread  # noqa: E402
 from msg_adapters import (joints_to_pose_array, rclpy_types, rt_to_pose_stamped,  # noqa: E402
                           xyz_to_cloud)
 
@@ -198,8 +199,7 @@ class Bench:
                                       '/diagnostics', self._on_diagnostics, OUTPUT_QOS)
         self.executor = SingleThreadedExecutor()
         self.executor.add_node(self.node)
-        self.spinner = threading.Thread(target=self.executor.spin, daemon=True)
-        self.spinner.start()
+        self.spinner = SpinThread(self.executor, 'hac_latency_spin')
         self.scenario = scenario
         self.map_raw = map_raw
         self.map_frame = scenario.slam_frame_ids[0]
@@ -293,7 +293,7 @@ class Bench:
 
     def close(self) -> None:
         self.stop.set()
-        self.executor.shutdown(timeout_sec=2.0)
+        self.spinner.close()
         self.node.destroy_node()
         rclpy.try_shutdown()
 

@@ -33,6 +33,7 @@ from hac_ros.core.outputs import HumanJointsOut, OdometryOut, ScaleOut  # noqa: 
 from hac_ros.core.params import HacParams, describe, names  # noqa: E402
 from hac_ros.node import HacNode, parameter_table, parse_cloud_cdr  # noqa: E402
 from hac_ros.simulate import make_scenario  # noqa: E402
+from hac_ros.spin_thread import SpinThread  # noqa: E402
 from msg_adapters import (cloud_to_xyz, intrinsics_to_camera_info, joints_to_pose_array,  # noqa: E402
                           pose_array_to_joints, pose_msg_to_rt, rclpy_types, rt_to_pose_stamped,
                           stamp_to_ns, xyz_from_buffer, xyz_to_cloud)
@@ -149,8 +150,7 @@ class Harness:
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
         self.executor.add_node(self.io)
-        self.thread = threading.Thread(target=self.executor.spin, daemon=True)
-        self.thread.start()
+        self.spinner = SpinThread(self.executor)
         self.clouds_published = 0
         assert wait_for(self._connected, 10.0), 'DDS discovery between the test and the node failed'
 
@@ -161,8 +161,7 @@ class Harness:
         return inputs and outputs
 
     def close(self) -> None:
-        self.executor.shutdown(timeout_sec=2.0)
-        self.thread.join(5.0)
+        self.spinner.close()
         self.node.destroy_node()
         self.io.destroy_node()
         rclpy.shutdown(context=self.context)
@@ -540,6 +539,40 @@ def test_docs_table_and_config_list_every_parameter_with_its_default():
     assert HacParams.from_yaml(config) == HacParams()
     listed = yaml.safe_load(config.read_text(encoding='utf-8'))['hac_node']['ros__parameters']
     assert list(listed) == names()
+
+
+def test_spin_thread_delivers_then_stops_before_its_executor_is_shut_down():
+    """hac_ros.spin_thread.SpinThread (the tests' and benchmarks' executor thread): callbacks run
+    on it; close() ends the thread and shuts the executor down; a context shut down elsewhere
+    ends the thread too."""
+    float64 = TYPES.get('std_msgs/msg/Float64')
+    context = Context()
+    rclpy.init(context=context)
+    try:
+        node = rclpy.create_node('hac_test_spin', context=context)
+        received: list[float] = []
+        node.create_subscription(float64, '/hac_test/spin', lambda m: received.append(m.data),
+                                 RELIABLE)
+        publisher = node.create_publisher(float64, '/hac_test/spin', RELIABLE)
+        executor = SingleThreadedExecutor(context=context)
+        executor.add_node(node)
+        spinner = SpinThread(executor)
+        assert wait_for(lambda: publisher.get_subscription_count() > 0, 10.0)
+        publisher.publish(float64(data=2.5))
+        assert wait_for(lambda: received == [2.5], 10.0)
+        assert spinner.close() and not spinner.alive
+        assert executor.get_nodes() == []  # shut down: its nodes released
+
+        second = SingleThreadedExecutor(context=context)
+        second.add_node(node)
+        other = SpinThread(second)
+        assert other.alive
+        node.destroy_node()
+        rclpy.shutdown(context=context)
+        assert wait_for(lambda: not other.alive, 10.0)
+        assert other.close()
+    finally:
+        rclpy.try_shutdown(context=context)
 
 
 def test_the_executable_spins_the_events_executor_unless_told_otherwise(monkeypatch):

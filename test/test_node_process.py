@@ -24,6 +24,7 @@ from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
 
 from hac_ros.node import DDS_PROFILE_VARIABLES  # noqa: E402
+from hac_ros.spin_thread import SpinThread  # noqa: E402
 
 from test_node import (FRAME_PERIOD_S, INPUTS, LATCHED, OUTPUTS, RELIABLE, SCALE_TOL,  # noqa: E402
                        TYPES, scenario_recording, wait_for)
@@ -66,8 +67,6 @@ class Client:
     """The test side: input publishers, output recorders, one executor thread."""
 
     def __init__(self) -> None:
-        import threading
-
         self.context = Context()
         rclpy.init(context=self.context)
         self.io = rclpy.create_node('hac_process_test', context=self.context)
@@ -80,16 +79,14 @@ class Client:
                                         lambda m, t=topic: self.received[t].append(m), RELIABLE)
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.io)
-        self.thread = threading.Thread(target=self.executor.spin, daemon=True)
-        self.thread.start()
+        self.spinner = SpinThread(self.executor)
 
     def node_is_up(self) -> bool:
         return all(pub.get_subscription_count() > 0 for pub in self.publishers.values()) and \
             all(self.io.count_publishers(topic) > 0 for topic in OUTPUTS)
 
     def close(self) -> None:
-        self.executor.shutdown(timeout_sec=2.0)
-        self.thread.join(5.0)
+        self.spinner.close()
         self.io.destroy_node()
         rclpy.shutdown(context=self.context)
 

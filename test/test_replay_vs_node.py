@@ -7,7 +7,6 @@ the same order. The node's /hac/odometry and /hac/human_joints must equal the re
 """
 from __future__ import annotations
 
-import threading
 import time
 from pathlib import Path
 from typing import Any, Callable
@@ -25,6 +24,7 @@ from rclpy.serialization import deserialize_message  # noqa: E402
 
 from hac_ros.node import HacNode  # noqa: E402
 from hac_ros.replay import replay, tie_ordered  # noqa: E402
+from hac_ros.spin_thread import SpinThread  # noqa: E402
 from msg_adapters import pose_array_to_joints, pose_msg_to_rt, rclpy_types, stamp_to_ns  # noqa: E402
 from scenes import walking_scene  # noqa: E402
 from test_replay import write_recording  # noqa: E402
@@ -83,8 +83,7 @@ def play_to_node(recording: Path) -> dict[str, list[Any]]:
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(node)
     executor.add_node(io)
-    thread = threading.Thread(target=executor.spin, daemon=True)
-    thread.start()
+    spinner = SpinThread(executor)
     try:
         with AnyReader([recording]) as reader:
             inputs = {'/slam/pose', '/hmr/joints', '/slam/cloud', '/camera/camera_info'}
@@ -119,8 +118,7 @@ def play_to_node(recording: Path) -> dict[str, list[Any]]:
         while not quiet():
             time.sleep(0.3)
     finally:
-        executor.shutdown(timeout_sec=2.0)
-        thread.join(5.0)
+        spinner.close()
         node.calibrator = counting._inner
         node.destroy_node()
         io.destroy_node()
