@@ -33,6 +33,7 @@ bench: $(STAMP)
 	$(PY) bench/replay_throughput.py
 	$(PY) bench/node_latency.py --map-points 100000
 	$(PY) bench/node_latency.py --map-points 1000000
+	$(PY) bench/node_latency.py --map-points 1000000 --publishers split
 	$(PY) bench/node_memory.py
 
 clean:
