@@ -237,16 +237,20 @@ class Bench:
         sc = self.scenario
         return min(len(sc.pose_stamps_ns), len(sc.joints_stamps_ns), int(seconds * RATE_HZ))
 
-    def play(self, seconds: float) -> tuple[int, int]:
-        """Frames at RATE_HZ for ``seconds`` of wall time; returns (first, end) perf_counter_ns."""
+    def pose_messages(self, frames: int) -> list[Any]:
+        """The first ``frames`` SLAM poses as PoseStamped messages (stamps set when published)."""
+        sc = self.scenario
+        return [rt_to_pose_stamped(sc.slam_R_wc[i], sc.slam_c[i], 0, self.map_frame, TYPES)
+                for i in range(frames)]
+
+    def play(self, seconds: float) -> None:
+        """Frames at RATE_HZ for ``seconds`` of wall time, poses and joints from this process."""
         sc = self.scenario
         frames = self.frame_count(seconds)
-        poses = [rt_to_pose_stamped(sc.slam_R_wc[i], sc.slam_c[i], 0, self.map_frame, TYPES)
-                 for i in range(frames)]
+        poses = self.pose_messages(frames)
         joints = [joints_to_pose_array(np.asarray(sc.joints_cam[i]), 0, sc.camera_frame, TYPES)
                   for i in range(frames)]
         start = time.perf_counter()
-        begin = time.perf_counter_ns()
         for i in range(frames):
             delay = start + i / RATE_HZ - time.perf_counter()
             if delay > 0:
@@ -259,16 +263,13 @@ class Bench:
             self.sent_wall[stamp] = time.time_ns()
             self.sent[stamp] = time.perf_counter_ns()
             self.joints_pub.publish(joints[i])
-        return begin, time.perf_counter_ns()
 
     def play_split(self, seconds: float, hmr: subprocess.Popen) -> None:
         """The SLAM side of a split run: poses at RATE_HZ, the joints of the same stamps from
         ``hmr`` (bench/hmr_publisher.py, ready), HMR_DELAY_S after each pose; the joints' publish
         instants are read back from it into ``sent`` and ``sent_wall``."""
-        sc = self.scenario
         frames = self.frame_count(seconds)
-        poses = [rt_to_pose_stamped(sc.slam_R_wc[i], sc.slam_c[i], 0, self.map_frame, TYPES)
-                 for i in range(frames)]
+        poses = self.pose_messages(frames)
         period = int(round(1e9 / RATE_HZ))
         start_perf = time.perf_counter_ns() + int(SPLIT_LEAD_S * 1e9)
         start_stamp = time.time_ns() + int(SPLIT_LEAD_S * 1e9)
@@ -459,8 +460,8 @@ def report(runs: dict[str, dict[str, Any]], info: dict[str, Any]) -> str:
                      ing['decode_points_ms'], ing['index_build_ms'],
                      ing['take_raw_ms'] + ing['cdr_header_ms'], ing['take_deserialized_ms'],
                      ing['deserialize_message_ms'], run_machine(r.get('machine', {}))])
-    headers = ['node', 'publishers', 'input_qos', 'DDS transports', 'map points', 'seconds', 'frames', 'dropped',
-               'p50 ms', 'p99 ms', 'max ms', 'at the reader: p50 ms', 'p99 ms',
+    headers = ['node', 'publishers', 'input_qos', 'DDS transports', 'map points', 'seconds',
+               'frames', 'dropped', 'p50 ms', 'p99 ms', 'max ms', 'at the reader: p50 ms', 'p99 ms',
                f'p99 ms, < {NEAR_MAP_S:g} s after a map', 'p99 ms, other frames',
                'node CPU % of a core', 'builder: decode ms', 'builder: thin+index ms',
                'executor: raw take + header ms', 'executor: typed take ms (not used)',
