@@ -8,7 +8,6 @@ checkout before it was added) a 20-second ``walk`` recording is simulated into a
 """
 from __future__ import annotations
 
-import argparse
 import shutil
 import tempfile
 import time
@@ -87,14 +86,3 @@ def demo(out_dir: Path, recording: str | None = None) -> int:
             print(f'figure {name}: {path}')
     print(f'\ndemo done in {time.perf_counter() - start:.1f} s; results in {out_dir}/')
     return 0
-
-
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument('--recording', metavar='IN',
-                        help=f'recording to use instead of {DEMO_RECORDING}')
-    parser.add_argument('-o', '--out-dir', metavar='DIR', default='out',
-                        help='where the results go (default out/; earlier demo results replaced)')
-
-
-def run(args: argparse.Namespace) -> int:
-    return demo(Path(args.out_dir), args.recording)

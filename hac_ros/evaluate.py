@@ -8,35 +8,27 @@ Three rows, so that a number has something to be compared with:
   any scale estimate could do with these SLAM poses and HMR joints.
 
 The two reference rows run the core once on IN with its metric outputs deferred and resolve them
-with each reference scale (:mod:`hac_ros.core.metric`), so that resets are anchored as in OUT. Metrics (SPEC, "Metrics"; implemented in
-:mod:`hac_ros.core.metrics`): ATE and ATE-S (m, camera centres, Sim(3) / SE(3) alignment, mean),
-W-MPJPE and WA-MPJPE (mm, 100-frame chunks), RTE (%), PA-MPJPE (mm), and the scale error (%) of
-the final estimate and of every frame against the truth of that moment.
+with each reference scale (:mod:`hac_ros.core.metric`), so that resets are anchored as in OUT.
+Metrics (SPEC, "Metrics"; implemented in :mod:`hac_ros.core.metrics`): ATE and ATE-S (m, camera
+centres, Sim(3) / SE(3) alignment, mean), W-MPJPE and WA-MPJPE (mm, 100-frame chunks), RTE (%),
+PA-MPJPE (mm), and the scale error (%) of the final estimate and of every frame against the truth
+of that moment.
 """
 from __future__ import annotations
 
-import argparse
-import json
 import math
-import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from hac_ros.core.errors import HacError
+from hac_ros.core import metrics
 from hac_ros.core.outputs import HumanJointsOut, OdometryOut, Output, ScaleOut
 from hac_ros.core.params import HacParams
-from hac_ros.messages import SAMPLE_FIELDS, SAMPLES
-from hac_ros.replay import (GT_CAMERA, GT_JOINTS, GT_SCALE, CoreFeeder, InputTopics, Recording,
-                            load_params)
+from hac_ros.recording import (CameraTrack, JointsTrack, Recording, Replayed, ScaleTrack, Truth,
+                               read_output, read_truth)
 
-ODOMETRY_TOPIC = '/hac/odometry'
-JOINTS_TOPIC = '/hac/human_joints'
-SCALE_TOPIC = '/hac/scale'
-DIAGNOSTICS_TOPIC = '/diagnostics'
-JOINTS_PER_PERSON = 24
 ROOT_JOINT = 0  # pelvis (SMPL-24)
 # Outputs carry the input stamps exactly and the ground truth is at the same stamps; 1 ms absorbs
 # a recording whose ground truth was stamped by another clock rounding.
@@ -52,166 +44,6 @@ COLUMNS = (  # key, header, format
     ('scale_error_pct', 'scale err. final (%)', '.2f'),
     ('scale_error_frames_pct', 'scale err. per frame (%)', '.2f'),
 )
-
-
-# ============================================================================ data
-@dataclass
-class CameraTrack:
-    """stamps_ns (T,) int; positions (T, 3) metres (or SLAM units), world/metric frame;
-    rotations (T, 3, 3) camera to that frame."""
-
-    stamps_ns: np.ndarray
-    positions: np.ndarray
-    rotations: np.ndarray
-
-    def __len__(self) -> int:
-        return len(self.stamps_ns)
-
-
-@dataclass
-class JointsTrack:
-    """stamps_ns (F,) int; joints[f]: (P_f, 24, 3) metres, world/metric frame (P_f people)."""
-
-    stamps_ns: np.ndarray
-    joints: list[np.ndarray]
-
-    def __len__(self) -> int:
-        return len(self.stamps_ns)
-
-
-@dataclass
-class ScaleTrack:
-    """stamps_ns (S,) int; values (S,) metres per SLAM unit."""
-
-    stamps_ns: np.ndarray
-    values: np.ndarray
-
-    def __len__(self) -> int:
-        return len(self.stamps_ns)
-
-    def at(self, stamps_ns: np.ndarray) -> np.ndarray:
-        """As a step function (the latest value at or before each stamp; the first before it)."""
-        if not len(self.stamps_ns):
-            return np.full(len(stamps_ns), np.nan)
-        idx = np.searchsorted(self.stamps_ns, np.asarray(stamps_ns, dtype=np.int64), side='right') - 1
-        return self.values[np.clip(idx, 0, len(self.values) - 1)]
-
-
-@dataclass
-class Samples:
-    """Per-person scale samples of each frame (/hac/samples): stamps_ns, person, scale (metres per
-    SLAM unit, NaN when rejected), source (0 map, 1 ground, 2 rejected), accepted (bool)."""
-
-    stamps_ns: np.ndarray
-    person: np.ndarray
-    scale: np.ndarray
-    source: np.ndarray
-    accepted: np.ndarray
-
-
-@dataclass
-class Replayed:
-    """What a replay wrote: metric camera, world joints, scale, diagnostics and samples."""
-
-    odometry: CameraTrack
-    joints: JointsTrack
-    scale: ScaleTrack
-    diagnostics: list[tuple[int, dict[str, str]]]
-    samples: Samples | None
-
-
-@dataclass
-class Truth:
-    """Ground truth of a recording (any part may be missing)."""
-
-    camera: CameraTrack | None
-    joints: JointsTrack | None
-    scale: ScaleTrack | None
-
-
-def _empty_camera() -> CameraTrack:
-    return CameraTrack(np.zeros(0, dtype=np.int64), np.zeros((0, 3)), np.zeros((0, 3, 3)))
-
-
-def read_camera(recording: Recording, topic: str) -> CameraTrack:
-    """PoseStamped or Odometry messages of ``topic`` as a camera track (header stamps)."""
-    from msg_adapters import pose_msg_to_rt, stamp_to_ns
-
-    stamps, positions, rotations = [], [], []
-    for _, msg in recording.read(topic):
-        R, c = pose_msg_to_rt(msg)
-        stamps.append(stamp_to_ns(msg.header.stamp))
-        rotations.append(R)
-        positions.append(c)
-    if not stamps:
-        return _empty_camera()
-    return CameraTrack(np.asarray(stamps, dtype=np.int64), np.asarray(positions, dtype=float),
-                       np.asarray(rotations, dtype=float))
-
-
-def read_joints(recording: Recording, topic: str) -> JointsTrack:
-    """PoseArray messages of ``topic``: (P, 24, 3) joints per header stamp."""
-    from msg_adapters import MessageError, pose_array_to_joints, stamp_to_ns
-
-    stamps, joints = [], []
-    for _, msg in recording.read(topic):
-        try:
-            people = np.asarray(pose_array_to_joints(msg), dtype=float).reshape(-1, JOINTS_PER_PERSON, 3)
-        except MessageError:
-            continue
-        stamps.append(stamp_to_ns(msg.header.stamp))
-        joints.append(people)
-    return JointsTrack(np.asarray(stamps, dtype=np.int64), joints)
-
-
-def read_scale(recording: Recording, topic: str) -> ScaleTrack:
-    """std_msgs/Float64 messages of ``topic`` at their log times."""
-    items = recording.read(topic)
-    return ScaleTrack(np.asarray([t for t, _ in items], dtype=np.int64),
-                      np.asarray([float(m.data) for _, m in items], dtype=float))
-
-
-def read_output(path: str | Path) -> Replayed:
-    """Read a recording written by ``hac replay``."""
-    with Recording(path) as rec:
-        if not rec.has(DIAGNOSTICS_TOPIC) and not rec.has(ODOMETRY_TOPIC):
-            raise HacError(f'{path} is not a recording written by hac replay (no {ODOMETRY_TOPIC} '
-                           f'or {DIAGNOSTICS_TOPIC}); it contains: {rec.describe()}')
-        odometry = read_camera(rec, ODOMETRY_TOPIC) if rec.has(ODOMETRY_TOPIC) else _empty_camera()
-        joints = (read_joints(rec, JOINTS_TOPIC) if rec.has(JOINTS_TOPIC)
-                  else JointsTrack(np.zeros(0, dtype=np.int64), []))
-        scale = (read_scale(rec, SCALE_TOPIC) if rec.has(SCALE_TOPIC)
-                 else ScaleTrack(np.zeros(0, dtype=np.int64), np.zeros(0)))
-        diagnostics = []
-        if rec.has(DIAGNOSTICS_TOPIC):
-            for log_ns, msg in rec.read(DIAGNOSTICS_TOPIC):
-                for status in msg.status:
-                    diagnostics.append((log_ns, {kv.key: kv.value for kv in status.values}))
-        samples = read_samples(rec) if rec.has(SAMPLES[0]) else None
-    return Replayed(odometry, joints, scale, diagnostics, samples)
-
-
-def read_samples(recording: Recording) -> Samples:
-    stamps, rows = [], []
-    for log_ns, msg in recording.read(SAMPLES[0]):
-        data = np.asarray(msg.data, dtype=float).reshape(-1, SAMPLE_FIELDS)
-        stamps.extend([log_ns] * len(data))
-        rows.append(data)
-    table = np.vstack(rows) if rows else np.zeros((0, SAMPLE_FIELDS))
-    return Samples(np.asarray(stamps, dtype=np.int64), table[:, 0].astype(int), table[:, 1],
-                   table[:, 2].astype(int), table[:, 3] > 0.5)
-
-
-def read_truth(path: str | Path) -> Truth:
-    """/gt/camera_pose, /gt/human_joints and /gt/scale of a recording (whichever it has)."""
-    with Recording(path) as rec:
-        camera = read_camera(rec, GT_CAMERA[0]) if rec.has(*GT_CAMERA) else None
-        joints = read_joints(rec, GT_JOINTS[0]) if rec.has(*GT_JOINTS) else None
-        scale = read_scale(rec, GT_SCALE[0]) if rec.has(*GT_SCALE) else None
-        if camera is None and joints is None and scale is None:
-            raise HacError(f'{path} has no ground truth ({GT_CAMERA[0]}, {GT_JOINTS[0]}, '
-                           f'{GT_SCALE[0]}); it contains: {rec.describe()}')
-    return Truth(camera, joints, scale)
 
 
 # ============================================================================ reference rows
@@ -236,7 +68,7 @@ class _Collector:
                                  np.array([o.position_metric for o in self.odometry]),
                                  np.array([o.rotation_metric for o in self.odometry]))
         else:
-            camera = _empty_camera()
+            camera = CameraTrack.empty()
         joints = JointsTrack(np.array([o.stamp_ns for o in self.joints], dtype=np.int64),
                              [o.joints_metric for o in self.joints])
         scale = ScaleTrack(np.array([o.stamp_ns for o in self.scale], dtype=np.int64),
@@ -246,7 +78,8 @@ class _Collector:
 
 def reference_runs(gt_path: str | Path, params: HacParams, truth: Truth) -> dict[str, Replayed]:
     """'no calibration' (scale 1) and 'true scale' (/gt/scale) through the core on IN."""
-    runs: dict[str, Replayed] = {}
+    from hac_ros.replay import deferred_run
+
     scales: dict[str, Any] = {'no calibration': lambda stamp_ns: 1.0}
     if truth.scale is not None and len(truth.scale):
         true_scale = truth.scale
@@ -254,13 +87,11 @@ def reference_runs(gt_path: str | Path, params: HacParams, truth: Truth) -> dict
     with Recording(gt_path) as rec:
         # one run with the metric outputs deferred, resolved once per reference scale
         # (hac_ros.core.metric: the same outputs as a run per scale)
-        feeder = CoreFeeder(rec, InputTopics.check(rec, params), params)
-        feeder.calibrator.defer = True
-        deferred: list[Any] = []
-        feeder.run(deferred.extend)
+        calibrator, deferred = deferred_run(rec, params)
+    runs: dict[str, Replayed] = {}
     for name, output_scale in scales.items():
         collect = _Collector()
-        collect(feeder.calibrator.metric.fresh().resolve(deferred, output_scale))
+        collect(calibrator.metric.fresh().resolve(deferred, output_scale))
         runs[name] = collect.as_replayed()
     return runs
 
@@ -268,9 +99,7 @@ def reference_runs(gt_path: str | Path, params: HacParams, truth: Truth) -> dict
 # ============================================================================ metrics
 def match(a_ns: np.ndarray, b_ns: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Indices (ia, ib) of stamps that agree within :data:`MATCH_TOLERANCE_NS`."""
-    from hac_ros.core.metrics import associate_stamps
-
-    ia, ib = associate_stamps(np.asarray(a_ns, dtype=np.int64), np.asarray(b_ns, dtype=np.int64),
+    ia, ib = metrics.associate_stamps(np.asarray(a_ns, dtype=np.int64), np.asarray(b_ns, dtype=np.int64),
                               MATCH_TOLERANCE_NS)
     return np.asarray(ia, dtype=int), np.asarray(ib, dtype=int)
 
@@ -297,8 +126,6 @@ def _weighted(values: list[tuple[float, int]]) -> float:
 
 def row_metrics(run: Replayed, truth: Truth) -> dict[str, float]:
     """SPEC's metrics of one row against the truth (NaN where an input is missing)."""
-    from hac_ros.core import metrics
-
     out: dict[str, float] = {k: math.nan for k, _, _ in COLUMNS}
     out['camera_frames'] = 0
     out['joints_frames'] = 0
@@ -392,29 +219,3 @@ def evaluate(output_path: str | Path, gt_path: str | Path, params: HacParams | N
     if truth.camera is not None:
         frames['ground-truth poses'] = len(truth.camera)
     return Evaluation(str(output_path), str(gt_path), rows, true_scale, frames)
-
-
-# ============================================================================ command line
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument('output', metavar='OUT', help='a recording written by hac replay')
-    parser.add_argument('--gt', metavar='IN', required=True,
-                        help='the recording with ground truth (/gt/camera_pose, /gt/human_joints, '
-                        '/gt/scale), normally the replay\'s input')
-    parser.add_argument('--json', metavar='F', help='also write the rows as JSON to F')
-    parser.add_argument('--md', metavar='F', help='also write the table as Markdown to F')
-    parser.add_argument('--params', metavar='FILE',
-                        help='the parameters file the replay used (for the reference rows)')
-    parser.add_argument('--no-references', action='store_true',
-                        help='skip the "no calibration" and "true scale" rows (they re-run the core)')
-
-
-def run(args: argparse.Namespace) -> int:
-    params = load_params(args.params, {})
-    result = evaluate(args.output, args.gt, params, references=not args.no_references)
-    print(result.text())
-    if args.json:
-        Path(args.json).write_text(json.dumps(result.as_dict(), indent=2) + '\n', encoding='utf-8')
-    if args.md:
-        Path(args.md).write_text(result.markdown() + '\n', encoding='utf-8')
-    sys.stdout.flush()
-    return 0

@@ -1,15 +1,17 @@
-"""Input messages into the calibrator, for the node and the replay.
+"""Input messages into the calibrator, the same way for the node and the replay.
 
 SLAM poses and HMR joints come as CDR bytes (a raw subscription's, or a recording's), CameraInfo as
 a message object (rclpy's or rosbags'), so that the same message gives the same calibrator call
 online and replayed. Map clouds come as CDR bytes too: the shell reads the header
-(``parse_cloud_cdr``) where the message arrives and :func:`index_cloud` decodes and indexes the
-points on a worker thread. A message that does not decode is a counted rejection with its kind's
-reason (stamp −1 when its stamp could not be read).
+(``parse_cloud_cdr``) where the message arrives and a :class:`MapBuilder` decodes and indexes the
+points on a worker thread; the shell hands each :class:`MapBuilt` to the calibrator on its own
+thread, in order. A message that does not decode is a counted rejection with its kind's reason
+(stamp −1 when its stamp could not be read).
 """
 from __future__ import annotations
 
 import time
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any, Callable
 
@@ -18,9 +20,8 @@ import numpy as np
 from hac_ros.core.calibrator import Calibrator
 from hac_ros.core.outputs import Output
 from hac_ros.core.reference import MapIndex
-from msg_adapters import (MessageError, RawPose, camera_info_to_intrinsics, parse_joints_cdr,
-                          parse_pose_cdr, stamp_to_ns)
-from msg_adapters.cdr import RawCloud, cloud_points
+from msg_adapters import (MessageError, RawCloud, RawPose, camera_info_to_intrinsics, cloud_points,
+                          parse_joints_cdr, parse_pose_cdr, stamp_to_ns)
 
 # Calibrator.build_index: (stamp_ns, points_map (N, 3) SLAM units, frame_id) -> MapIndex
 IndexBuilder = Callable[[int, Any, str], MapIndex]
@@ -64,29 +65,51 @@ def add_camera_info_msg(calibrator: Calibrator, msg: Any
 @dataclass
 class MapBuilt:
     """A map index ready for the calibrator, or the reason its cloud could not be decoded
-    (index None: the shell rejects it as ``cloud_malformed`` at ``stamp_ns``, −1 if unread)."""
+    (index None: rejected as ``cloud_malformed`` at ``stamp_ns``, −1 if unread)."""
 
     stamp_ns: int
     index: MapIndex | None
     error: str = ''
     build_s: float = 0.0  # wall seconds spent decoding and indexing
 
+    def hand_to(self, calibrator: Calibrator) -> list[Output]:
+        """Give the map to ``calibrator`` (on the thread that owns it), or count the rejection."""
+        if self.index is None:
+            return calibrator.reject('cloud_malformed', self.stamp_ns)
+        return calibrator.add_map_index(self.index)
 
-def index_cloud(cloud: RawCloud, build_index: IndexBuilder, previous: MapIndex | None = None,
-                normal: np.ndarray | None = None) -> MapBuilt:
-    """Decode one cloud's points and index them with the calibrator's own (thread-safe)
-    ``build_index``, then compute ahead what the first frame on the map will likely ask
-    (:meth:`MapIndex.prepare` with ``previous``, the map in use when the cloud arrived, and
-    ``normal``, (3,) the ground normal then: results unchanged, only computed earlier).
 
-    For a worker thread: touches no calibrator state. Points: (N, 3) float64, SLAM units, the
-    cloud's (map) frame.
-    """
+def index_cloud(cloud: RawCloud, build_index: IndexBuilder) -> MapBuilt:
+    """Decode one cloud's points ((N, 3) float64, SLAM units, the cloud's map frame) and index
+    them with the calibrator's own ``build_index`` (thread-safe: it touches no calibrator state)."""
     start = time.perf_counter()
     try:
         points_map = cloud_points(cloud)
     except MessageError as exc:
         return MapBuilt(cloud.stamp_ns, None, str(exc), time.perf_counter() - start)
     index = build_index(cloud.stamp_ns, points_map, cloud.frame_id)
-    index.prepare(previous, normal)
     return MapBuilt(cloud.stamp_ns, index, '', time.perf_counter() - start)
+
+
+class MapBuilder:
+    """Decodes and indexes map clouds on worker threads, off the thread that feeds the calibrator.
+
+    :meth:`submit` returns the Future of a :class:`MapBuilt`; the shell hands the results to the
+    calibrator on its own thread in the order it submitted them (the replay waits for each at its
+    place in the recording, the node takes each as soon as it is done). scipy builds the k-d tree
+    without the GIL, so a large map does not stall the frames. ``thread_init`` runs once on each
+    worker thread when it starts.
+    """
+
+    def __init__(self, build_index: IndexBuilder, workers: int = 1,
+                 thread_init: Callable[[], Any] | None = None) -> None:
+        self._build_index = build_index
+        self._pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix='hac_map',
+                                        initializer=thread_init)
+
+    def submit(self, cloud: RawCloud) -> Future:
+        return self._pool.submit(index_cloud, cloud, self._build_index)
+
+    def close(self) -> None:
+        """Drop the clouds not started, wait for the ones being built."""
+        self._pool.shutdown(wait=True, cancel_futures=True)

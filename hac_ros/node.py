@@ -7,16 +7,15 @@ forwards every message to the calibrator with its header stamp, and publishes ex
 "Processing order", and ``docs/node.md``.
 
 Threads. Everything that touches the calibrator runs on the executor's thread. The only other
-thread is the map builder: a map cloud arrives as raw CDR bytes, its header is read on the executor
-thread (microseconds), and decoding the points, building the :class:`MapIndex` (k-d tree) and
-computing ahead what the first frame on the new map asks of it (:meth:`MapIndex.prepare`: the
-overlap with the map in use, the floor offset along the current ground normal) happen on the
-builder thread, so a 1M-point map does not stall the frames. The finished index is handed to
-the calibrator on the executor's thread (a 10 ms timer takes it, MAP_POLL_S). The builder runs at
-nice BUILDER_NICE, so frames take the CPU from it. **While a map is being built,
-frames use the latest map already handed over** (the previous one); the new map is used from the
-first frame processed after it is ready whose stamp is not before the map's stamp. This is the one
-place where the node may differ from ``hac replay``, which always has the map at its stamp.
+thread is the map builder (:class:`hac_ros.inputs.MapBuilder`, as in the replay): a map cloud
+arrives as raw CDR bytes, its header is read on the executor thread (microseconds), and decoding
+the points and building the :class:`MapIndex` (k-d tree) happen on the builder thread, so a
+1M-point map does not stall the frames. The finished index is handed to the calibrator on the
+executor's thread (a 10 ms timer takes it, MAP_POLL_S). The builder runs at nice BUILDER_NICE, so
+frames take the CPU from it. **While a map is being built, frames use the latest map already
+handed over** (the previous one); the new map is used from the first frame processed after it is
+ready whose stamp is not before the map's stamp. This is the one place where the node may differ
+from ``hac replay``, which always has the map at its stamp.
 
 Run: ``ros2 run hac_ros hac_node --ros-args --params-file config/hac.yaml`` or
 ``python -m hac_ros.node --ros-args ...``.
@@ -28,12 +27,11 @@ import sys
 import threading
 import traceback
 from collections import Counter, deque
-from dataclasses import dataclass
+from concurrent.futures import Future
 from typing import Any, Callable, Sequence
 
 import rclpy
-from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
-                                ParameterType, SetParametersResult)
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.exceptions import (InvalidParameterTypeException, InvalidParameterValueException,
                               ParameterException)
@@ -48,11 +46,11 @@ from hac_ros.core.errors import ParameterError
 from hac_ros.core.outputs import NoticeOut, OdometryOut, Output, ResetOut
 from hac_ros.core.params import NODE_NAME, POSE_MSGTYPES, HacParams, describe, names
 from hac_ros.core.reference import MapIndex
+from hac_ros.inputs import MapBuilder, add_camera_info_msg, add_joints_cdr, add_pose_cdr
 from hac_ros.messages import OUTPUT_TOPICS, OutputMessages
-from hac_ros.inputs import (IndexBuilder, MapBuilt, add_camera_info_msg, add_joints_cdr,
-                            add_pose_cdr, index_cloud)
-from msg_adapters import MessageError, rclpy_types
-from msg_adapters.cdr import RawCloud, parse_cloud_cdr
+from hac_ros.node_parameters import (RESUBSCRIBE, ROS_OWN_PARAMETERS, SHELL_ONLY,
+                                     parameter_descriptor)
+from msg_adapters import MessageError, RawCloud, parse_cloud_cdr, rclpy_types
 
 TYPES = rclpy_types()  # rclpy's message classes by ROS name
 GIL_SWITCH_INTERVAL_S = 0.0005  # see main()
@@ -69,98 +67,11 @@ DIAGNOSTICS_DEPTH = 10
 
 # ---------------------------------------------------------------------------------------- maps
 MAPS_WAITING_MAX = 8  # accumulate mode: clouds waiting for the builder (older ones are dropped)
-BUILDER_JOIN_S = 5.0  # how long shutdown waits for a map being built
 # The builder thread's nice value (Linux: per thread). A frame that arrives while a map is being
 # built then takes the CPU from the builder at once; the build only takes longer when the CPU is
 # busy. Not SCHED_IDLE: a builder starved while holding the GIL would stall the frames
 # (measured: docs/benchmarks.md, node latency).
 BUILDER_NICE = 19
-
-# ---------------------------------------------------------------------------------------- parameters
-# ROS types `window_s: 30` (YAML, `ros2 param set`) as an integer and would refuse it for a double;
-# dynamic typing lets it through, and HacParams converts integers and rejects anything else
-# (also the range, which ROS checks only for double values).
-INTEGERS_FOR_DOUBLES = True
-ROS_OWN_PARAMETERS = frozenset({'use_sim_time', 'start_type_description_service'})  # every node's
-
-# What a runtime change does (docs/node.md, "Parameters at runtime"):
-# - these re-create the named subscriptions (topics and QoS cannot change on a live subscription);
-RESUBSCRIBE: dict[str, tuple[str, ...]] = {
-    'pose_topic': ('pose',), 'pose_type': ('pose',), 'joints_topic': ('joints',),
-    'camera_info_topic': ('camera_info',), 'cloud_topic': ('cloud',), 'cloud_qos': ('cloud',),
-    'input_qos': ('pose', 'joints', 'camera_info'),
-}
-# - these only change what the shell publishes (the calibrator does not read them);
-SHELL_ONLY = frozenset({'metric_frame', 'publish_markers', 'publish_tf'})
-# - every other parameter is an estimator parameter: the calibrator is rebuilt with the new values
-#   (its estimate restarts; the current map and CameraInfo are handed to the new one).
-RUNTIME_NOTE = {**{name: 're-subscribes' for name in RESUBSCRIBE},
-                **{name: 'takes effect at once' for name in SHELL_ONLY}}
-ESTIMATOR_NOTE = 'rebuilds the estimator (estimate restarts)'
-
-
-def runtime_effect(name: str) -> str:
-    """What changing parameter ``name`` at runtime does (for descriptors and docs)."""
-    return RUNTIME_NOTE.get(name, ESTIMATOR_NOTE)
-
-
-def parameter_descriptor(name: str) -> ParameterDescriptor:
-    """The ParameterDescriptor of one HacParams field: type, description, range or choices."""
-    info = describe(name)
-    default = info['default']
-    descriptor = ParameterDescriptor(
-        name=name, description=f"{info['description']} [at runtime: {runtime_effect(name)}]")
-    if isinstance(default, bool):
-        descriptor.type = ParameterType.PARAMETER_BOOL
-    elif isinstance(default, int):
-        descriptor.type = ParameterType.PARAMETER_INTEGER
-        if info['low'] is not None and info['high'] is not None:
-            descriptor.integer_range = [IntegerRange(from_value=int(info['low']),
-                                                     to_value=int(info['high']), step=1)]
-    elif isinstance(default, float):
-        descriptor.type = ParameterType.PARAMETER_DOUBLE
-        descriptor.dynamic_typing = INTEGERS_FOR_DOUBLES
-        if info['low'] is not None and info['high'] is not None:
-            descriptor.floating_point_range = [FloatingPointRange(
-                from_value=float(info['low']), to_value=float(info['high']), step=0.0)]
-    elif isinstance(default, list):
-        descriptor.type = ParameterType.PARAMETER_DOUBLE_ARRAY
-        descriptor.dynamic_typing = INTEGERS_FOR_DOUBLES
-        descriptor.additional_constraints = f"exactly {info['length']} finite numbers"
-    else:
-        descriptor.type = ParameterType.PARAMETER_STRING
-    if info['choices']:
-        descriptor.additional_constraints = 'one of: ' + ', '.join(info['choices'])
-    return descriptor
-
-
-def parameter_table() -> str:
-    """The README-style markdown table of every parameter (docs/node.md holds exactly this)."""
-    def shown(value: Any) -> str:
-        if isinstance(value, bool):
-            return '`true`' if value else '`false`'
-        if isinstance(value, list):
-            return '`[' + ', '.join(f'{v:g}' for v in value) + ']`'
-        return '`""`' if value == '' else f'`{value}`'
-
-    rows = ['| name | default | allowed | at runtime | meaning |', '|---|---|---|---|---|']
-    for name in names():
-        info = describe(name)
-        if info['choices']:
-            allowed = ', '.join(f'`{c}`' for c in info['choices'])
-        elif info['low'] is not None:
-            allowed = f"{info['low']:g} … {info['high']:g}"
-        elif info['length']:
-            allowed = f"{info['length']} numbers"
-        elif isinstance(info['default'], bool):
-            allowed = '`true`, `false`'
-        else:
-            allowed = 'a string'
-        meaning = info['description'].replace('|', '/')
-        rows.append(f"| `{name}` | {shown(info['default'])} | {allowed} | {runtime_effect(name)} "
-                    f"| {meaning} |")
-    return '\n'.join(rows)
-
 
 def input_qos(params: HacParams) -> QoSProfile:
     """Pose, joints and CameraInfo: best effort (matches every publisher) or reliable."""
@@ -191,80 +102,6 @@ def qos_hint(kind: str, policy: str) -> str:
 
 
 # ---------------------------------------------------------------------------------------- map builder
-@dataclass
-class MapJob:
-    """One cloud to decode and index, and what to compute ahead for it (MapIndex.prepare)."""
-
-    cloud: RawCloud
-    build_index: IndexBuilder
-    previous: MapIndex | None = None  # the map in use when the cloud arrived
-    normal: Any = None  # (3,) the ground normal in use then (map frame, unit, down), or None
-
-
-class MapBuilder:
-    """Decodes map clouds and builds their :class:`MapIndex` on one worker thread.
-
-    ``submit`` is called on the executor's thread; the node's timer calls ``take`` (every
-    MAP_POLL_S) to hand the finished results over on the executor's thread. In ``replace`` mode
-    only the newest waiting cloud is built (an older one waiting is superseded: it would be
-    replaced anyway); in ``accumulate`` mode every cloud is built in order (up to
-    :data:`MAPS_WAITING_MAX` waiting).
-    """
-
-    def __init__(self) -> None:
-        self._cond = threading.Condition()
-        self._waiting: deque[MapJob] = deque()
-        self._ready: deque[MapBuilt] = deque()
-        self._closed = False
-        self.superseded = 0
-        self._thread = threading.Thread(target=self._run, name='hac_map_builder', daemon=True)
-        self._thread.start()
-
-    def submit(self, job: MapJob, keep_all: bool) -> None:
-        with self._cond:
-            if not keep_all:
-                self.superseded += len(self._waiting)
-                self._waiting.clear()
-            elif len(self._waiting) >= MAPS_WAITING_MAX:
-                self._waiting.popleft()
-                self.superseded += 1
-            self._waiting.append(job)
-            self._cond.notify()
-
-    def take(self) -> list[MapBuilt]:
-        with self._cond:
-            ready = list(self._ready)
-            self._ready.clear()
-        return ready
-
-    def close(self) -> None:
-        with self._cond:
-            self._closed = True
-            self._waiting.clear()
-            self._cond.notify()
-        self._thread.join(BUILDER_JOIN_S)
-
-    @property
-    def native_id(self) -> int | None:
-        """The builder thread's id in the OS (None before it started)."""
-        return self._thread.native_id
-
-    def _run(self) -> None:
-        lower_thread_priority(BUILDER_NICE)
-        while True:
-            with self._cond:
-                while not self._waiting and not self._closed:
-                    self._cond.wait()
-                if self._closed:
-                    return
-                job = self._waiting.popleft()
-            result = index_cloud(job.cloud, job.build_index, job.previous, job.normal)
-            with self._cond:
-                if self._closed:
-                    return
-                self._ready.append(result)
-
-
 def lower_thread_priority(nice: int) -> bool:
     """Give the calling thread this nice value (only lowering is allowed without privileges).
 
@@ -298,6 +135,7 @@ class HacNode(Node):
         self.qos_incompatible: Counter[str] = Counter()  # topics with an incompatible publisher
         self.clouds_received = 0
         self.maps_indexed = 0  # map indexes handed to the calibrator
+        self.maps_superseded = 0  # clouds dropped unbuilt: a newer one arrived first
         self._clouds_rejected = 0  # undecodable clouds
         self.map_build_s: deque[float] = deque(maxlen=100)  # recent decode+index durations
         self._camera_info: tuple[Any, int, int] | None = None  # (K, width, height) last valid
@@ -309,7 +147,9 @@ class HacNode(Node):
         for topic, msgtype in OUTPUT_TOPICS:
             depth = DIAGNOSTICS_DEPTH if topic == '/diagnostics' else OUTPUT_DEPTH
             self._output_publishers[topic] = self.create_publisher(TYPES.get(msgtype), topic, depth)
-        self._builder = MapBuilder()
+        self._builder = MapBuilder(self._build_index, workers=1,
+                                   thread_init=lambda: lower_thread_priority(BUILDER_NICE))
+        self._maps_building: deque[Future] = deque()  # in arrival order
         # finished maps are handed over by a timer, not a guard condition: rclpy's EventsExecutor
         # (the executable's default, see make_executor) does not support guard conditions
         self._map_poll = self.create_timer(MAP_POLL_S, self._on_maps_ready)
@@ -400,9 +240,6 @@ class HacNode(Node):
 
     def _on_joints(self, data: bytes) -> None:
         self._emit(add_joints_cdr(self.calibrator, data))
-        # after publishing, before the next frame: a due contact-plane refit and the floor offset
-        # along the resulting normal (GroundModel.prefetch)
-        self.calibrator.ground.prefetch(self.calibrator.map)
 
     def _on_camera_info(self, msg: Any) -> None:
         outputs, intrinsics = add_camera_info_msg(self.calibrator, msg)
@@ -422,34 +259,40 @@ class HacNode(Node):
         self._last_cloud = cloud
         self._submit(cloud)
 
+    def _build_index(self, stamp_ns: int, points_map: Any, frame_id: str) -> MapIndex:
+        """The builder thread's index, with the current calibrator's parameters."""
+        return self.calibrator.build_index(stamp_ns, points_map, frame_id)
+
     def _submit(self, cloud: RawCloud) -> None:
-        """Queue a cloud for the builder with what its first frame will likely ask: in
-        ``replace`` mode, the overlap with the map in use and the floor offset along the current
-        normal (``accumulate`` merges maps on the executor's thread: nothing to compute ahead)."""
-        job = MapJob(cloud, self.calibrator.build_index)
-        keep_all = self.params.cloud_mode == 'accumulate'
-        if not keep_all:
-            normal = self.calibrator.ground.next_normal()
-            job.previous = self.calibrator.map
-            job.normal = None if normal is None else normal.copy()
-        self._builder.submit(job, keep_all)
+        """Queue a cloud for the builder. In ``replace`` mode a cloud still waiting is superseded
+        (it would be replaced anyway); ``accumulate`` keeps up to MAPS_WAITING_MAX waiting."""
+        waiting = [f for f in self._maps_building if not f.done()]
+        if self.params.cloud_mode == 'replace':
+            superseded = waiting
+        else:
+            superseded = waiting[:max(0, len(waiting) - MAPS_WAITING_MAX + 1)]
+        self.maps_superseded += sum(f.cancel() for f in superseded)
+        self._maps_building.append(self._builder.submit(cloud))
 
     def _on_maps_ready(self) -> None:
         """Executor thread: hand the maps the builder finished to the calibrator, in order."""
-        for built in self._builder.take():
+        while self._maps_building and self._maps_building[0].done():
+            future = self._maps_building.popleft()
+            if future.cancelled():
+                continue
+            built = future.result()
             self.map_build_s.append(built.build_s)
             if built.index is None:
                 self._clouds_rejected += 1
-                self._emit(self.calibrator.reject('cloud_malformed', built.stamp_ns))
-                continue
-            self.maps_indexed += 1
-            self._map_index = built.index
-            self._emit(self.calibrator.add_map_index(built.index))
+            else:
+                self.maps_indexed += 1
+                self._map_index = built.index
+            self._emit(built.hand_to(self.calibrator))
 
     @property
     def clouds_done(self) -> int:
         """Clouds received and finished with: indexed, rejected, or superseded by a newer one."""
-        return self.maps_indexed + self._clouds_rejected + self._builder.superseded
+        return self.maps_indexed + self._clouds_rejected + self.maps_superseded
 
     # ------------------------------------------------------------------ outputs
     def _emit(self, outputs: Sequence[Output]) -> None:

@@ -15,7 +15,6 @@ visible; the raw SLAM track gets the same placement (the metric frame is the SLA
 """
 from __future__ import annotations
 
-import argparse
 from pathlib import Path
 from typing import Any
 
@@ -23,10 +22,10 @@ import numpy as np
 
 from hac_ros.core.errors import HacError
 from hac_ros.core.numeric import NS
-from hac_ros.evaluate import (CameraTrack, JointsTrack, Replayed, Truth, match, person_tracks,
-                              read_camera, read_output, read_truth)
 from hac_ros.core.params import POSE_MSGTYPES
-from hac_ros.replay import Recording
+from hac_ros.evaluate import match, person_tracks
+from hac_ros.recording import (CameraTrack, JointsTrack, Recording, Replayed, Truth, read_camera,
+                               read_output, read_truth)
 
 DPI = 100
 FIGSIZE = {'trajectories': (8.0, 8.0), 'scale': (11.0, 6.0), 'fallback': (11.0, 6.0)}  # inches
@@ -326,18 +325,3 @@ def make_plots(output_path: str | Path, directory: str | Path,
     plot_scale(paths['scale'], run, truth)
     plot_fallback(paths['fallback'], run, truth)
     return paths
-
-
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument('output', metavar='OUT', help='a recording written by hac replay')
-    parser.add_argument('--gt', metavar='IN', help='the recording with ground truth (the replay\'s '
-                        'input): adds the truth and the raw SLAM trajectory')
-    parser.add_argument('-o', '--out-dir', metavar='DIR', required=True,
-                        help='directory for the PNG figures (created; figures are replaced)')
-
-
-def run(args: argparse.Namespace) -> int:
-    paths = make_plots(args.output, args.out_dir, args.gt)
-    for name, path in paths.items():
-        print(f'{name}: {path}')
-    return 0

@@ -6,6 +6,7 @@ nanoseconds in memory and seconds with 9 decimals in the file.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -56,3 +57,33 @@ def rotations_to_quats(R: np.ndarray) -> np.ndarray:
 def quats_to_rotations(q: np.ndarray) -> np.ndarray:
     """(N, 4) quaternions x, y, z, w → (N, 3, 3) rotations."""
     return Rotation.from_quat(np.asarray(q).reshape(-1, 4)).as_matrix()
+
+
+TUM_FILES = {'metric': 'camera_metric.tum', 'slam': 'camera_slam.tum', 'gt': 'camera_gt.tum'}
+
+
+def write_tum_exports(directory: Path, odometry: list, poses: list[tuple[int, np.ndarray, np.ndarray]],
+                      recording: Any) -> dict[str, Path]:
+    """A replay's trajectories as TUM files for evo, into ``directory``: camera_metric.tum (the
+    metric camera: ``odometry``, a list of OdometryOut, metres), camera_slam.tum (``poses``, the raw
+    SLAM poses: (stamp ns, R_wc (3, 3), c (3,) SLAM units)) and, when the recording has it,
+    camera_gt.tum (/gt/camera_pose, metres). Returns kind -> path of the files written."""
+    from hac_ros.recording import GT_CAMERA, read_camera
+
+    directory.mkdir(parents=True, exist_ok=True)
+    written: dict[str, Path] = {}
+
+    def export(kind: str, stamps: Any, rotations: Any, positions: Any) -> None:
+        if len(stamps):
+            path = directory / TUM_FILES[kind]
+            write_tum(path, np.asarray(stamps, dtype=np.int64), np.asarray(positions, dtype=float),
+                      rotations_to_quats(np.asarray(rotations, dtype=float)))
+            written[kind] = path
+
+    export('metric', [o.stamp_ns for o in odometry], [o.rotation_metric for o in odometry],
+           [o.position_metric for o in odometry])
+    export('slam', [p[0] for p in poses], [p[1] for p in poses], [p[2] for p in poses])
+    if recording.has(*GT_CAMERA):
+        gt = read_camera(recording, GT_CAMERA[0])
+        export('gt', gt.stamps_ns, gt.rotations, gt.positions)
+    return written

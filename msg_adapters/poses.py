@@ -12,7 +12,6 @@ from typing import Any
 
 import numpy as np
 
-from hac_ros.core.transforms import rotation_defects
 from msg_adapters.errors import MessageError
 from msg_adapters.stamps import make_header
 from msg_adapters.types import MessageTypes
@@ -61,10 +60,10 @@ def matrix_to_quat(R: np.ndarray) -> tuple[float, float, float, float]:
         raise MessageError(f'rotation: expected a (3, 3) matrix ({exc})') from exc
     if R.shape != (3, 3):
         raise MessageError(f'rotation: expected a (3, 3) matrix, got shape {R.shape}')
-    defects = rotation_defects(R)
-    if defects is None:
+    if not np.isfinite(R).all():
         raise MessageError(f'rotation is not finite: {R.tolist()}')
-    orthogonality, determinant = defects
+    orthogonality = float(np.abs(R.T @ R - np.eye(3)).max())
+    determinant = float(np.linalg.det(R))
     if orthogonality > ROTATION_TOL or abs(determinant - 1.0) > ROTATION_TOL:
         raise MessageError(f'rotation: not a rotation matrix (max |RᵀR − I| = {orthogonality:.3g}, '
                            f'det = {determinant:.6g})')

@@ -1,10 +1,8 @@
 """The core against SPEC's method: exact scenes, invariances, edge cases, the estimator."""
 from __future__ import annotations
 
-import gc
 import math
 import subprocess
-import weakref
 import sys
 
 import numpy as np
@@ -13,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from hac_ros.core.calibrator import Calibrator
-from hac_ros.core.estimator import RollingScale, SortedWindow, centred_rolling_median
+from hac_ros.core.estimator import RollingScale, SortedWindow
 from hac_ros.core.ground import GroundModel, Plane
 from hac_ros.core.outputs import (HumanJointsOut, OdometryOut, ResetOut, SampleOut, ScaleOut)
 from hac_ros.core.numeric import median_1d, median_of_list, quantile_1d
@@ -378,118 +376,19 @@ def test_hmr_normal_needs_no_scale_and_survives_a_handstand():
         assert n @ true_down == pytest.approx(1.0, abs=1e-3)
 
 
-def test_map_statistics_computed_ahead_equal_the_ones_computed_on_demand():
-    """MapIndex.prepare (the node's builder thread) and GroundModel.prefetch change no value: what
-    they remember is used only for the exact same inputs (map object, normal bytes)."""
+def test_map_overlap_tells_a_continued_map_from_a_new_one():
+    """MapIndex.overlap_fraction (the re-initialisation test on a new map): a map that continues
+    the old one overlaps it in part, a map somewhere else not at all, and an empty one fully."""
     rng = np.random.default_rng(0)
     room = np.c_[rng.uniform(-5, 5, (20000, 2)), rng.normal(0, 0.01, 20000)]
     old = MapIndex(room, 'map', 1)
     far = MapIndex(room + [100.0, 0.0, 0.0], 'map', 2)
     new_points = np.vstack([room[:5000] + rng.normal(0, 0.001, (5000, 3)),
                             room[5000:8000] + [20.0, 0.0, 0.0]])
-    normal = np.array([0.01, 0.0, -1.0]) / math.hypot(0.01, 1.0)
-    prepared, fresh = MapIndex(new_points, 'map', 3), MapIndex(new_points, 'map', 3)
-    prepared.prepare(old, normal)
-    assert prepared.overlap_fraction(old) == fresh.overlap_fraction(old)
-    assert 0.0 < fresh.overlap_fraction(old) < 1.0
-    assert prepared.overlap_fraction(far) == MapIndex(new_points).overlap_fraction(far) == 0.0
-    assert prepared.floor_offset(normal) == lowest_segment_offset(fresh.sample, normal)
-    other = np.array([0.0, 0.0, -1.0])
-    assert prepared.floor_offset(other) == lowest_segment_offset(fresh.sample, other)
-    # a map does not keep the previous one alive (1M-point maps replaced every second)
-    ref = weakref.ref(old)
-    del old
-    gc.collect()
-    assert ref() is None
-
-    scene = walking_scene(frames=10)
-    grounds = GroundModel('hmr', 0.05, 100), GroundModel('hmr', 0.05, 100)
-    for ground in grounds:
-        for t in range(10):
-            ground.add_camera(scene.R_wc_slam[t])
-            ground.add_body(scene.R_wc_slam[t], scene.joints_cam[t])
-            ground.normal()  # as the calibrator asks it every frame
-    planes = []
-    for k, ground in enumerate(grounds):
-        index = MapIndex(new_points, 'map', 3)
-        if k == 0:
-            ground.prefetch(index)
-        plane = ground.plane(index)
-        assert plane is not None
-        planes.append((plane.normal.tobytes(), plane.offset))
-    assert planes[0] == planes[1]
-
-
-def test_a_contact_refit_waits_for_the_next_read_and_gives_the_same_normal():
-    """The frame that completes CONTACT_REFIT_EVERY contacts does not pay for the refit: it runs
-    when the model is next read or changed, or on prefetch (the node, after publishing). Run
-    either way, the refits see the same state and random draws: the same normals, bit for bit."""
-    from hac_ros.core.ground import CONTACT_REFIT_EVERY
-
-    scene = walking_scene(frames=60)
-    rng = np.random.default_rng(0)  # two contacts a frame, on the floor (world z = 0) around the walk
-    floor = scene.contact_world()[:, None, :] + np.c_[rng.uniform(-1, 1, (120, 2)), np.zeros(120)
-                                                     ].reshape(60, 2, 3)
-    contacts = scene.to_slam(floor.reshape(-1, 3)).reshape(60, 2, 3)
-    eager, lazy = GroundModel('hmr', 0.05, 100), GroundModel('hmr', 0.05, 100)
-    normals: tuple[list, list] = ([], [])
-    refits_seen_due = 0
-    for t in range(60):
-        for k, ground in enumerate((eager, lazy)):
-            ground.add_camera(scene.R_wc_slam[t])
-            ground.add_body(scene.R_wc_slam[t], scene.joints_cam[t])
-            normal = ground.normal()
-            normals[k].append(None if normal is None else normal.tobytes())
-            for point in contacts[t]:
-                before = ground._contact_normal
-                ground.add_contact(point, scene.true_scale)
-                if k == 0:
-                    ground.prefetch(None)  # as the node does after publishing
-                elif ground._refit_due is not None:
-                    refits_seen_due += 1
-                    assert ground._contact_normal is before  # not run by the contact itself
-    assert refits_seen_due == (60 * 2 - 30) // CONTACT_REFIT_EVERY + 1
-    assert eager._contact_normal is not None
-    assert normals[0] == normals[1]
-
-
-def test_next_normal_is_the_normal_read_without_running_what_is_due():
-    """GroundModel.next_normal (the node's hint for the floor offset) is the normal the next frame
-    uses once nothing is due, in every mode that has an offset, and None where the offset is not
-    used (a known plane, largest_plane, none); reading it runs no due refit."""
-    scene = walking_scene(frames=60)
-    rng = np.random.default_rng(0)  # two contacts a frame, on the floor (world z = 0) around the walk
-    floor = scene.contact_world()[:, None, :] + np.c_[rng.uniform(-1, 1, (120, 2)), np.zeros(120)
-                                                     ].reshape(60, 2, 3)
-    contacts = scene.to_slam(floor.reshape(-1, 3)).reshape(60, 2, 3)
-    for mode in ('hmr', 'slam_y', 'largest_plane', 'none'):
-        ground = GroundModel(mode, 0.05, 100)
-        assert ground.next_normal() is None or mode == 'slam_y'
-        refits_checked = 0
-        for t in range(60):
-            ground.add_camera(scene.R_wc_slam[t])
-            ground.add_body(scene.R_wc_slam[t], scene.joints_cam[t])
-            body = ground._body_cache
-            ground.next_normal()
-            assert ground._body_cache is body  # not refreshed by the hint
-            normal = ground.normal()
-            hint = ground.next_normal()
-            if mode in ('largest_plane', 'none') or normal is None:
-                assert hint is None
-            else:
-                assert hint is not None and hint.tobytes() == normal.tobytes()
-            for point in contacts[t]:
-                ground.add_contact(point, scene.true_scale)
-                if ground._refit_due is not None:  # due, not run by reading the hint
-                    before = ground._contact_normal
-                    assert ground.next_normal() is not None
-                    assert ground._refit_due is not None and ground._contact_normal is before
-                    refits_checked += 1
-        assert ground.is_refined() == (mode == 'hmr')
-        assert (refits_checked > 0) == (mode == 'hmr')
-    ground = GroundModel('hmr', 0.05, 100)
-    ground.set_known(Plane(np.array([0.0, 1.0, 0.0]), 1.0))
-    assert ground.next_normal() is None and ground.normal() is not None
+    new = MapIndex(new_points, 'map', 3)
+    assert 0.5 < new.overlap_fraction(old) < 0.75  # 5000 of 8000 points continue the old map
+    assert new.overlap_fraction(far) == 0.0
+    assert MapIndex(np.empty((0, 3))).overlap_fraction(old) == 1.0
 
 
 # ---------------------------------------------------------------------- resets
@@ -603,13 +502,6 @@ def test_window_evicts_by_stamp_time_and_gates_outliers_then_relocks():
         est.add(2 * NS + NS // 2 + i, 4.0 + 0.01 * i)
     assert est.relocks == 1 and est.median() == pytest.approx(4.0, abs=0.05)
     assert not est.add(3 * NS, float('nan')) and not est.add(3 * NS, -1.0)
-
-
-def test_centred_rolling_median_follows_a_drift():
-    stamps = np.arange(0, 100) * NS
-    truth = np.linspace(1.0, 1.3, 100)
-    got = centred_rolling_median(stamps, truth, stamps, window_s=10.0)
-    assert np.max(np.abs(got / truth - 1)) < 0.02
 
 
 # ---------------------------------------------------------------------- map index

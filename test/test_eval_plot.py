@@ -12,7 +12,8 @@ import pytest
 
 from hac_ros.evaluate import evaluate
 from hac_ros.plots import FIGSIZE, figure_size_px, make_plots
-from hac_ros.replay import TUM_FILES, replay
+from hac_ros.replay import replay
+from hac_ros.tum import TUM_FILES
 from scenes import Scene, walking_scene
 from test_replay import write_recording
 

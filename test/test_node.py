@@ -31,7 +31,9 @@ from hac_ros.core.calibrator import Calibrator  # noqa: E402
 from hac_ros.core.numeric import NS  # noqa: E402
 from hac_ros.core.outputs import HumanJointsOut, OdometryOut, ScaleOut  # noqa: E402
 from hac_ros.core.params import HacParams, describe, names  # noqa: E402
-from hac_ros.node import HacNode, parameter_table, parse_cloud_cdr  # noqa: E402
+from hac_ros.node import HacNode  # noqa: E402
+from hac_ros.node_parameters import parameter_table  # noqa: E402
+from msg_adapters import parse_cloud_cdr  # noqa: E402
 from hac_ros.simulate import make_scenario  # noqa: E402
 from hac_ros.spin_thread import SpinThread  # noqa: E402
 from msg_adapters import (cloud_to_xyz, intrinsics_to_camera_info, joints_to_pose_array,  # noqa: E402
@@ -534,7 +536,7 @@ def test_docs_table_and_config_list_every_parameter_with_its_default():
     table = re.search(r'<!-- params:start -->\n(.*?)\n<!-- params:end -->', doc, re.S)
     assert table and table.group(1) == parameter_table(), (
         'docs/node.md parameter table is stale; regenerate it with '
-        'python -c "from hac_ros.node import parameter_table; print(parameter_table())"')
+        'python -m hac_ros.node_parameters')
     config = REPO / 'config' / 'hac.yaml'
     assert HacParams.from_yaml(config) == HacParams()
     listed = yaml.safe_load(config.read_text(encoding='utf-8'))['hac_node']['ros__parameters']
@@ -630,9 +632,11 @@ def test_the_map_builder_runs_at_a_low_priority_and_the_frames_do_not(harness):
     if not sys.platform.startswith('linux'):
         pytest.skip('per-thread nice values are a Linux feature')
     h = harness()
-    builder = h.node._builder
-    assert wait_for(lambda: builder.native_id is not None, 5.0)
-    assert wait_for(lambda: os.getpriority(os.PRIO_PROCESS, builder.native_id) == BUILDER_NICE, 5.0)
+    cloud = next(e for e in scenario_recording('walk', 3.0).events if e.kind == 'cloud')
+    h.publish(cloud)  # waits until the node took it: the builder thread exists
+    builders = [t for t in threading.enumerate() if t.name.startswith('hac_map')]
+    assert len(builders) == 1 and builders[0].native_id is not None
+    assert os.getpriority(os.PRIO_PROCESS, builders[0].native_id) == BUILDER_NICE
     assert os.getpriority(os.PRIO_PROCESS, threading.get_native_id()) == os.getpriority(
         os.PRIO_PROCESS, 0) < BUILDER_NICE
 

@@ -19,7 +19,8 @@ import pytest
 from hac_ros.core.errors import HacError
 from hac_ros.core.offline import DRIFT_MIN_REL, offline_scale
 from hac_ros.core.params import HacParams
-from hac_ros.replay import SAMPLES, replay
+from hac_ros.messages import SAMPLES
+from hac_ros.replay import replay
 from scenes import NS, Scene, walking_scene
 
 REPO = Path(__file__).resolve().parents[1]
@@ -596,26 +597,36 @@ def test_deferred_outputs_resolved_with_the_schedule_equal_a_run_with_that_sched
     across a SLAM reset (the anchor) and with a base frame (the odometry's base offset)."""
     from dataclasses import fields
 
+    from hac_ros.core.calibrator import Calibrator
+    from hac_ros.core.metric import finite_scale
     from hac_ros.core.outputs import ResetOut, SampleOut
-    from hac_ros.replay import CoreFeeder, InputTopics, Recording
+    from hac_ros.recording import Recording
+    from hac_ros.replay import CoreFeeder, InputTopics, deferred_run
+
+    class Scheduled(Calibrator):
+        """A calibrator whose metric outputs use a given scale schedule (stamp -> scale)."""
+
+        def __init__(self, params: HacParams, schedule: Callable[[int], float]) -> None:
+            super().__init__(params)
+            self.schedule = schedule
+
+        def published_scale(self, stamp_ns: int) -> float | None:
+            return finite_scale(self.schedule(stamp_ns))
 
     params = HacParams(base_frame='base_link', base_to_camera=[0.1, 0.0, 0.5, 0.5, -0.5, 0.5, -0.5]) \
         if base else HacParams()
     with Recording(BAGS / 'reset_short') as recording:
-        topics = InputTopics.check(recording, params)
-        deferred: list = []
-        feeder = CoreFeeder(recording, topics, params)
-        feeder.calibrator.defer = True
-        feeder.run(deferred.extend)
+        calibrator, deferred = deferred_run(recording, params)
         samples = [o for o in deferred if isinstance(o, SampleOut) and o.accepted]
         resets = [o.stamp_ns for o in deferred if isinstance(o, ResetOut)]
         assert resets, 'the recording has a SLAM reset'
         schedule = offline_scale(np.array([s.stamp_ns for s in samples]),
                                  np.array([s.scale for s in samples]), resets, params.window_s,
                                  params.min_samples)
-        resolved = feeder.calibrator.metric.fresh().resolve(deferred, schedule)
+        resolved = calibrator.metric.fresh().resolve(deferred, schedule)
         direct: list = []
-        CoreFeeder(recording, topics, params, output_scale=schedule).run(direct.extend)
+        CoreFeeder(recording, InputTopics.check(recording, params),
+                   Scheduled(params, schedule)).run(direct.extend)
     assert [type(o).__name__ for o in resolved] == [type(o).__name__ for o in direct]
     assert sum(type(o).__name__ == 'OdometryOut' for o in direct) > 100
 

@@ -20,62 +20,25 @@ from __future__ import annotations
 
 import bisect
 import math
-from collections import Counter, deque
+from collections import Counter
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 
 from hac_ros.core.contact import candidate_joints, combine_ratios, in_view
 from hac_ros.core.estimator import RollingScale
 from hac_ros.core.ground import GroundModel, Plane
-from hac_ros.core.metric import (MetricStage, PendingFrame, PendingOdometry, PendingReset,
-                                 PendingStatus, finite_scale)
-from hac_ros.core.numeric import MEDIAN_STD_ERROR, NS, median_1d
-from hac_ros.core.outputs import NoticeOut, Output, ResetOut, SampleOut, Status
+from hac_ros.core.metric import MetricStage
+from hac_ros.core.numeric import MEDIAN_STD_ERROR, NS
+from hac_ros.core.outputs import (REASONS, NoticeOut, Output, PendingFrame, PendingOdometry,
+                                  PendingReset, PendingStatus, ResetOut, SampleOut, Status)
 from hac_ros.core.params import HacParams
+from hac_ros.core.poses import Pose, PoseTrack
 from hac_ros.core.reference import MapIndex
-from hac_ros.core.transforms import interpolate_pose, is_rotation
+from hac_ros.core.transforms import is_rotation
 
 JOINTS_PER_PERSON = 24
 PENDING_MAPS_MAX = 8  # maps waiting for a frame of their stamp
-JUMP_HISTORY = 30  # recent pose speeds whose median is the "normal" speed
-JUMP_MIN_HISTORY = 5  # steps needed before a jump can be told from normal motion
-TYPICAL_REFRESH_POSES = 10  # the typical speed is re-taken every this many poses
-
-# Human-readable text of each rejection cause (the first occurrence is logged).
-REASONS = {
-    'pose_nonfinite': 'SLAM pose with NaN/inf or an invalid rotation',
-    'pose_out_of_order': 'SLAM pose stamp not after the previous one (out of order or repeated)',
-    'pose_outlier': 'isolated SLAM pose jump (jump and back): pose ignored',
-    'late_frame': 'joints frame older than the last processed frame: dropped',
-    'joints_malformed': 'joints message is not P blocks of 24 joints',
-    'joints_wrong_frame': 'joints in a frame other than the camera frame',
-    'nonfinite_joints': 'a person with NaN/inf joints',
-    'behind_camera': 'a person entirely behind the camera',
-    'no_pose': 'no SLAM pose at (or around) the joints stamp',
-    'no_map': 'no map yet (or none since the last reset) and no ground plane',
-    'no_reference': 'no map hit and no usable ground plane for the contact joint',
-    'gated': 'scale sample far from the current estimate (outlier gate)',
-    'pending_overflow': 'joints waited too long for a SLAM pose: dropped',
-    'cloud_empty': 'map cloud with no valid point: previous map kept',
-    'cloud_malformed': 'map cloud that could not be decoded',
-    'cloud_wrong_frame': 'map cloud in a frame other than the SLAM pose frame',
-    'map_late': 'map cloud older than the map in use',
-    'camera_info_invalid': 'CameraInfo with invalid intrinsics',
-    # counted by hac_node from the middleware's message-lost events (never reached the node)
-    'pose_lost': 'SLAM pose lost in transport (best-effort input_qos)',
-    'joints_lost': 'joints message lost in transport (best-effort input_qos)',
-    'camera_info_lost': 'CameraInfo lost in transport (best-effort input_qos)',
-    'cloud_lost': 'map cloud lost in transport',
-}
-
-
-@dataclass
-class _Pose:
-    stamp_ns: int
-    R_wc: np.ndarray  # (3, 3) camera to map
-    c_map: np.ndarray  # (3,) camera centre, SLAM units, map frame
 
 
 @dataclass
@@ -85,10 +48,17 @@ class _Frame:
 
 
 class Calibrator:
-    """Feed it inputs with ``add_*``; each call returns the outputs it produced, in order."""
+    """Feed it inputs with ``add_*``; each call returns the outputs it produced, in order.
 
-    def __init__(self, params: HacParams | None = None) -> None:
+    defer_metric: the metric outputs (odometry, world joints, scale, diagnostics) come back as the
+    ``Pending*`` records of :mod:`hac_ros.core.outputs`, to be resolved by
+    ``calibrator.metric.fresh().resolve(outputs, scale_at)`` once the scale of every stamp is known
+    (the offline replay's first pass); every other output is the same.
+    """
+
+    def __init__(self, params: HacParams | None = None, defer_metric: bool = False) -> None:
         self.params = params or HacParams()
+        self.defer_metric = defer_metric
         p = self.params
         self.estimator = RollingScale(p.window_s, p.window_max_samples, p.min_samples,
                                       p.gate_k, p.gate_min_rel)
@@ -102,29 +72,19 @@ class Calibrator:
         self._camera_frame = p.camera_frame
         self._child_frame = p.camera_frame
         self._map_frame: str | None = None
-        self._poses: deque[_Pose] = deque(maxlen=p.pose_buffer)
-        self._pose_stamps: deque[int] = deque(maxlen=p.pose_buffer)  # parallel to _poses
+        self.track = PoseTrack(p.pose_buffer, p.reset_jump_factor, p.reset_jump_min_rel,
+                               p.reset_confirm_poses, int(p.sync_slop_s * NS),
+                               p.interp_max_gap_s * NS)
         self._pending: list[_Frame] = []  # sorted by stamp
         self._maps: list[MapIndex] = []  # pending maps, sorted by stamp
         self._foreign_map: MapIndex | None = None  # a map in a frame the poses have not reached yet
         self.map: MapIndex | None = None
         self._expect_new_map = False
         self._last_frame_ns = -1
-        self._steps: deque[float] = deque(maxlen=JUMP_HISTORY)
-        self._typical_speed, self._typical_age = 0.0, 0
-        # the camera centres' bounding box (SLAM units, map frame): lower and upper corners
-        self._bbox: tuple[list[float], list[float]] | None = None
-        self._suspects: list[_Pose] = []
         self._diag_second: int | None = None
         # the anchor of each SLAM map and the last metric pose: what depends on the published scale
         self.metric = MetricStage(_base_from_camera(p.base_to_camera) if p.base_frame else None,
                                   p.orientation_variance)
-        # The scale of every published output at a stamp, decided from the whole recording (see
-        # hac_ros.core.offline); None = the online rolling estimate.
-        self.output_scale: Callable[[int], float] | None = None
-        # Deferred (the offline replay's first pass): metric outputs come back as the metric
-        # stage's Pending* records, to be resolved once the schedule is known (MetricStage.resolve).
-        self.defer = False
 
     # ================================================================== inputs
     def add_camera_info(self, K: np.ndarray, width: int, height: int, frame_id: str = '') -> list[Output]:
@@ -144,14 +104,14 @@ class Calibrator:
         c_map = np.asarray(c_map, dtype=float)
         if not (is_rotation(R_wc, 1e-3) and c_map.shape == (3,) and np.all(np.isfinite(c_map))):
             return self.reject('pose_nonfinite', stamp_ns)
-        last = self._suspects[-1] if self._suspects else (self._poses[-1] if self._poses else None)
-        if last is not None and stamp_ns <= last.stamp_ns:
+        newest = self.track.newest_stamp_ns
+        if newest is not None and stamp_ns <= newest:
             return self.reject('pose_out_of_order', stamp_ns)
         if child_frame_id and not self.params.camera_frame:
             self._child_frame = child_frame_id
-        pose = _Pose(int(stamp_ns), R_wc, c_map)
+        pose = Pose(int(stamp_ns), R_wc, c_map)
 
-        step = None  # the pose's _step, when the jump test computed it
+        move = None  # the pose's step, when the jump test computed it
         if self._map_frame is None:
             self._map_frame = frame_id
         elif frame_id != self._map_frame:
@@ -159,17 +119,24 @@ class Calibrator:
                                f'{frame_id!r}: SLAM re-initialised')
             self._map_frame = frame_id
             self._adopt_foreign_map(out)
-        elif self._suspects:
-            out += self._follow_suspects(pose)
-            if self._suspects:
+        elif self.track.suspects:
+            verdict = self.track.follow(pose)
+            for bad in verdict.outliers:
+                out += self.reject('pose_outlier', bad.stamp_ns)
+            if verdict.reset is not None:
+                out += self._reset(verdict.reset, 'pose_jump',
+                                   'SLAM pose jumped and stayed: SLAM re-initialised')
+                for confirmed in verdict.confirmed:
+                    out += self._accept_pose(confirmed)
+            elif self.track.suspects:
                 return out + self._diagnostics(stamp_ns)
         else:
-            step = self._step(pose)
-            if self._is_jump(step):
-                self._suspects = [pose]
+            move = self.track.step(pose)
+            if self.track.is_jump(move):
+                self.track.suspects = [pose]
                 return out + self._diagnostics(stamp_ns)
 
-        out += self._accept_pose(pose, step)
+        out += self._accept_pose(pose, move)
         return out + self._diagnostics(stamp_ns)
 
     def add_map(self, stamp_ns: int, points_map: np.ndarray, frame_id: str = '') -> list[Output]:
@@ -216,7 +183,8 @@ class Calibrator:
         if stamp_ns <= self._last_frame_ns:
             return self.reject('late_frame', stamp_ns)
         frame = _Frame(int(stamp_ns), joints_cam)
-        if self._poses and self._poses[-1].stamp_ns >= stamp_ns and not self._suspects:
+        last = self.track.last
+        if last is not None and last.stamp_ns >= stamp_ns and not self.track.suspects:
             return self._process(frame)
         stamps = [f.stamp_ns for f in self._pending]
         pos = bisect.bisect_right(stamps, frame.stamp_ns)
@@ -232,10 +200,10 @@ class Calibrator:
     def flush(self) -> list[Output]:
         """End of input: process the frames still waiting (matched within the slop, else dropped)."""
         out: list[Output] = []
-        if self._suspects:  # an unconfirmed jump at the very end: its poses are outliers
-            for pose in self._suspects:
+        if self.track.suspects:  # an unconfirmed jump at the very end: its poses are outliers
+            for pose in self.track.suspects:
                 out += self.reject('pose_outlier', pose.stamp_ns)
-            self._suspects = []
+            self.track.suspects = []
         while self._pending:
             out += self._process(self._pending.pop(0))
         return out
@@ -267,10 +235,15 @@ class Calibrator:
     def scale(self) -> float:
         return self.estimator.median()
 
+    def published_scale(self, stamp_ns: int) -> float | None:
+        """The scale the metric outputs use at ``stamp_ns``, metres per SLAM unit (None: nothing
+        metric yet): the online estimate once converged."""
+        return self.scale if self.converged else None
+
     def status(self, stamp_ns: int | None = None) -> Status:
         """A snapshot of the estimator at ``stamp_ns`` (default: the last frame's stamp)."""
         pending = self.pending_status(stamp_ns)
-        return self.metric.status(pending, self._published_scale(pending.status.stamp_ns))
+        return self.metric.status(pending, self.published_scale(pending.status.stamp_ns))
 
     def pending_status(self, stamp_ns: int | None = None) -> PendingStatus:
         """The status before the metric stage places its ground plane in the metric frame."""
@@ -283,39 +256,18 @@ class Calibrator:
             rejected=dict(self.rejected), map_points=len(self.map) if self.map is not None else 0,
             ground_normal_map=None if plane is None else plane.normal,
             ground_offset_slam=float('nan') if plane is None else plane.offset)
-        return PendingStatus(status, plane, self._poses[-1].c_map if self._poses else None)
+        last = self.track.last
+        return PendingStatus(status, plane, None if last is None else last.c_map)
 
     @property
     def child_frame_id(self) -> str:
         return self.params.base_frame or self._child_frame
 
     # ================================================================== poses
-    def _step(self, pose: _Pose) -> tuple[float, float] | None:
-        """The camera's step from the last accepted pose (SLAM units) and its speed (SLAM units
-        per stamp ns); None before the first pose."""
-        if not self._poses:
-            return None
-        last = self._poses[-1]
-        step = _distance(pose.c_map, last.c_map)
-        return step, step / max(pose.stamp_ns - last.stamp_ns, 1)
-
-    def _accept_pose(self, pose: _Pose, step: tuple[float, float] | None = None) -> list[Output]:
-        """Take ``pose`` as the camera's next one; ``step``: its :meth:`_step`, if computed."""
+    def _accept_pose(self, pose: Pose, move: tuple[float, float] | None = None) -> list[Output]:
+        """Take ``pose`` as the camera's next one; ``move``: its step, if computed."""
         out: list[Output] = []
-        if step is None:
-            step = self._step(pose)
-        if step is not None:
-            self._steps.append(step[1])
-        self._poses.append(pose)
-        self._pose_stamps.append(pose.stamp_ns)
-        c = pose.c_map.tolist()
-        if self._bbox is None:
-            self._bbox = (c, list(c))
-        else:
-            lo, hi = self._bbox
-            for axis in range(3):
-                lo[axis] = min(lo[axis], c[axis])
-                hi[axis] = max(hi[axis], c[axis])
+        self.track.append(pose, self.track.step(pose) if move is None else move)
         self.ground.add_camera(pose.R_wc)
         # frames before this stamp first, then this pose's odometry, then the frame of this stamp
         while self._pending and self._pending[0].stamp_ns < pose.stamp_ns:
@@ -325,57 +277,15 @@ class Calibrator:
             out += self._process(self._pending.pop(0))
         return out
 
-    def _is_jump(self, move: tuple[float, float] | None) -> bool:
-        """A speed far above the recent ones, over a step that is a fraction of the trajectory.
-
-        move: the new pose's :meth:`_step`. Speeds (SLAM units per stamp second), not steps:
-        keyframe-rate SLAMs publish irregularly, and a long gap between two poses is not a jump.
-        """
-        if move is None or len(self._steps) < JUMP_MIN_HISTORY:
-            return False
-        step, speed = move
-        if self._typical_age <= 0:  # the median of recent speeds, refreshed every few poses
-            self._typical_speed = median_1d(np.fromiter(self._steps, float, len(self._steps)))
-            self._typical_age = TYPICAL_REFRESH_POSES
-        self._typical_age -= 1
-        typical = self._typical_speed
-        assert self._bbox is not None  # set with the first accepted pose
-        extent = math.dist(*self._bbox)
-        return speed > self.params.reset_jump_factor * typical and \
-            step > self.params.reset_jump_min_rel * extent
-
-    def _follow_suspects(self, pose: _Pose) -> list[Output]:
-        """After a jump: back near the old trajectory (outlier) or continuing from the jump (reset)."""
-        good, suspect = self._poses[-1], self._suspects[-1]
-        if np.linalg.norm(pose.c_map - suspect.c_map) >= np.linalg.norm(pose.c_map - good.c_map):
-            out: list[Output] = []
-            for bad in self._suspects:
-                out += self.reject('pose_outlier', bad.stamp_ns)
-            self._suspects = []
-            return out
-        self._suspects.append(pose)
-        if len(self._suspects) <= self.params.reset_confirm_poses:
-            return []
-        first, rest = self._suspects[0], self._suspects[1:-1]
-        self._suspects = []
-        out = self._reset(first, 'pose_jump', 'SLAM pose jumped and stayed: SLAM re-initialised')
-        for p in [first, *rest]:
-            out += self._accept_pose(p)
-        return out  # the caller accepts ``pose`` itself
-
     # ================================================================== reset
-    def _reset(self, first_pose: _Pose, cause: str, text: str) -> list[Output]:
+    def _reset(self, first_pose: Pose, cause: str, text: str) -> list[Output]:
         """Forget the old map's scale and anchor the new map at ``first_pose``."""
         self.estimator.reset()
         self.ground.reset()
         self.resets += 1
         out: list[Output] = self._metric(PendingReset(first_pose.stamp_ns, first_pose.R_wc,
                                                       first_pose.c_map))
-        self._poses.clear()
-        self._pose_stamps.clear()
-        self._steps.clear()
-        self._typical_age = 0
-        self._bbox = None
+        self.track.clear()
         if cause != 'map_overlap':
             self.map = None
             self._maps.clear()
@@ -395,25 +305,6 @@ class Calibrator:
         self._foreign_map = None
 
     # ================================================================== frames
-    def _pose_at(self, stamp_ns: int) -> tuple[np.ndarray, np.ndarray] | None:
-        """The pose of a joints stamp: the nearest within the slop, else interpolated."""
-        poses, stamps = self._poses, self._pose_stamps
-        if not poses:
-            return None
-        i = bisect.bisect_left(stamps, stamp_ns)
-        slop = int(self.params.sync_slop_s * NS)
-        best = None
-        for j in (i - 1, i):
-            if 0 <= j < len(stamps) and abs(stamps[j] - stamp_ns) <= slop:
-                if best is None or abs(stamps[j] - stamp_ns) < abs(stamps[best] - stamp_ns):
-                    best = j
-        if best is not None:
-            return poses[best].R_wc, poses[best].c_map
-        if 0 < i < len(stamps) and stamps[i] - stamps[i - 1] <= self.params.interp_max_gap_s * NS:
-            a, b = poses[i - 1], poses[i]
-            return interpolate_pose(stamp_ns, a.stamp_ns, a.R_wc, a.c_map, b.stamp_ns, b.R_wc, b.c_map)
-        return None
-
     def _activate_map(self, stamp_ns: int) -> list[Output]:
         """Make the latest map not after ``stamp_ns`` the current one (SPEC processing order)."""
         out: list[Output] = []
@@ -434,12 +325,11 @@ class Calibrator:
                 and chosen.overlap_fraction(self.map) < self.params.map_overlap_min):
             # the new map shares too few points with the old (within a scene-relative radius;
             # MapIndex.overlap_fraction, computed ahead by the map builder where it could)
-            pose = self._poses[-1] if self._poses else None
+            pose = self.track.last
             if pose is not None:
                 out += self._reset(pose, 'map_overlap', 'the new map does not overlap the previous '
                                    'one: SLAM re-initialised')
-                self._poses.append(pose)
-                self._pose_stamps.append(pose.stamp_ns)
+                self.track.append(pose, None)  # the new segment starts at the last pose
         self._expect_new_map = False
         self.map = chosen
         return out
@@ -448,7 +338,7 @@ class Calibrator:
         """One frame (SPEC steps 1–6) for every person in it."""
         out: list[Output] = []
         stamp = frame.stamp_ns
-        pose = self._pose_at(stamp)
+        pose = self.track.at(stamp)
         if pose is None:
             return self.reject('no_pose', stamp)
         out += self._activate_map(stamp)
@@ -458,7 +348,7 @@ class Calibrator:
         self.estimator.advance(stamp)
         for person, joints in enumerate(frame.joints_cam):
             out += self._person(stamp, person, R_wc, c_map, joints)
-        if self.defer or self._published_scale(stamp) is not None:
+        if self.defer_metric or self.published_scale(stamp) is not None:
             out += self._metric(PendingFrame(stamp, R_wc, c_map, frame.joints_cam,
                                              self.estimator.spread()))
         return out
@@ -550,7 +440,7 @@ class Calibrator:
             if d_slam > plane_distance * (1.0 + tol):
                 return False
             # before a scale: a hit well above a trusted floor may be an occluder
-            if scale is None and self.ground.is_refined() and d_slam * (1.0 + tol) < plane_distance:
+            if scale is None and self.ground.refined and d_slam * (1.0 + tol) < plane_distance:
                 return False
         if scale is not None and abs(scale * d_slam - distance_metric) > tol * distance_metric:
             return False
@@ -560,8 +450,8 @@ class Calibrator:
         return [SampleOut(stamp, person, float('nan'), reason, False), *self.reject(reason, stamp)]
 
     # ================================================================== outputs
-    def _odometry(self, pose: _Pose) -> list[Output]:
-        if not self.defer and self._published_scale(pose.stamp_ns) is None:
+    def _odometry(self, pose: Pose) -> list[Output]:
+        if not self.defer_metric and self.published_scale(pose.stamp_ns) is None:
             return []
         # the position's uncertainty comes from the scale's standard error (MetricStage)
         n = max(self.estimator.samples, 1)
@@ -569,17 +459,12 @@ class Calibrator:
         return self._metric(PendingOdometry(pose.stamp_ns, self.child_frame_id, pose.R_wc,
                                             pose.c_map, sigma_scale))
 
-    def _metric(self, pending: object) -> list[Output]:
+    def _metric(self, pending: PendingOdometry | PendingFrame | PendingReset | PendingStatus
+                ) -> list[Output]:
         """A pending metric output: returned as is when deferred, else resolved at once."""
-        if self.defer:
-            return [pending]  # type: ignore[list-item]
-        return self.metric.apply(pending, self._published_scale)
-
-    def _published_scale(self, stamp_ns: int) -> float | None:
-        """The scale metric outputs use at ``stamp_ns`` (None: nothing metric yet)."""
-        if self.output_scale is not None:
-            return finite_scale(self.output_scale(stamp_ns))
-        return self.scale if self.converged else None
+        if self.defer_metric:
+            return [pending]
+        return self.metric.apply(pending, self.published_scale)
 
     def _diagnostics(self, stamp_ns: int) -> list[Output]:
         second = stamp_ns // NS
@@ -587,11 +472,6 @@ class Calibrator:
             return []
         self._diag_second = second
         return self._metric(self.pending_status(stamp_ns))
-
-
-def _distance(a: np.ndarray, b: np.ndarray) -> float:
-    """Euclidean distance of two (3,) points (plain floats: one call per pose)."""
-    return math.dist(a.tolist(), b.tolist())
 
 
 def _base_from_camera(base_to_camera: list[float]) -> tuple[np.ndarray, np.ndarray]:

@@ -19,21 +19,10 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from dataclasses import dataclass
 
 import numpy as np
 
 from hac_ros.core.numeric import MAD_TO_SIGMA
-
-
-@dataclass
-class Estimate:
-    """scale: metres per SLAM unit (NaN when empty); spread: 1.4826 MAD of the window, same unit."""
-
-    scale: float
-    spread: float
-    samples: int
-    converged: bool
 
 
 class RollingScale:
@@ -106,9 +95,6 @@ class RollingScale:
     def spread(self) -> float:
         """Robust sigma of the samples (1.4826 MAD), metres per SLAM unit."""
         return MAD_TO_SIGMA * self.mad()
-
-    def estimate(self) -> Estimate:
-        return Estimate(self.median(), self.spread(), self.samples, self.converged)
 
     def values(self) -> np.ndarray:
         """The window's samples in arrival order (for tests and plots)."""
@@ -234,27 +220,3 @@ def sequence_scale(samples: np.ndarray) -> float:
     samples = np.asarray(samples, dtype=float)
     samples = samples[np.isfinite(samples) & (samples > 0)]
     return float(np.median(samples)) if samples.size else float('nan')
-
-
-def centred_rolling_median(stamps_ns: np.ndarray, samples: np.ndarray, query_ns: np.ndarray,
-                           window_s: float) -> np.ndarray:
-    """Offline: at each query stamp, the median of the samples within ±window_s/2 (non-causal).
-
-    stamps_ns: (N,) int sample stamps; samples: (N,) metres per SLAM unit; query_ns: (M,) int.
-    Returns (M,) float; where a window holds no sample, the nearest sample's window is used.
-    """
-    order = np.argsort(stamps_ns, kind='stable')
-    stamps_ns = np.asarray(stamps_ns)[order]
-    samples = np.asarray(samples, dtype=float)[order]
-    half = int(window_s * 0.5e9)
-    lo = np.searchsorted(stamps_ns, np.asarray(query_ns) - half, side='left')
-    hi = np.searchsorted(stamps_ns, np.asarray(query_ns) + half, side='right')
-    out = np.full(len(query_ns), np.nan)
-    for i, (a, b) in enumerate(zip(lo, hi)):
-        if b > a:
-            out[i] = np.median(samples[a:b])
-        elif len(samples):
-            j = min(max(a, 0), len(samples) - 1)
-            k0, k1 = np.searchsorted(stamps_ns, [stamps_ns[j] - half, stamps_ns[j] + half])
-            out[i] = np.median(samples[k0:max(k1, k0 + 1)])
-    return out

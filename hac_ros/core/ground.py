@@ -123,7 +123,6 @@ class GroundModel:
         self._contact_count = 0
         self._contacts_since_fit = 0
         self._contact_normal: np.ndarray | None = None
-        self._refit_due: float | None = None  # inlier distance of a refit not run yet (_settle)
         self._known: Plane | None = None
         self._plane_cache: tuple[MapIndex, bytes, Plane | None] | None = None
         self._rng = np.random.default_rng(self._seed)
@@ -131,14 +130,12 @@ class GroundModel:
     # ------------------------------------------------------------------ evidence
     def add_camera(self, R_wc: np.ndarray) -> None:
         """The camera's down axis (its y axis) in the map: the sign of the normal."""
-        self._settle()
         down = self._camera_down
         for axis, value in enumerate(R_wc[:, 1].tolist()):
             down[axis] += value
 
     def add_body(self, R_wc: np.ndarray, joints_cam: np.ndarray) -> None:
         """One person's up axis (pelvis → neck), joints_cam (24, 3) metres, camera optical frame."""
-        self._settle()
         (px, py, pz), (nx, ny, nz) = joints_cam[0].tolist(), joints_cam[12].tolist()
         x, y, z = nx - px, ny - py, nz - pz
         norm = math.sqrt(x * x + y * y + z * z)
@@ -156,60 +153,41 @@ class GroundModel:
     def add_contact(self, contact_map: np.ndarray, scale: float) -> None:
         """A contact joint placed in the map with the current scale (SLAM units, map frame).
 
-        Every CONTACT_REFIT_EVERY contacts the plane is refitted. The refit is due from here but
-        runs when the model is next read or changed (or by :meth:`prefetch`, which the node calls
-        after publishing the frame): the same state, the same random draws, so the same normal;
-        the frame that triggered it no longer waits for it (~0.7 ms)."""
+        Every CONTACT_REFIT_EVERY contacts the plane is refitted (RANSAC, then least squares)."""
         if self.mode != 'hmr' or not np.all(np.isfinite(contact_map)):
             return
-        self._settle()
         self._contacts[self._contact_count % CONTACT_BUFFER] = contact_map
         self._contact_count += 1
         self._contacts_since_fit += 1
         if self._contact_count >= CONTACT_MIN_POINTS and self._contacts_since_fit >= CONTACT_REFIT_EVERY:
             self._contacts_since_fit = 0
-            self._refit_due = self.inlier_m / scale
+            self._refine_with_contacts(self.inlier_m / scale)
 
     def set_known(self, plane: Plane | None) -> None:
         """Use a known plane (SLAM map frame, SLAM units): the upper bound of the ablation."""
-        self._settle()
         self._known = plane
         self._plane_cache = None
 
     # ------------------------------------------------------------------ queries
-    def is_refined(self) -> bool:
-        """Whether the normal comes from contact joints (or is known), not the body axis alone
-        (a method, not a property: a contact refit that is due runs first)."""
-        self._settle()
+    @property
+    def refined(self) -> bool:
+        """Whether the normal comes from contact joints (or is known), not the body axis alone."""
         return self._known is not None or self._contact_normal is not None
 
     def normal(self) -> np.ndarray | None:
         """The current down-pointing unit normal in the map frame, or None (not enough evidence)."""
-        self._settle()
-        return self._normal(refresh=True)
-
-    def next_normal(self) -> np.ndarray | None:
-        """The normal the next frame will most likely use (down-pointing unit, map frame), read
-        without side effects (a refit that is due is not run, the body normal is not refreshed): a
-        hint for computing the floor offset ahead, never for results. None when no normal yet or
-        no offset is used (a known plane has its offset; largest_plane finds its own)."""
-        if self._known is not None or self.mode in ('none', 'largest_plane'):
-            return None
-        return self._normal(refresh=False)
-
-    def prefetch(self, map_index: MapIndex | None) -> None:
-        """Do ahead what the next frame would otherwise wait for: a contact refit that is due, then
-        the floor offset of ``map_index`` along :meth:`next_normal` (remembered by the map for that
-        exact normal). Changes no result, only when the work is done (the node calls it after
-        publishing a frame's outputs)."""
-        self._settle()
-        normal = self.next_normal()
-        if normal is not None and map_index is not None and len(map_index) >= 3:
-            map_index.floor_offset(normal)
+        if self._known is not None:
+            return self._known.normal
+        if self.mode == 'slam_y':
+            return np.array([0.0, 1.0, 0.0])
+        if self.mode == 'hmr' and self._contact_normal is not None:
+            return self._contact_normal
+        if self.mode in ('hmr', 'largest_plane'):
+            return self._body_normal()
+        return None
 
     def plane(self, map_index: MapIndex | None) -> Plane | None:
         """The current plane for this map, cached per (map, normal)."""
-        self._settle()
         if self._known is not None:
             return self._known
         if self.mode == 'none' or map_index is None or len(map_index) < 3:
@@ -229,31 +207,12 @@ class GroundModel:
         return plane
 
     # ------------------------------------------------------------------ internals
-    def _settle(self) -> None:
-        """Run the contact refit that is due, if any (see :meth:`add_contact`)."""
-        if self._refit_due is not None:
-            inlier_distance, self._refit_due = self._refit_due, None
-            self._refine_with_contacts(inlier_distance)
-
     def _orient_down(self, normal: np.ndarray) -> np.ndarray:
         """Flip ``normal`` to point down: along the cameras' mean y axis, else against the bodies' up."""
         down = np.array(self._camera_down)
         if np.linalg.norm(down) > 0 and abs(normal @ down) > 0.3 * np.linalg.norm(down):
             return normal if normal @ down > 0 else -normal
         return normal if normal @ np.array(self._body_up_sum) <= 0 else -normal
-
-    def _normal(self, refresh: bool) -> np.ndarray | None:
-        """:meth:`normal` after the settling; ``refresh``: the body normal may be recomputed
-        (:meth:`_body_normal`), else its last value is read."""
-        if self._known is not None:
-            return self._known.normal
-        if self.mode == 'slam_y':
-            return np.array([0.0, 1.0, 0.0])
-        if self.mode in ('hmr', 'largest_plane'):
-            if self.mode == 'hmr' and self._contact_normal is not None:
-                return self._contact_normal
-            return self._body_normal() if refresh else self._body_cache[1]
-        return None
 
     def _body_normal(self) -> np.ndarray | None:
         """The bodies' axis, recomputed when the evidence grew by BODY_REFRESH_REL (so that the

@@ -17,15 +17,15 @@ Pure numpy. Stamps are int nanoseconds; scales are metres per SLAM unit (None: n
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import Callable, Iterable
 
 import numpy as np
 
-from hac_ros.core.ground import Plane
 from hac_ros.core.numeric import NS
-from hac_ros.core.outputs import (DiagnosticsOut, HumanJointsOut, OdometryOut, Output, ScaleOut,
-                                  Status)
+from hac_ros.core.outputs import (PENDING, DiagnosticsOut, HumanJointsOut, OdometryOut, Output,
+                                  PendingFrame, PendingOdometry, PendingReset, PendingStatus,
+                                  ScaleOut, Status)
 from hac_ros.core.transforms import Anchor, rotation_log_entries
 
 POSITION_VARIANCE_FLOOR = 1e-6  # m², keeps the published covariance positive definite
@@ -34,61 +34,7 @@ POSITION_VARIANCE_FLOOR = 1e-6  # m², keeps the published covariance positive d
 ScaleAt = Callable[[int], 'float | None']
 
 
-@dataclass(slots=True)
-class PendingOdometry:
-    """The odometry of one SLAM pose before a scale is applied.
 
-    R_wc: (3, 3) camera to SLAM map; c_map: (3,) camera centre, SLAM units, map frame;
-    sigma_scale: the online estimate's standard error then, metres per SLAM unit (NaN before any
-    sample), for the covariance.
-    """
-
-    stamp_ns: int
-    child_frame_id: str
-    R_wc: np.ndarray
-    c_map: np.ndarray
-    sigma_scale: float
-
-
-@dataclass(slots=True)
-class PendingFrame:
-    """A processed frame's world joints and scale before a scale is applied.
-
-    R_wc, c_map: the frame's camera pose (SLAM map frame, SLAM units); joints_cam: (P, 24, 3)
-    metres, camera optical frame; spread: the estimator's spread after the frame.
-    """
-
-    stamp_ns: int
-    R_wc: np.ndarray
-    c_map: np.ndarray
-    joints_cam: np.ndarray
-    spread: float
-
-
-@dataclass(slots=True)
-class PendingReset:
-    """A SLAM re-initialisation: the new map is anchored at its first pose (R_wc (3, 3), c_map (3,)
-    SLAM units, new map frame) so that the metric camera continues from the last metric pose."""
-
-    stamp_ns: int
-    R_wc: np.ndarray
-    c_map: np.ndarray
-
-
-@dataclass(slots=True)
-class PendingStatus:
-    """A /diagnostics status whose metric ground plane is still to be placed.
-
-    status: every SLAM-unit field filled, the metric ones None; plane: the ground plane (SLAM map
-    frame) or None; c_map: (3,) the last camera centre, SLAM units (the plane point below it).
-    """
-
-    status: Status
-    plane: Plane | None
-    c_map: np.ndarray | None
-
-
-Pending = (PendingOdometry, PendingFrame, PendingReset, PendingStatus)
 
 
 class MetricStage:
@@ -112,7 +58,7 @@ class MetricStage:
         """A new stage with this one's configuration (identity anchor, no metric pose yet)."""
         return MetricStage(self.base_from_camera, self.orientation_variance)
 
-    def resolve(self, outputs: Iterable[Output | object], scale_at: ScaleAt,
+    def resolve(self, outputs: Iterable[Output], scale_at: ScaleAt,
                 error_at: Callable[[int], float] | None = None) -> list[Output]:
         """Outputs with every pending record replaced by its metric output(s), in order.
 
@@ -121,10 +67,10 @@ class MetricStage:
         """
         out: list[Output] = []
         for output in outputs:
-            if isinstance(output, Pending):
+            if isinstance(output, PENDING):
                 out += self.apply(output, scale_at, error_at)
             else:
-                out.append(output)  # type: ignore[arg-type]
+                out.append(output)
         return out
 
     def apply(self, pending: object, scale_at: ScaleAt,

@@ -6,9 +6,12 @@ and writes them at their ``stamp_ns``. Every ``stamp_ns`` is an input header sta
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Union
+from typing import TYPE_CHECKING, Union
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from hac_ros.core.ground import Plane
 
 
 @dataclass(slots=True)
@@ -103,6 +106,34 @@ class ResetOut:
     cause: str
 
 
+# Human-readable text of each rejection cause (the first occurrence is logged).
+REASONS = {
+    'pose_nonfinite': 'SLAM pose with NaN/inf or an invalid rotation',
+    'pose_out_of_order': 'SLAM pose stamp not after the previous one (out of order or repeated)',
+    'pose_outlier': 'isolated SLAM pose jump (jump and back): pose ignored',
+    'late_frame': 'joints frame older than the last processed frame: dropped',
+    'joints_malformed': 'joints message is not P blocks of 24 joints',
+    'joints_wrong_frame': 'joints in a frame other than the camera frame',
+    'nonfinite_joints': 'a person with NaN/inf joints',
+    'behind_camera': 'a person entirely behind the camera',
+    'no_pose': 'no SLAM pose at (or around) the joints stamp',
+    'no_map': 'no map yet (or none since the last reset) and no ground plane',
+    'no_reference': 'no map hit and no usable ground plane for the contact joint',
+    'gated': 'scale sample far from the current estimate (outlier gate)',
+    'pending_overflow': 'joints waited too long for a SLAM pose: dropped',
+    'cloud_empty': 'map cloud with no valid point: previous map kept',
+    'cloud_malformed': 'map cloud that could not be decoded',
+    'cloud_wrong_frame': 'map cloud in a frame other than the SLAM pose frame',
+    'map_late': 'map cloud older than the map in use',
+    'camera_info_invalid': 'CameraInfo with invalid intrinsics',
+    # counted by hac_node from the middleware's message-lost events (never reached the node)
+    'pose_lost': 'SLAM pose lost in transport (best-effort input_qos)',
+    'joints_lost': 'joints message lost in transport (best-effort input_qos)',
+    'camera_info_lost': 'CameraInfo lost in transport (best-effort input_qos)',
+    'cloud_lost': 'map cloud lost in transport',
+}
+
+
 @dataclass(slots=True)
 class NoticeOut:
     """Something a human should read once: the first rejection of each cause, a reset, a relock.
@@ -117,4 +148,65 @@ class NoticeOut:
     level: str = 'warn'  # 'info' | 'warn' | 'error'
 
 
-Output = Union[OdometryOut, HumanJointsOut, ScaleOut, SampleOut, DiagnosticsOut, ResetOut, NoticeOut]
+# ---------------------------------------------------------------------------- deferred outputs
+# A calibrator made with ``defer_metric=True`` returns these in place of the metric outputs; the
+# metric stage resolves them once the scale of every stamp is known (hac_ros.core.metric).
+
+@dataclass(slots=True)
+class PendingOdometry:
+    """The odometry of one SLAM pose before a scale is applied.
+
+    R_wc: (3, 3) camera to SLAM map; c_map: (3,) camera centre, SLAM units, map frame;
+    sigma_scale: the online estimate's standard error then, metres per SLAM unit (NaN before any
+    sample), for the covariance.
+    """
+
+    stamp_ns: int
+    child_frame_id: str
+    R_wc: np.ndarray
+    c_map: np.ndarray
+    sigma_scale: float
+
+
+@dataclass(slots=True)
+class PendingFrame:
+    """A processed frame's world joints and scale before a scale is applied.
+
+    R_wc, c_map: the frame's camera pose (SLAM map frame, SLAM units); joints_cam: (P, 24, 3)
+    metres, camera optical frame; spread: the estimator's spread after the frame.
+    """
+
+    stamp_ns: int
+    R_wc: np.ndarray
+    c_map: np.ndarray
+    joints_cam: np.ndarray
+    spread: float
+
+
+@dataclass(slots=True)
+class PendingReset:
+    """A SLAM re-initialisation: the new map is anchored at its first pose (R_wc (3, 3), c_map (3,)
+    SLAM units, new map frame) so that the metric camera continues from the last metric pose."""
+
+    stamp_ns: int
+    R_wc: np.ndarray
+    c_map: np.ndarray
+
+
+@dataclass(slots=True)
+class PendingStatus:
+    """A /diagnostics status whose metric ground plane is still to be placed.
+
+    status: every SLAM-unit field filled, the metric ones None; plane: the ground plane (SLAM map
+    frame) or None; c_map: (3,) the last camera centre, SLAM units (the plane point below it).
+    """
+
+    status: Status
+    plane: Plane | None
+    c_map: np.ndarray | None
+
+
+PENDING = (PendingOdometry, PendingFrame, PendingReset, PendingStatus)
+
+Output = Union[OdometryOut, HumanJointsOut, ScaleOut, SampleOut, DiagnosticsOut, ResetOut, NoticeOut,
+               PendingOdometry, PendingFrame, PendingReset, PendingStatus]

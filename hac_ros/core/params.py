@@ -180,6 +180,15 @@ class HacParams:
             values = data
         return cls.from_dict(values)
 
+    @classmethod
+    def load(cls, params_file: str | Path | None, overrides: Mapping[str, Any] | None = None
+             ) -> 'HacParams':
+        """The parameters file (or the defaults when None), then ``overrides`` (a command line's
+        flags; None values are flags not given)."""
+        params = cls.from_yaml(params_file) if params_file else cls()
+        changes = {k: v for k, v in (overrides or {}).items() if v is not None}
+        return params.replace(**changes) if changes else params
+
 
 def names() -> list[str]:
     """Every parameter name, in declaration order."""

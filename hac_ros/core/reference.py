@@ -19,15 +19,10 @@ The number of points in a cone grows with the map's density, and a median needs 
 them, not thousands: maps larger than ``index_max_points`` are thinned uniformly at random (a
 fixed seed) before indexing, which bounds both the index build and the per-frame cost. The
 speed benchmark measures what this changes against the literal method on the full map.
-
-Whole-map statistics (the floor's offset along a normal, the overlap with the previous map) are
-remembered by the index for their exact inputs; :meth:`MapIndex.prepare` computes them ahead on
-the thread that built the index, so that the first frame on a new map does not pay for them.
 """
 from __future__ import annotations
 
 import math
-import weakref
 from dataclasses import dataclass
 from functools import lru_cache
 from itertools import chain
@@ -48,7 +43,6 @@ OFFSET_BINS = 100  # histogram bins over the map's robust range along n
 OFFSET_DENSE_FACTOR = 4.0  # a dense bin holds this many times the median non-empty bin
 OFFSET_MIN_COUNT = 5
 OFFSET_WINDOW_BINS = 3  # half width of the floor segment around its peak, in bins
-FLOOR_OFFSETS_KEPT = 4  # floor offsets remembered per map (one per normal asked)
 OVERLAP_SAMPLE = 256  # new-map points checked against the previous map
 OVERLAP_DISTANCE_REL = 0.02  # a point overlaps when this close (fraction of the old map's extent)
 
@@ -100,64 +94,28 @@ class MapIndex:
         else:
             self.tree = None
             self.extent = 0.0
-        # Whole-map statistics remembered for their exact inputs (see prepare): the overlap with
-        # one previous map (held weakly: a map must not keep its predecessors alive) and the
-        # floor offsets along the last few normals (normal bytes -> offset).
-        self._overlap: tuple[weakref.ref[MapIndex], float] | None = None
-        self._floor_offsets: dict[bytes, float] = {}
 
     def __len__(self) -> int:
         return self.size
 
     # ------------------------------------------------------------------ whole-map statistics
-    def prepare(self, previous: MapIndex | None, normal: np.ndarray | None) -> None:
-        """Compute ahead what the first frame on this map will most likely ask for.
-
-        previous: the map in use when this one arrived (its overlap with this one is checked when
-        this map replaces it); normal: (3,) the ground normal in use then (map frame, unit, pointing
-        down). Meant for the thread that built the index, before it hands the index over. The
-        results are remembered for exactly these inputs (the same map object, the same normal
-        bytes), so :meth:`overlap_fraction` and :meth:`floor_offset` return the same values
-        whether or not they were computed ahead; only the time they take differs.
-        """
-        if previous is not None:
-            self.overlap_fraction(previous)
-        if normal is not None and self.size:
-            self.floor_offset(normal)
-
     def overlap_fraction(self, old: MapIndex) -> float:
         """The fraction of this map's points near ``old``'s: 1.0 when either map is empty.
 
         OVERLAP_SAMPLE of this map's points (evenly strided) are looked up in ``old``'s tree; one
         overlaps when a point of ``old`` is within OVERLAP_DISTANCE_REL of ``old``'s extent.
-        Remembered for the last ``old`` asked.
         """
-        cached = self._overlap
-        if cached is not None and cached[0]() is old:
-            return cached[1]
         if old.tree is None or self.size == 0:
-            fraction = 1.0
-        else:
-            step = max(1, self.size // OVERLAP_SAMPLE)
-            sample = self.points_map[::step][:OVERLAP_SAMPLE]
-            dist, _ = old.tree.query(sample, k=1,
-                                     distance_upper_bound=OVERLAP_DISTANCE_REL * old.extent)
-            fraction = float(np.mean(np.isfinite(dist)))
-        self._overlap = (weakref.ref(old), fraction)
-        return fraction
+            return 1.0
+        step = max(1, self.size // OVERLAP_SAMPLE)
+        sample = self.points_map[::step][:OVERLAP_SAMPLE]
+        dist, _ = old.tree.query(sample, k=1, distance_upper_bound=OVERLAP_DISTANCE_REL * old.extent)
+        return float(np.mean(np.isfinite(dist)))
 
     def floor_offset(self, normal: np.ndarray) -> float:
         """The floor's offset along the down-pointing unit ``normal`` (map frame), SLAM units:
-        :func:`lowest_segment_offset` of the map's sample, remembered per normal (its exact bytes)."""
-        normal = np.asarray(normal, dtype=np.float64)
-        key = normal.tobytes()
-        offset = self._floor_offsets.get(key)
-        if offset is None:
-            offset = lowest_segment_offset(self.sample, normal)
-            if len(self._floor_offsets) >= FLOOR_OFFSETS_KEPT:
-                del self._floor_offsets[next(iter(self._floor_offsets))]  # the oldest
-            self._floor_offsets[key] = offset
-        return offset
+        :func:`lowest_segment_offset` of the map's sample."""
+        return lowest_segment_offset(self.sample, np.asarray(normal, dtype=np.float64))
 
     # ------------------------------------------------------------------ ray queries
     def cone_distances(self, origin_map: np.ndarray, direction_map: np.ndarray, cos_min: float,

@@ -11,11 +11,11 @@ from pathlib import Path
 from typing import Any
 
 from hac_ros.core.errors import HacError
-from hac_ros.core.params import POSE_TYPES
+from hac_ros.core.params import POSE_MSGTYPES
+from hac_ros.recording import OutputWriter, staged_output
 from msg_adapters import (intrinsics_to_camera_info, joints_to_pose_array, rosbags_types,
                           rt_to_odometry, rt_to_pose_stamped, xyz_to_cloud)
 
-STORAGES = ('mcap', 'sqlite3')
 TOPICS = {
     '/slam/cloud': 'sensor_msgs/msg/PointCloud2',
     '/slam/pose': None,  # by pose_type
@@ -30,21 +30,16 @@ ORDER = {topic: k for k, topic in enumerate(TOPICS)}
 
 def write_recording(sc: Any, out_path: str | Path, storage: str = 'mcap',
                     pose_type: str = 'PoseStamped') -> Path:
-    """Write ``sc`` to a new recording at ``out_path`` (refused if the path exists)."""
-    from rosbags.rosbag2 import StoragePlugin, Writer
-    from rosbags.typesys import Stores, get_typestore
-
+    """Write ``sc`` to a new recording at ``out_path`` (refused if the path exists; it appears
+    whole or not at all). storage: ``mcap`` or ``sqlite3``; pose_type: ``PoseStamped`` or
+    ``Odometry``."""
     out = Path(out_path)
     if out.exists():
         raise HacError(f'{out} exists: refusing to overwrite it')
-    if storage not in STORAGES:
-        raise HacError(f'storage must be one of {", ".join(STORAGES)}, got {storage!r}')
-    if pose_type not in POSE_TYPES:
-        raise HacError(f'pose type must be one of {", ".join(POSE_TYPES)}, got {pose_type!r}')
-    typestore = get_typestore(Stores.ROS2_JAZZY)
-    types = rosbags_types(typestore)
-    pose_msgtype = 'nav_msgs/msg/Odometry' if pose_type == 'Odometry' else 'geometry_msgs/msg/PoseStamped'
-    plugin = StoragePlugin.MCAP if storage == 'mcap' else StoragePlugin.SQLITE3
+    if pose_type not in POSE_MSGTYPES:
+        raise HacError(f'pose type must be one of {", ".join(POSE_MSGTYPES)}, got {pose_type!r}')
+    types = rosbags_types()
+    pose_msgtype = POSE_MSGTYPES[pose_type]
     messages: list[tuple[int, int, str, str, Any]] = []
 
     def add(stamp: int, topic: str, msgtype: str, msg: Any) -> None:
@@ -69,7 +64,7 @@ def write_recording(sc: Any, out_path: str | Path, storage: str = 'mcap',
         scale = float(sc.true_scale[i])
         if last_scale is None or scale != last_scale:
             add(stamp, '/gt/scale', TOPICS['/gt/scale'],
-                typestore.types['std_msgs/msg/Float64'](data=scale))
+                types.get('std_msgs/msg/Float64')(data=scale))
             last_scale = scale
     for k, stamp in enumerate(sc.joints_stamps_ns):
         stamp = int(stamp)
@@ -79,11 +74,13 @@ def write_recording(sc: Any, out_path: str | Path, storage: str = 'mcap',
             joints_to_pose_array(sc.gt_joints_world[k], stamp, sc.world_frame, types))
     messages.sort(key=lambda m: (m[0], m[1]))
 
-    with Writer(out, version=9, storage_plugin=plugin) as writer:
-        connections = {}
-        for topic, msgtype in TOPICS.items():
-            msgtype = msgtype or pose_msgtype
-            connections[topic] = writer.add_connection(topic, msgtype, typestore=typestore)
-        for stamp, _, topic, msgtype, msg in messages:
-            writer.write(connections[topic], stamp, typestore.serialize_cdr(msg, msgtype))
+    with staged_output(out) as staged:
+        writer = OutputWriter(staged, storage)
+        try:
+            for topic, msgtype in TOPICS.items():
+                writer.connection(topic, msgtype or pose_msgtype)
+            for stamp, _, topic, msgtype, msg in messages:
+                writer.write(topic, msgtype, stamp, writer.typestore.serialize_cdr(msg, msgtype))
+        finally:
+            writer.close()
     return out

@@ -1,8 +1,10 @@
 """The ``hac`` command: ``simulate | replay | eval | plot | demo``.
 
-Thin: each sub-command is a module with ``add_arguments(parser)`` and ``run(args) -> int``; this
-file only parses and dispatches. Errors the user can fix (:class:`~hac_ros.core.errors.HacError`)
-print one line and exit 2; Ctrl-C exits 130.
+Thin: each sub-command is a module of this package with ``add_arguments(parser)`` and
+``run(args) -> int``, and only argument parsing in it; the work is done by the library modules
+(:mod:`hac_ros.replay`, :mod:`hac_ros.evaluate`, ...). Errors the user can fix
+(:class:`~hac_ros.core.errors.HacError`, :class:`~msg_adapters.MessageError`) print one line and
+exit 2; Ctrl-C exits 130.
 """
 from __future__ import annotations
 
@@ -13,14 +15,15 @@ from typing import Sequence
 
 from hac_ros import __version__
 from hac_ros.core.errors import HacError
+from msg_adapters import MessageError
 
-# sub-command -> (module, one-line help)
+# sub-command -> (module in this package, one-line help)
 COMMANDS = {
-    'simulate': ('hac_ros.simulate.command', 'make a recording with ground truth'),
-    'replay': ('hac_ros.replay', 'calibrate a recording (same core and parameters as the node)'),
-    'eval': ('hac_ros.evaluate', 'metrics of a replayed recording against ground truth'),
-    'plot': ('hac_ros.plots', 'figures of a replayed recording'),
-    'demo': ('hac_ros.demo', 'replay, evaluate and plot the bundled sample recording'),
+    'simulate': ('simulate', 'make a recording with ground truth'),
+    'replay': ('replay', 'calibrate a recording (same core and parameters as the node)'),
+    'eval': ('evaluate', 'metrics of a replayed recording against ground truth'),
+    'plot': ('plot', 'figures of a replayed recording'),
+    'demo': ('demo', 'replay, evaluate and plot the bundled sample recording'),
 }
 
 
@@ -32,7 +35,7 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     for name, (module_name, help_text) in COMMANDS.items():
         sub_parser = sub.add_parser(name, help=help_text, description=help_text)
         if only is None or name == only:
-            module = importlib.import_module(module_name)
+            module = importlib.import_module(f'{__name__}.{module_name}')
             module.add_arguments(sub_parser)
             sub_parser.set_defaults(_run=module.run)
     return parser
@@ -41,16 +44,20 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     only = argv[0] if argv and argv[0] in COMMANDS else None
-    parser = build_parser(only)
-    args = parser.parse_args(argv)
+    args = build_parser(only).parse_args(argv)
     try:
         return int(args._run(args) or 0)
     except KeyboardInterrupt:
         print('hac: interrupted', file=sys.stderr)
         return 130
-    except HacError as exc:
+    except (HacError, MessageError) as exc:
         print(f'hac {args.command}: error: {exc}', file=sys.stderr)
         return 2
+
+
+def escape_help(text: str) -> str:
+    """``text`` for an argparse help string, which %-formats it (a literal % must be %%)."""
+    return text.replace('%', '%%')
 
 
 if __name__ == '__main__':

@@ -4,14 +4,16 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from hac_ros.cli import escape_help
 from hac_ros.core.errors import HacError
-from hac_ros.simulate.recording import POSE_TYPES, STORAGES
+from hac_ros.recording import STORAGES
+from hac_ros.core.params import POSE_TYPES
 from hac_ros.simulate.scenarios import SCENARIOS
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('scenario', choices=sorted(SCENARIOS), metavar='SCENARIO',
-                        help='; '.join(f'{k}: {v[1]}' for k, v in SCENARIOS.items()))
+                        help=escape_help('; '.join(f'{k}: {v[1]}' for k, v in SCENARIOS.items())))
     parser.add_argument('-o', '--output', required=True, type=Path, help='recording to create')
     parser.add_argument('--seed', type=int, default=0)
     parser.add_argument('--duration', type=float, default=None,
@@ -20,7 +22,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--storage', choices=STORAGES, default='mcap')
     parser.add_argument('--pose-type', choices=POSE_TYPES, default='PoseStamped')
     parser.add_argument('--hmr-bias', type=float, default=None,
-                        help='HMR depth bias (0.03 = 3 %% too far); default: random few %%; 0: none')
+                        help=escape_help('HMR depth bias (0.03 = 3 % too far); default: random '
+                                         'few %; 0: none'))
     parser.add_argument('--motion', type=Path, default=None,
                         help='real motion (a ../shared/data/cmu_mocap/*.npz) instead of the gait')
 

@@ -1,0 +1,34 @@
+"""``hac eval OUT --gt IN``: SPEC's metrics of a replayed recording against its ground truth."""
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+from hac_ros.core.params import HacParams
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument('output', metavar='OUT', help='a recording written by hac replay')
+    parser.add_argument('--gt', metavar='IN', required=True,
+                        help='the recording with ground truth (/gt/camera_pose, /gt/human_joints, '
+                        '/gt/scale), normally the replay\'s input')
+    parser.add_argument('--json', metavar='F', help='also write the rows as JSON to F')
+    parser.add_argument('--md', metavar='F', help='also write the table as Markdown to F')
+    parser.add_argument('--params', metavar='FILE',
+                        help='the parameters file the replay used (for the reference rows)')
+    parser.add_argument('--no-references', action='store_true',
+                        help='skip the "no calibration" and "true scale" rows (they re-run the core)')
+
+
+def run(args: argparse.Namespace) -> int:
+    from hac_ros.evaluate import evaluate
+
+    result = evaluate(args.output, args.gt, HacParams.load(args.params),
+                      references=not args.no_references)
+    print(result.text(), flush=True)
+    if args.json:
+        Path(args.json).write_text(json.dumps(result.as_dict(), indent=2) + '\n', encoding='utf-8')
+    if args.md:
+        Path(args.md).write_text(result.markdown() + '\n', encoding='utf-8')
+    return 0

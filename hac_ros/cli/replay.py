@@ -1,0 +1,47 @@
+"""``hac replay IN -o OUT``: calibrate a recording with the node's core and parameters."""
+from __future__ import annotations
+
+import argparse
+
+from hac_ros.core.params import POSE_MSGTYPES, HacParams
+from hac_ros.recording import STORAGES
+from hac_ros.replay import MODES
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument('input', metavar='IN', help='input recording (rosbag2 directory, .mcap, '
+                        '.db3, or ROS 1 .bag); only read')
+    parser.add_argument('-o', '--output', metavar='OUT', required=True,
+                        help='output recording to create (must not exist)')
+    parser.add_argument('--mode', choices=MODES, default='offline',
+                        help='offline (default): the best estimate using the whole recording; '
+                        'online: exactly what hac_node publishes, frame by frame')
+    parser.add_argument('--params', metavar='FILE',
+                        help='the node\'s parameters file (hac_node: ros__parameters:)')
+    parser.add_argument('--storage', choices=STORAGES, default='mcap',
+                        help='storage plugin of OUT (default mcap)')
+    parser.add_argument('--pose-topic', help='overrides pose_topic')
+    parser.add_argument('--cloud-topic', help='overrides cloud_topic')
+    parser.add_argument('--joints-topic', help='overrides joints_topic')
+    parser.add_argument('--camera-info-topic', help='overrides camera_info_topic ("" = off)')
+    parser.add_argument('--pose-type', choices=tuple(POSE_MSGTYPES), help='overrides pose_type')
+    parser.add_argument('--copy-inputs', action='store_true',
+                        help='also copy every topic of IN into OUT (so OUT alone can be evaluated)')
+    parser.add_argument('--export-tum', metavar='DIR',
+                        help='write camera_metric.tum, camera_slam.tum and camera_gt.tum (when the '
+                        'recording has ground truth) into DIR, for evo')
+    parser.add_argument('--no-progress', action='store_true', help='no progress bar')
+
+
+def run(args: argparse.Namespace) -> int:
+    from hac_ros.replay import replay
+
+    params = HacParams.load(args.params, {
+        'pose_topic': args.pose_topic, 'cloud_topic': args.cloud_topic,
+        'joints_topic': args.joints_topic, 'camera_info_topic': args.camera_info_topic,
+        'pose_type': args.pose_type})
+    summary = replay(args.input, args.output, params, mode=args.mode, storage=args.storage,
+                     copy_inputs=args.copy_inputs, export_tum=args.export_tum,
+                     progress=False if args.no_progress else None)
+    print(summary.text())
+    return 0
