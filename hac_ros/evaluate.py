@@ -68,7 +68,7 @@ class _Collector:
                                  np.array([o.position_metric for o in self.odometry]),
                                  np.array([o.rotation_metric for o in self.odometry]))
         else:
-            camera = CameraTrack.empty()
+            camera = CameraTrack()
         joints = JointsTrack(np.array([o.stamp_ns for o in self.joints], dtype=np.int64),
                              [o.joints_metric for o in self.joints])
         scale = ScaleTrack(np.array([o.stamp_ns for o in self.scale], dtype=np.int64),

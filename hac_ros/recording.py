@@ -13,7 +13,7 @@ import os
 import shutil
 import tempfile
 from collections import Counter
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterable, Iterator
 
@@ -241,51 +241,41 @@ class staged_output:
 
 
 # ============================================================================ tracks
-@dataclass
-class CameraTrack:
-    """stamps_ns (T,) int; positions (T, 3) camera centres, metres (SLAM units for a SLAM track),
-    in the track's world/metric frame; rotations (T, 3, 3) camera to that frame."""
+def _no_stamps() -> np.ndarray:
+    return np.zeros(0, dtype=np.int64)
 
-    stamps_ns: np.ndarray
-    positions: np.ndarray
-    rotations: np.ndarray
+
+@dataclass
+class _Track:
+    """Values at header stamps: stamps_ns (N,) int nanoseconds (empty by default)."""
+
+    stamps_ns: np.ndarray = field(default_factory=_no_stamps)
 
     def __len__(self) -> int:
         return len(self.stamps_ns)
 
-    @classmethod
-    def empty(cls) -> 'CameraTrack':
-        return cls(np.zeros(0, dtype=np.int64), np.zeros((0, 3)), np.zeros((0, 3, 3)))
+
+@dataclass
+class CameraTrack(_Track):
+    """positions (T, 3) camera centres, metres (SLAM units for a SLAM track), in the track's
+    world/metric frame; rotations (T, 3, 3) camera to that frame."""
+
+    positions: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    rotations: np.ndarray = field(default_factory=lambda: np.zeros((0, 3, 3)))
 
 
 @dataclass
-class JointsTrack:
-    """stamps_ns (F,) int; joints[f]: (P_f, 24, 3) metres, the track's frame (P_f people)."""
+class JointsTrack(_Track):
+    """joints[f]: (P_f, 24, 3) metres, the track's frame (P_f people in frame f)."""
 
-    stamps_ns: np.ndarray
-    joints: list[np.ndarray]
-
-    def __len__(self) -> int:
-        return len(self.stamps_ns)
-
-    @classmethod
-    def empty(cls) -> 'JointsTrack':
-        return cls(np.zeros(0, dtype=np.int64), [])
+    joints: list[np.ndarray] = field(default_factory=list)
 
 
 @dataclass
-class ScaleTrack:
-    """stamps_ns (S,) int; values (S,) metres per SLAM unit."""
+class ScaleTrack(_Track):
+    """values (S,) metres per SLAM unit."""
 
-    stamps_ns: np.ndarray
-    values: np.ndarray
-
-    def __len__(self) -> int:
-        return len(self.stamps_ns)
-
-    @classmethod
-    def empty(cls) -> 'ScaleTrack':
-        return cls(np.zeros(0, dtype=np.int64), np.zeros(0))
+    values: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     def at(self, stamps_ns: np.ndarray) -> np.ndarray:
         """As a step function (the latest value at or before each stamp; the first before it)."""
@@ -315,7 +305,7 @@ def read_camera(recording: Recording, topic: str) -> CameraTrack:
         rotations.append(R)
         positions.append(c)
     if not stamps:
-        return CameraTrack.empty()
+        return CameraTrack()
     return CameraTrack(np.asarray(stamps, dtype=np.int64), np.asarray(positions, dtype=float),
                        np.asarray(rotations, dtype=float))
 
@@ -386,9 +376,9 @@ def read_output(path: str | Path) -> Replayed:
         if not rec.has(DIAGNOSTICS[0]) and not rec.has(ODOMETRY[0]):
             raise HacError(f'{path} is not a recording written by hac replay (no {ODOMETRY[0]} '
                            f'or {DIAGNOSTICS[0]}); it contains: {rec.describe()}')
-        odometry = read_camera(rec, ODOMETRY[0]) if rec.has(ODOMETRY[0]) else CameraTrack.empty()
-        joints = read_joints(rec, HUMAN_JOINTS[0]) if rec.has(HUMAN_JOINTS[0]) else JointsTrack.empty()
-        scale = read_scale(rec, SCALE[0]) if rec.has(SCALE[0]) else ScaleTrack.empty()
+        odometry = read_camera(rec, ODOMETRY[0]) if rec.has(ODOMETRY[0]) else CameraTrack()
+        joints = read_joints(rec, HUMAN_JOINTS[0]) if rec.has(HUMAN_JOINTS[0]) else JointsTrack()
+        scale = read_scale(rec, SCALE[0]) if rec.has(SCALE[0]) else ScaleTrack()
         diagnostics = [(log_ns, {kv.key: kv.value for kv in status.values})
                        for log_ns, msg in (rec.read(DIAGNOSTICS[0]) if rec.has(DIAGNOSTICS[0]) else [])
                        for status in msg.status]

@@ -507,7 +507,7 @@ NO_MARKERS = HacParams(publish_markers=False)  # markers do not change any estim
 
 def _on_stamps(run, stamps):
     """A replayed run restricted to ``stamps`` (to compare two runs on the same frames)."""
-    from hac_ros.evaluate import CameraTrack, JointsTrack, Replayed, ScaleTrack
+    from hac_ros.recording import CameraTrack, JointsTrack, Replayed, ScaleTrack
 
     o, j, s = run.odometry, run.joints, run.scale
     ko, kj, ks = (np.isin(x.stamps_ns, stamps) for x in (o, j, s))
@@ -517,7 +517,7 @@ def _on_stamps(run, stamps):
 
 
 def _both_modes(source: Path, tmp_path: Path, params: HacParams):
-    from hac_ros.evaluate import read_output
+    from hac_ros.recording import read_output
 
     runs = {}
     for mode in ('online', 'offline'):
@@ -527,7 +527,8 @@ def _both_modes(source: Path, tmp_path: Path, params: HacParams):
 
 
 def test_offline_is_at_least_as_accurate_as_online_on_walk(tmp_path):
-    from hac_ros.evaluate import read_truth, row_metrics
+    from hac_ros.evaluate import row_metrics
+    from hac_ros.recording import read_truth
 
     source = BAGS / 'demo_walk'
     runs = _both_modes(source, tmp_path, NO_MARKERS)
@@ -549,7 +550,8 @@ def test_offline_is_at_least_as_accurate_as_online_on_walk(tmp_path):
 
 
 def test_offline_follows_a_drifting_scale_where_online_lags(tmp_path):
-    from hac_ros.evaluate import read_truth, row_metrics
+    from hac_ros.evaluate import row_metrics
+    from hac_ros.recording import read_truth
 
     def truth(t: int) -> float:
         return 2.0 + 0.6 * t / 199  # +30 % over 20 s
@@ -569,7 +571,8 @@ def test_offline_follows_a_drifting_scale_where_online_lags(tmp_path):
 
 
 def test_offline_estimates_each_segment_of_a_reset_on_its_own(tmp_path):
-    from hac_ros.evaluate import read_truth, row_metrics
+    from hac_ros.evaluate import row_metrics
+    from hac_ros.recording import read_truth
 
     source = BAGS / 'reset_short'  # the SLAM re-initialises at 6 s with a new scale
     summary = replay(source, tmp_path / 'offline', NO_MARKERS, progress=False)
