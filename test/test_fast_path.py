@@ -59,49 +59,6 @@ def test_thinning_a_dense_map_keeps_the_cone_median():
     assert abs(np.mean(ratios) - 1) < 0.003
 
 
-def test_the_column_wise_bounding_box_builds_the_same_tree(monkeypatch):
-    """hac_ros.core.kdtree gives scipy's _ckdtree module a numpy namespace whose amax/amin reduce
-    axis 0 column by column. The tree built with it is the one numpy's own reductions give: same
-    bounding box, same node layout, same answers; every other call reaches numpy unchanged."""
-    from scipy.spatial import _ckdtree
-
-    from hac_ros.core import kdtree
-
-    assert kdtree.COLUMN_EXTREMA and kdtree.install_column_extrema()  # idempotent
-    patched = _ckdtree.np
-    assert patched is not np and patched.amax is not np.amax
-
-    rng = np.random.default_rng(3)
-    points = np.r_[rng.normal(0.0, 2.0, (30_000, 3)), [[0.0, -0.0, 5.0], [-0.0, 0.0, -5.0]]]
-    lo, hi = np.percentile(points, [1.0, 99.0], axis=0)
-    fast = kdtree.build_tree(points, lo, hi)
-    monkeypatch.setattr(_ckdtree, 'np', np)  # scipy as shipped
-    plain = kdtree.build_tree(points, lo, hi)
-    monkeypatch.setattr(_ckdtree, 'np', patched)
-    assert np.array_equal(fast.maxes, plain.maxes) and np.array_equal(fast.mins, plain.mins)
-    assert np.array_equal(fast.indices, plain.indices) and fast.size == plain.size
-    queries = points[::500] + 0.05
-    for a, b in zip(fast.query_ball_point(queries, 0.4), plain.query_ball_point(queries, 0.4)):
-        assert sorted(a) == sorted(b)
-    assert np.array_equal(fast.query(queries, k=3)[1], plain.query(queries, k=3)[1])
-
-    # the same values as numpy for what is rewritten, numpy itself for everything else
-    for reduce, numpy_reduce in ((patched.amax, np.amax), (patched.amin, np.amin)):
-        assert np.array_equal(reduce(points, axis=0), numpy_reduce(points, axis=0))
-        assert reduce(points, axis=0).dtype == np.float64
-        nan_column = points.copy()
-        nan_column[7, 1] = np.nan
-        assert np.array_equal(reduce(nan_column, axis=0), numpy_reduce(nan_column, axis=0),
-                              equal_nan=True)
-        assert np.array_equal(reduce(points, axis=1), numpy_reduce(points, axis=1))
-        assert np.array_equal(reduce(points, axis=0, keepdims=True),
-                              numpy_reduce(points, axis=0, keepdims=True))
-        assert reduce(points) == numpy_reduce(points)
-        with pytest.raises(ValueError):
-            reduce(np.empty((0, 3)), axis=0)
-    assert patched.linalg is np.linalg and patched.ndarray is np.ndarray
-
-
 def test_the_tree_over_points_sorted_by_cell_finds_the_same_points():
     """build_tree indexes the points sorted by cell of a coarse grid (a faster build): a query
     returns the same points as a tree over the points in their own order, only in another order."""
