@@ -59,44 +59,6 @@ def test_thinning_a_dense_map_keeps_the_cone_median():
     assert abs(np.mean(ratios) - 1) < 0.003
 
 
-def test_the_tree_over_points_sorted_by_cell_finds_the_same_points():
-    """build_tree indexes the points sorted by cell of a coarse grid (a faster build): a query
-    returns the same points as a tree over the points in their own order, only in another order."""
-    from scipy.spatial import cKDTree
-
-    from hac_ros.core.kdtree import CELL_KEYS, build_tree, cell_order
-
-    rng = np.random.default_rng(5)
-    floor = np.c_[rng.uniform(-6, 6, (20_000, 2)), rng.normal(0, 0.001, 20_000)]
-    outliers = rng.normal(0, 50.0, (50, 3))  # far outside the robust box: border cells
-    points = np.r_[floor, outliers]
-    lo, hi = np.percentile(points, [1.0, 99.0], axis=0)
-
-    order = cell_order(points, lo, hi)
-    assert np.array_equal(np.sort(order), np.arange(len(points)))  # a permutation
-    # the floor is thinner than a cell: its vertical axis is not divided, the other two are
-    extent = hi - lo
-    dims = np.floor(extent[:2] / np.sqrt(extent[0] * extent[1] / CELL_KEYS))
-    cells = np.clip((points[order, :2] - lo[:2]) * (dims / extent[:2]), 0, dims - 1).astype(int)
-    key = cells[:, 0] * dims[1] + cells[:, 1]
-    assert np.all(np.diff(key) >= 0)  # sorted by cell
-    ties = np.flatnonzero(np.diff(key) == 0)
-    assert np.all(order[ties] < order[ties + 1])  # stable
-
-    tree = build_tree(points, lo, hi)
-    assert np.array_equal(tree.data, points[order])
-    plain = cKDTree(points)
-    centres = points[::400] + 0.03
-    for found, expected in zip(tree.query_ball_point(centres, 0.5), plain.query_ball_point(centres, 0.5)):
-        assert len(found) == len(expected)
-        assert np.array_equal(np.sort(tree.data[found], axis=0), np.sort(points[expected], axis=0))
-
-    small = points[:100]  # below SORT_MIN_POINTS: its own order
-    assert np.array_equal(build_tree(small, lo, hi).data, small)
-    flat = np.zeros((5000, 3))  # no extent at all: one cell, the order kept
-    assert np.array_equal(cell_order(flat, flat.min(0), flat.max(0)), np.arange(5000))
-
-
 def test_a_window_query_with_few_candidates_keeps_the_same_points_to_the_bit(monkeypatch):
     """Up to FEW_CANDIDATES candidates the window query selects them on Python floats
     (_few_in_window): the same distances and cosines (and hits), bit for bit and in the same order, as the

@@ -7,7 +7,7 @@ their distances to ``o`` (``cone_median``), or the distance of the point closest
 not depend on the SLAM unit). Only points in front of the camera count; fewer than
 ``cone_min_points`` is "no hit".
 
-Speed: the index is a k-d tree built once per map update (:mod:`hac_ros.core.kdtree`). Once a
+Speed: the index is a k-d tree built once per map update. Once a
 scale exists the contact is expected at ``d_A / scale`` SLAM units, and the query looks only
 within a depth window around it (``ray_window_rel``): a chain of balls that covers the cone
 between the window's ends, so the cost is a few tree look-ups plus the points actually in the
@@ -30,12 +30,12 @@ from itertools import chain
 import numpy as np
 from scipy.spatial import cKDTree
 
-from hac_ros.core.kdtree import build_tree
 from hac_ros.core.numeric import median_1d, median_of_list, quantile_1d
 
 # The chain's balls advance geometrically by (1 + 2 tan θ): each ball then covers one cone segment
 # with about twice the segment's volume, a good trade between look-ups and excess points.
 _MIN_WINDOW_NEAR_REL = 1e-6  # a window never starts closer than this fraction of the map extent
+LEAF_SIZE = 32  # k-d tree leaf size: builds ~20 % faster than scipy's 16 at the same query cost
 FEW_CANDIDATES = 48  # up to this many candidates a window query tests them on Python floats
 SAMPLE_POINTS = 16384  # points of the map kept for whole-map statistics (extent, floor offset)
 EXTENT_POINTS = 4096  # points of the sample whose 1st-99th percentiles give the extent
@@ -62,8 +62,7 @@ class MapIndex:
     drop them). extent: the diagonal of the points' robust bounding box (1st–99th percentile),
     SLAM units: the scene's size, for scene-relative thresholds. max_points: above it the map is
     thinned uniformly at random before indexing (``index_max_points``); ``received`` counts the
-    points before thinning. The k-d tree keeps its own copy of the points, sorted by cell
-    (``tree.data``, :func:`hac_ros.core.kdtree.build_tree`).
+    points before thinning. ``tree`` is a k-d tree of ``points_map`` (None for an empty map).
     """
 
     def __init__(self, points_map: np.ndarray, frame_id: str = '', stamp_ns: int = 0,
@@ -89,8 +88,9 @@ class MapIndex:
             else:
                 lo, hi = points.min(axis=0), points.max(axis=0)
             self.extent = float(np.linalg.norm(hi - lo))
-            # the points again, sorted by cell: tree.data (the indices of its queries refer to it)
-            self.tree: cKDTree | None = build_tree(points, lo, hi)
+            # balanced_tree=False builds ~2x faster with near-identical query cost on SLAM maps
+            self.tree: cKDTree | None = cKDTree(points, leafsize=LEAF_SIZE, balanced_tree=False,
+                                                compact_nodes=False)
         else:
             self.tree = None
             self.extent = 0.0
@@ -185,7 +185,7 @@ class MapIndex:
         if total == 0:
             return _EMPTY, _EMPTY
         idx = np.fromiter(chain.from_iterable(lists), dtype=np.intp, count=total)
-        v = self.tree.data[idx] - o
+        v = self.points_map[idx] - o
         dist = np.sqrt(np.einsum('ij,ij->i', v, v))
         along = v @ d
         if total <= FEW_CANDIDATES:
