@@ -14,7 +14,7 @@ from hac_ros.core.calibrator import Calibrator
 from hac_ros.core.estimator import RollingScale, SortedWindow
 from hac_ros.core.ground import GroundModel, Plane
 from hac_ros.core.outputs import (HumanJointsOut, OdometryOut, ResetOut, SampleOut, ScaleOut)
-from hac_ros.core.numeric import median_1d, median_of_list, quantile_1d
+from hac_ros.core.numeric import median_1d, quantile_1d
 from hac_ros.core.params import HacParams
 from hac_ros.core.reference import MapIndex, literal_cone_median, lowest_segment_offset
 from scenes import NS, Scene, walking_scene
@@ -482,10 +482,9 @@ def test_sorted_window_grows_and_removes_like_a_sorted_list(values):
 def test_median_1d_equals_numpy(values):
     a = np.array(values, dtype=float)
     if a.size == 0:
-        assert math.isnan(median_1d(a)) and math.isnan(median_of_list(values))
+        assert math.isnan(median_1d(a))
     else:
         assert median_1d(a) == np.median(a)
-        assert median_of_list(values) == median_1d(a)  # the lists' version: the same value
 
 
 def test_window_evicts_by_stamp_time_and_gates_outliers_then_relocks():

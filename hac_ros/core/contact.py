@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from hac_ros.core.numeric import median_of_list
+from hac_ros.core.numeric import median_1d
 
 PELVIS, NECK, HEAD = 0, 12, 15
 LEFT_FOOT, RIGHT_FOOT = 10, 11
@@ -57,7 +57,7 @@ def combine_ratios(mode: str, ratios: list[float]) -> float:
         return float('nan')
     if mode == 'max_ratio':
         return max(finite)
-    return median_of_list(finite)
+    return median_1d(np.array(finite))
 
 
 def in_view(joints_cam: np.ndarray, K: np.ndarray | None, width: int, height: int) -> list[bool]:

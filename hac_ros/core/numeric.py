@@ -32,19 +32,6 @@ def median_1d(values: np.ndarray) -> float:
     return 0.5 * (float(part[half - 1]) + float(part[half]))
 
 
-def median_of_list(values: list[float]) -> float:
-    """:func:`median_1d` of a list of floats (the same value), for the few values the per-frame
-    path holds in plain Python lists. NaN for an empty list."""
-    n = len(values)
-    if n == 0:
-        return float('nan')
-    ordered = sorted(values)
-    half = n // 2
-    if n % 2:
-        return ordered[half]
-    return 0.5 * (ordered[half - 1] + ordered[half])
-
-
 def quantile_1d(values: np.ndarray, q: float) -> float:
     """The ``q`` quantile of a non-empty 1-D float array, as ``np.quantile`` gives it (its default
     "linear" method, finite values).

@@ -30,13 +30,12 @@ from itertools import chain
 import numpy as np
 from scipy.spatial import cKDTree
 
-from hac_ros.core.numeric import median_1d, median_of_list, quantile_1d
+from hac_ros.core.numeric import median_1d, quantile_1d
 
 # The chain's balls advance geometrically by (1 + 2 tan θ): each ball then covers one cone segment
 # with about twice the segment's volume, a good trade between look-ups and excess points.
 _MIN_WINDOW_NEAR_REL = 1e-6  # a window never starts closer than this fraction of the map extent
 LEAF_SIZE = 32  # k-d tree leaf size: builds ~20 % faster than scipy's 16 at the same query cost
-FEW_CANDIDATES = 48  # up to this many candidates a window query tests them on Python floats
 SAMPLE_POINTS = 16384  # points of the map kept for whole-map statistics (extent, floor offset)
 EXTENT_POINTS = 4096  # points of the sample whose 1st-99th percentiles give the extent
 OFFSET_BINS = 100  # histogram bins over the map's robust range along n
@@ -136,17 +135,13 @@ class MapIndex:
         count = len(dist)
         if count < min_points or count == 0:
             return None
-        if isinstance(dist, list):  # a few points (_few_in_window): plain Python, same values
-            if mode == 'nearest_to_ray':
-                return RayHit(dist[cos.index(max(cos))], count)
-            return RayHit(median_of_list(dist), count)
         if mode == 'nearest_to_ray':
             return RayHit(float(dist[int(np.argmax(cos))]), count)
         return RayHit(median_1d(dist), count)
 
     def _cone(self, origin_map: np.ndarray, direction_map: np.ndarray, cos_min: float,
-              window: tuple[float, float] | None) -> tuple[np.ndarray | list[float], np.ndarray | list[float]]:
-        """:meth:`cone_distances` as arrays, or as lists when a window holds few candidates."""
+              window: tuple[float, float] | None) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`cone_distances`: distances and cosines of the points in the cone."""
         if self.size == 0:
             return _EMPTY, _EMPTY
         o = np.asarray(origin_map, dtype=np.float64)
@@ -162,13 +157,12 @@ class MapIndex:
         return self._window_cone(o, d, cos_min, window)
 
     def _window_cone(self, o: np.ndarray, d: np.ndarray, cos_min: float,
-                     window: tuple[float, float]) -> tuple[np.ndarray | list[float], np.ndarray | list[float]]:
+                     window: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
         """The cone's points between window[0] and window[1], found with a chain of balls.
 
         Ball k covers the depth segment [bounds[k], bounds[k+1]) of the cone (the last one up to
         ``far`` included); the balls overlap, so a point is kept only from the ball whose segment
-        holds its depth: no sort, no duplicates. Up to FEW_CANDIDATES candidates, the result is two
-        lists (:func:`_few_in_window`).
+        holds its depth: no sort, no duplicates.
         """
         assert self.tree is not None
         near = max(window[0], _MIN_WINDOW_NEAR_REL * max(self.extent, 1e-300))
@@ -188,8 +182,6 @@ class MapIndex:
         v = self.points_map[idx] - o
         dist = np.sqrt(np.einsum('ij,ij->i', v, v))
         along = v @ d
-        if total <= FEW_CANDIDATES:
-            return _few_in_window(dist.tolist(), along.tolist(), sizes, cos_min, near, bounds, far)
         lower = near * bounds[:-1]
         upper = near * bounds[1:]
         upper[-1] = np.nextafter(far, math.inf)  # the window's end is included
@@ -203,36 +195,6 @@ class MapIndex:
 
 _EMPTY = np.empty(0)
 _EMPTY.flags.writeable = False
-
-
-def _few_in_window(dist: list[float], along: list[float], sizes: list[int], cos_min: float,
-                   near: float, bounds: np.ndarray, far: float) -> tuple[list[float], list[float]]:
-    """:meth:`MapIndex._window_cone`'s selection of a few candidates, on Python floats.
-
-    dist, along: each candidate's distance from the ray's origin and its component along the ray
-    (SLAM units), ball after ball, ``sizes[k]`` from ball k; bounds: the chain's segment bounds for
-    a window starting at depth 1. The array path's very operations, one candidate at a time (so the
-    same results to the bit): for up to FEW_CANDIDATES candidates its dozen numpy calls cost more.
-    Returns the kept points' distances and cosines as lists.
-    """
-    front = max(cos_min, 0.0)
-    depths = bounds.tolist()
-    last = len(sizes) - 1
-    dist_kept: list[float] = []
-    cos_kept: list[float] = []
-    start = 0
-    for ball, count in enumerate(sizes):
-        if not count:
-            continue
-        lower = near * depths[ball]
-        upper = math.nextafter(far, math.inf) if ball == last else near * depths[ball + 1]
-        for k in range(start, start + count):
-            r, a = dist[k], along[k]
-            if a > front * r and lower <= r < upper:
-                dist_kept.append(r)
-                cos_kept.append(a / r)
-        start += count
-    return dist_kept, cos_kept
 
 
 @lru_cache(maxsize=64)
