@@ -25,7 +25,6 @@ from hac_ros.core.transforms import interpolate_pose
 
 JUMP_HISTORY = 30  # recent pose speeds whose median is the "normal" speed
 JUMP_MIN_HISTORY = 5  # steps needed before a jump can be told from normal motion
-TYPICAL_REFRESH_POSES = 10  # the typical speed is re-taken every this many poses
 
 
 @dataclass
@@ -70,7 +69,6 @@ class PoseTrack:
         self._stamps: deque[int] = deque(maxlen=buffer)  # parallel to poses
         self.suspects: list[Pose] = []
         self._speeds: deque[float] = deque(maxlen=JUMP_HISTORY)
-        self._typical_speed, self._typical_age = 0.0, 0
         # the camera centres' bounding box (SLAM units, map frame): lower and upper corners
         self._bbox: tuple[list[float], list[float]] | None = None
 
@@ -90,7 +88,6 @@ class PoseTrack:
         self.poses.clear()
         self._stamps.clear()
         self._speeds.clear()
-        self._typical_age = 0
         self._bbox = None
 
     # ------------------------------------------------------------------ jumps
@@ -111,13 +108,10 @@ class PoseTrack:
         if move is None or len(self._speeds) < JUMP_MIN_HISTORY:
             return False
         step, speed = move
-        if self._typical_age <= 0:  # the median of recent speeds, refreshed every few poses
-            self._typical_speed = median_1d(np.fromiter(self._speeds, float, len(self._speeds)))
-            self._typical_age = TYPICAL_REFRESH_POSES
-        self._typical_age -= 1
+        typical = median_1d(np.array(self._speeds))
         assert self._bbox is not None  # set with the first accepted pose
         extent = math.dist(*self._bbox)
-        return speed > self.jump_factor * self._typical_speed and step > self.jump_min_rel * extent
+        return speed > self.jump_factor * typical and step > self.jump_min_rel * extent
 
     def follow(self, pose: Pose) -> Verdict:
         """After a jump: back near the old trajectory (the suspects were outliers) or continuing
