@@ -26,23 +26,20 @@ def candidate_joints(mode: str, joints_cam: np.ndarray, R_wc: np.ndarray,
 
     joints_cam: (24, 3) metres, camera optical frame, finite, the person in front of the camera.
     R_wc: (3, 3) camera to map. normal_map: (3,) down-pointing ground normal in the map, or None.
-    Only joints in front of the camera (z > 0) are candidates. Plain Python over the 24 joints:
-    numpy's per-call cost dominates at this size.
+    Only joints in front of the camera (z > 0) are candidates.
     """
-    depth = joints_cam[:, 2].tolist()
+    front = joints_cam[:, 2] > 0.0
     if mode in FIXED_JOINTS:
-        return [j for j in FIXED_JOINTS[mode] if depth[j] > 0.0]
+        return [j for j in FIXED_JOINTS[mode] if front[j]]
     if mode == 'max_ratio':
-        return [j for j, z in enumerate(depth) if z > 0.0]
+        return np.flatnonzero(front).tolist()
+    if not front.any():
+        return []
     if mode == 'lowest_gravity' and normal_map is not None:
-        height_down = (joints_cam @ (R_wc.T @ normal_map)).tolist()  # along gravity, camera-centred
+        height_down = joints_cam @ (R_wc.T @ normal_map)  # along gravity, camera-centred
     else:  # 'lowest' (and lowest_gravity before a normal exists)
-        height_down = joints_cam[:, 1].tolist()
-    best, lowest = -1, -math.inf
-    for j, z in enumerate(depth):
-        if z > 0.0 and (best < 0 or height_down[j] > lowest):  # the first of equals, as argmax
-            best, lowest = j, height_down[j]
-    return [best] if best >= 0 else []
+        height_down = joints_cam[:, 1]
+    return [int(np.argmax(np.where(front, height_down, -np.inf)))]  # the first of equals
 
 
 def combine_ratios(mode: str, ratios: list[float]) -> float:
@@ -63,17 +60,14 @@ def combine_ratios(mode: str, ratios: list[float]) -> float:
 def in_view(joints_cam: np.ndarray, K: np.ndarray | None, width: int, height: int) -> list[bool]:
     """Which joints (M, 3) project inside the image (all in front of it without intrinsics).
 
-    A plain loop: M is a person's few candidate joints, where numpy's per-call cost dominates.
+    joints_cam: metres, camera optical frame; K: (3, 3) pixels or None; width, height: pixels.
     """
+    x, y, z = joints_cam.T
+    front = z > 0.0
     if K is None:
-        return [z > 0.0 for z in joints_cam[:, 2].tolist()]
-    (fx, skew, cx), (_, fy, cy) = K[:2].tolist()
-    out = []
-    for x, y, z in joints_cam.tolist():
-        if z <= 0.0:
-            out.append(False)
-            continue
-        u = (fx * x + skew * y) / z + cx
-        v = fy * y / z + cy
-        out.append(0.0 <= u < width and 0.0 <= v < height)
-    return out
+        return front.tolist()
+    (fx, skew, cx), (_, fy, cy) = K[:2]
+    depth = np.where(front, z, 1.0)
+    u = (fx * x + skew * y) / depth + cx
+    v = fy * y / depth + cy
+    return (front & (u >= 0.0) & (u < width) & (v >= 0.0) & (v < height)).tolist()
