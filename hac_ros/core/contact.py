@@ -13,7 +13,6 @@ import math
 
 import numpy as np
 
-from hac_ros.core.numeric import median_1d
 
 PELVIS, NECK, HEAD = 0, 12, 15
 LEFT_FOOT, RIGHT_FOOT = 10, 11
@@ -54,7 +53,7 @@ def combine_ratios(mode: str, ratios: list[float]) -> float:
         return float('nan')
     if mode == 'max_ratio':
         return max(finite)
-    return median_1d(np.array(finite))
+    return float(np.median(finite))
 
 
 def in_view(joints_cam: np.ndarray, K: np.ndarray | None, width: int, height: int) -> list[bool]:

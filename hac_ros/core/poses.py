@@ -19,7 +19,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hac_ros.core.numeric import median_1d
 from hac_ros.core.transforms import interpolate_pose
 
 JUMP_HISTORY = 30  # recent pose speeds whose median is the "normal" speed
@@ -107,7 +106,7 @@ class PoseTrack:
         if move is None or len(self._speeds) < JUMP_MIN_HISTORY:
             return False
         step, speed = move
-        typical = median_1d(np.array(self._speeds))
+        typical = float(np.median(self._speeds))
         assert self._bbox is not None  # set with the first accepted pose
         extent = float(np.linalg.norm(self._bbox[1] - self._bbox[0]))
         return speed > self.jump_factor * typical and step > self.jump_min_rel * extent
