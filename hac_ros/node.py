@@ -11,7 +11,7 @@ thread is the map builder (:class:`hac_ros.inputs.MapBuilder`, as in the replay)
 arrives as raw CDR bytes, its header is read on the executor thread (microseconds), and decoding
 the points and building the :class:`MapIndex` (k-d tree) happen on the builder thread, so a
 1M-point map does not stall the frames. The finished index is handed to the calibrator on the
-executor's thread (a 10 ms timer takes it, MAP_POLL_S). The builder runs at nice BUILDER_NICE, so
+executor's thread (the builder triggers a guard condition when a map is done). The builder runs at nice BUILDER_NICE, so
 frames take the CPU from it. **While a map is being built, frames use the latest map already
 handed over** (the previous one); the new map is used from the first frame processed after it is
 ready whose stamp is not before the map's stamp. This is the one place where the node may differ
@@ -54,7 +54,6 @@ from msg_adapters import MessageError, RawCloud, parse_cloud_cdr, rclpy_types
 
 TYPES = rclpy_types()  # rclpy's message classes by ROS name
 GIL_SWITCH_INTERVAL_S = 0.0005  # see main()
-MAP_POLL_S = 0.01  # the executor takes finished maps from the builder this often
 # Environment variables naming a Fast DDS XML profile (config/fastdds_large_data.xml): Fast DDS
 # 2.x reads the first, 3.x the second; read once per process, when rclpy starts
 DDS_PROFILE_VARIABLES = ('FASTRTPS_DEFAULT_PROFILES_FILE', 'FASTDDS_DEFAULT_PROFILES_FILE')
@@ -150,9 +149,8 @@ class HacNode(Node):
         self._builder = MapBuilder(self._build_index, workers=1,
                                    thread_init=lambda: lower_thread_priority(BUILDER_NICE))
         self._maps_building: deque[Future] = deque()  # in arrival order
-        # finished maps are handed over by a timer, not a guard condition: rclpy's EventsExecutor
-        # (the executable's default, see make_executor) does not support guard conditions
-        self._map_poll = self.create_timer(MAP_POLL_S, self._on_maps_ready)
+        # a finished map wakes the executor, which hands it to the calibrator on its own thread
+        self._maps_ready = self.create_guard_condition(self._on_maps_ready)
         self._subscriptions_by_kind: dict[str, Any] = {}
         for kind in ('pose', 'joints', 'camera_info', 'cloud'):
             self._subscribe(kind)
@@ -272,7 +270,9 @@ class HacNode(Node):
         else:
             superseded = waiting[:max(0, len(waiting) - MAPS_WAITING_MAX + 1)]
         self.maps_superseded += sum(f.cancel() for f in superseded)
-        self._maps_building.append(self._builder.submit(cloud))
+        future = self._builder.submit(cloud)
+        future.add_done_callback(lambda _: self._maps_ready.trigger())
+        self._maps_building.append(future)
 
     def _on_maps_ready(self) -> None:
         """Executor thread: hand the maps the builder finished to the calibrator, in order."""
@@ -387,22 +387,6 @@ class HacNode(Node):
 # SIGTERMs shortly after start-up). Waiting at most this long lets the loop see the shutdown.
 SHUTDOWN_POLL_S = 0.5
 
-def make_executor() -> Any:
-    """rclpy's EventsExecutor (C++, Jazzy's ``rclpy.experimental``) unless HAC_EXECUTOR=single.
-
-    The default SingleThreadedExecutor rebuilds a wait set of every entity (4 subscriptions, the
-    parameter services, guard conditions) in Python for each callback; the EventsExecutor
-    dispatches each event directly (measured: docs/benchmarks.md, node latency).
-    """
-    if os.environ.get('HAC_EXECUTOR', 'events') != 'single':
-        try:
-            from rclpy.experimental import EventsExecutor
-            return EventsExecutor()
-        except ImportError:  # an rclpy without it
-            pass
-    return SingleThreadedExecutor()
-
-
 def main(args: list[str] | None = None) -> int:
     """init → spin → clean shutdown on SIGINT/SIGTERM (exit code 0); 2 on invalid parameters.
 
@@ -413,7 +397,7 @@ def main(args: list[str] | None = None) -> int:
     # docs/benchmarks.md, node latency) at a negligible cost to the builder.
     sys.setswitchinterval(GIL_SWITCH_INTERVAL_S)
     rclpy.init(args=args)
-    executor = make_executor()
+    executor = SingleThreadedExecutor()
     node = None
     try:
         node = HacNode()

@@ -577,25 +577,6 @@ def test_spin_thread_delivers_then_stops_before_its_executor_is_shut_down():
         rclpy.try_shutdown(context=context)
 
 
-def test_the_executable_spins_the_events_executor_unless_told_otherwise(monkeypatch):
-    """make_executor: rclpy's EventsExecutor by default, the SingleThreadedExecutor with
-    HAC_EXECUTOR=single (the node's own behaviour under both is covered by the other tests: the
-    subprocess ones run the executable, the in-process ones a SingleThreadedExecutor)."""
-    from rclpy.experimental import EventsExecutor
-
-    from hac_ros.node import make_executor
-
-    rclpy.init()
-    try:
-        monkeypatch.delenv('HAC_EXECUTOR', raising=False)
-        default = make_executor()
-        assert type(default).__name__ == type(EventsExecutor()).__name__
-        monkeypatch.setenv('HAC_EXECUTOR', 'single')
-        assert isinstance(make_executor(), SingleThreadedExecutor)
-    finally:
-        rclpy.try_shutdown()
-
-
 def test_messages_the_middleware_lost_are_counted_in_diagnostics(harness):
     """Best-effort input can lose messages under load before they reach the node (measured:
     bench/node_latency.py at 1M points). Every input subscription listens for the middleware's
