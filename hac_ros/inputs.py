@@ -97,15 +97,12 @@ class MapBuilder:
     :meth:`submit` returns the Future of a :class:`MapBuilt`; the shell hands the results to the
     calibrator on its own thread in the order it submitted them (the replay waits for each at its
     place in the recording, the node takes each as soon as it is done). scipy builds the k-d tree
-    without the GIL, so a large map does not stall the frames. ``thread_init`` runs once on each
-    worker thread when it starts.
+    without the GIL, so a large map does not stall the frames.
     """
 
-    def __init__(self, build_index: IndexBuilder, workers: int = 1,
-                 thread_init: Callable[[], Any] | None = None) -> None:
+    def __init__(self, build_index: IndexBuilder, workers: int = 1) -> None:
         self._build_index = build_index
-        self._pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix='hac_map',
-                                        initializer=thread_init)
+        self._pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix='hac_map')
 
     def submit(self, cloud: RawCloud) -> Future:
         return self._pool.submit(index_cloud, cloud, self._build_index)

@@ -11,20 +11,18 @@ thread is the map builder (:class:`hac_ros.inputs.MapBuilder`, as in the replay)
 arrives as raw CDR bytes, its header is read on the executor thread (microseconds), and decoding
 the points and building the :class:`MapIndex` (k-d tree) happen on the builder thread, so a
 1M-point map does not stall the frames. The finished index is handed to the calibrator on the
-executor's thread (the builder triggers a guard condition when a map is done). The builder runs at nice BUILDER_NICE, so
-frames take the CPU from it. **While a map is being built, frames use the latest map already
-handed over** (the previous one); the new map is used from the first frame processed after it is
-ready whose stamp is not before the map's stamp. This is the one place where the node may differ
-from ``hac replay``, which always has the map at its stamp.
+executor's thread (the builder triggers a guard condition when a map is done). **While a map is
+being built, frames use the latest map already handed over** (the previous one); the new map is
+used from the first frame processed after it is ready whose stamp is not before the map's stamp.
+This is the one place where the node may differ from ``hac replay``, which always has the map at
+its stamp.
 
 Run: ``ros2 run hac_ros hac_node --ros-args --params-file config/hac.yaml`` or
 ``python -m hac_ros.node --ros-args ...``.
 """
 from __future__ import annotations
 
-import os
 import sys
-import threading
 import traceback
 from collections import Counter, deque
 from concurrent.futures import Future
@@ -66,11 +64,6 @@ DIAGNOSTICS_DEPTH = 10
 
 # ---------------------------------------------------------------------------------------- maps
 MAPS_WAITING_MAX = 8  # accumulate mode: clouds waiting for the builder (older ones are dropped)
-# The builder thread's nice value (Linux: per thread). A frame that arrives while a map is being
-# built then takes the CPU from the builder at once; the build only takes longer when the CPU is
-# busy. Not SCHED_IDLE: a builder starved while holding the GIL would stall the frames
-# (measured: docs/benchmarks.md, node latency).
-BUILDER_NICE = 19
 
 def input_qos(params: HacParams) -> QoSProfile:
     """Pose, joints and CameraInfo: best effort (matches every publisher) or reliable."""
@@ -101,22 +94,6 @@ def qos_hint(kind: str, policy: str) -> str:
 
 
 # ---------------------------------------------------------------------------------------- map builder
-def lower_thread_priority(nice: int) -> bool:
-    """Give the calling thread this nice value (only lowering is allowed without privileges).
-
-    Linux gives each thread its own nice value; elsewhere (or where the call is refused) nothing
-    changes. Returns whether it took effect.
-    """
-    if not sys.platform.startswith('linux'):
-        return False
-    try:
-        tid = threading.get_native_id()
-        os.setpriority(os.PRIO_PROCESS, tid, max(nice, os.getpriority(os.PRIO_PROCESS, tid)))
-    except OSError:
-        return False
-    return True
-
-
 # ---------------------------------------------------------------------------------------- the node
 class HacNode(Node):
     """Subscribes to the inputs, feeds the calibrator, publishes its outputs (SPEC's topics)."""
@@ -146,8 +123,7 @@ class HacNode(Node):
         for topic, msgtype in OUTPUT_TOPICS:
             depth = DIAGNOSTICS_DEPTH if topic == '/diagnostics' else OUTPUT_DEPTH
             self._output_publishers[topic] = self.create_publisher(TYPES.get(msgtype), topic, depth)
-        self._builder = MapBuilder(self._build_index, workers=1,
-                                   thread_init=lambda: lower_thread_priority(BUILDER_NICE))
+        self._builder = MapBuilder(self._build_index, workers=1)
         self._maps_building: deque[Future] = deque()  # in arrival order
         # a finished map wakes the executor, which hands it to the calibrator on its own thread
         self._maps_ready = self.create_guard_condition(self._on_maps_ready)

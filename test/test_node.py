@@ -5,10 +5,7 @@ simulated recording into it and records its outputs; one executor thread spins b
 """
 from __future__ import annotations
 
-import os
 import re
-import sys
-import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -602,35 +599,3 @@ def test_messages_the_middleware_lost_are_counted_in_diagnostics(harness):
     handler.callback(SimpleNamespace(total_count=3, total_count_change=1))
     assert node.calibrator.status().rejected['joints_lost'] == 3
     assert node.notices['joints_lost'] == 1  # logged once
-
-
-def test_the_map_builder_runs_at_a_low_priority_and_the_frames_do_not(harness):
-    """The builder thread lowers its own nice value to BUILDER_NICE (Linux: per thread), so a frame
-    arriving during a build takes the CPU from it (docs/benchmarks.md, node latency); the executor's
-    thread, here this one, keeps the process's priority."""
-    from hac_ros.node import BUILDER_NICE, lower_thread_priority
-
-    if not sys.platform.startswith('linux'):
-        pytest.skip('per-thread nice values are a Linux feature')
-    h = harness()
-    cloud = next(e for e in scenario_recording('walk', 3.0).events if e.kind == 'cloud')
-    h.publish(cloud)  # waits until the node took it: the builder thread exists
-    builders = [t for t in threading.enumerate() if t.name.startswith('hac_map')]
-    assert len(builders) == 1 and builders[0].native_id is not None
-    assert os.getpriority(os.PRIO_PROCESS, builders[0].native_id) == BUILDER_NICE
-    assert os.getpriority(os.PRIO_PROCESS, threading.get_native_id()) == os.getpriority(
-        os.PRIO_PROCESS, 0) < BUILDER_NICE
-
-    # the helper lowers a thread's priority but never raises it (that needs privileges)
-    seen: list[tuple[bool, int]] = []
-
-    def lower_twice(first: int) -> None:
-        for nice in (first, 5):
-            done = lower_thread_priority(nice)
-            seen.append((done, os.getpriority(os.PRIO_PROCESS, threading.get_native_id())))
-
-    for first in (10, 5):
-        worker = threading.Thread(target=lower_twice, args=(first,))
-        worker.start()
-        worker.join()
-    assert seen == [(True, 10), (True, 10), (True, 5), (True, 5)]
