@@ -51,7 +51,6 @@ from hac_ros.node_parameters import (RESUBSCRIBE, ROS_OWN_PARAMETERS, SHELL_ONLY
 from msg_adapters import MessageError, RawCloud, parse_cloud_cdr, rclpy_types
 
 TYPES = rclpy_types()  # rclpy's message classes by ROS name
-GIL_SWITCH_INTERVAL_S = 0.0005  # see main()
 # Environment variables naming a Fast DDS XML profile (config/fastdds_large_data.xml): Fast DDS
 # 2.x reads the first, 3.x the second; read once per process, when rclpy starts
 DDS_PROFILE_VARIABLES = ('FASTRTPS_DEFAULT_PROFILES_FILE', 'FASTDDS_DEFAULT_PROFILES_FILE')
@@ -368,10 +367,6 @@ def main(args: list[str] | None = None) -> int:
 
     The executor is made before the node so that a signal during start-up finds it complete.
     """
-    # The map builder thread holds the GIL between native calls; with Python's default 5 ms
-    # switch interval a frame arriving then waits up to 5 ms. 0.5 ms bounds that wait (measured:
-    # docs/benchmarks.md, node latency) at a negligible cost to the builder.
-    sys.setswitchinterval(GIL_SWITCH_INTERVAL_S)
     rclpy.init(args=args)
     executor = SingleThreadedExecutor()
     node = None
