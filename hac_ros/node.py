@@ -176,6 +176,11 @@ class HacNode(Node):
         self._subscriptions_by_kind[kind] = self.create_subscription(
             msg_type, topic, self._guarded(kind, callback), qos, event_callbacks=events, raw=raw)
 
+    def subscription(self, kind: str) -> Any:
+        """The rclpy Subscription of input ``kind`` (``pose``, ``joints``, ``camera_info``,
+        ``cloud``), or None when it is turned off."""
+        return self._subscriptions_by_kind.get(kind)
+
     def _on_incompatible_qos(self, kind: str, topic: str, info: Any) -> None:
         policy = qos_policy_name_from_kind(info.last_policy_kind)
         self.qos_incompatible[topic] += 1

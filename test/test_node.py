@@ -590,10 +590,10 @@ def test_messages_the_middleware_lost_are_counted_in_diagnostics(harness):
     node = h.node
     lost_type = QoSSubscriptionEventType.RCL_SUBSCRIPTION_MESSAGE_LOST
     for kind in ('pose', 'joints', 'camera_info', 'cloud'):
-        handlers = [e for e in node._subscriptions_by_kind[kind].event_handlers
+        handlers = [e for e in node.subscription(kind).event_handlers
                     if e.event_type == lost_type]
         assert len(handlers) == 1, kind
-    handler = next(e for e in node._subscriptions_by_kind['joints'].event_handlers
+    handler = next(e for e in node.subscription('joints').event_handlers
                    if e.event_type == lost_type)
     handler.callback(SimpleNamespace(total_count=2, total_count_change=2))
     handler.callback(SimpleNamespace(total_count=3, total_count_change=1))
