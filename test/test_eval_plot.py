@@ -134,6 +134,7 @@ def test_plots_without_ground_truth(replayed, tmp_path):
 
 
 # ============================================================================ demo
+@pytest.mark.slow
 def test_demo_replays_evaluates_plots_and_replaces_earlier_results(replayed, tmp_path):
     source, _, _ = replayed
     out_dir = tmp_path / 'out'

@@ -18,6 +18,7 @@ import pytest
 import yaml
 
 rclpy = pytest.importorskip('rclpy')
+pytestmark = [pytest.mark.slow, pytest.mark.ros]  # hac_node as a subprocess
 
 from rclpy.context import Context  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402

@@ -472,6 +472,7 @@ def test_invalid_parameter_is_an_error(walk_bag, tmp_path):
                             str(params_file)), 'window_s')
 
 
+@pytest.mark.slow
 def test_ctrl_c_leaves_no_output_and_never_touches_the_input(tmp_path):
     source = write_recording(tmp_path / 'long', walking_scene(frames=3000, rate=30.0),
                              cloud_every=30)
