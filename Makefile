@@ -31,9 +31,7 @@ bench: $(STAMP)
 	$(PY) bench/accuracy.py
 	$(PY) bench/core_speed.py
 	$(PY) bench/replay_throughput.py
-	$(PY) bench/node_latency.py --map-points 100000
-	$(PY) bench/node_latency.py --map-points 1000000
-	$(PY) bench/node_latency.py --map-points 1000000 --publishers split
+	$(PY) bench/node_latency.py
 	$(PY) bench/node_memory.py
 
 clean:

@@ -1,7 +1,9 @@
-"""Shared by the benchmarks: machine description, JSON results, and their section of docs/benchmarks.md.
+"""Shared by the benchmarks: the machine line, JSON results, their section of docs/benchmarks.md.
 
 Each benchmark owns one section of ``docs/benchmarks.md`` between ``<!-- NAME:start -->`` and
-``<!-- NAME:end -->`` and leaves the others alone.
+``<!-- NAME:end -->`` and leaves the others alone. A speed benchmark also lists its ratios as
+``checks`` in its JSON; :func:`write_summary` renders every result's checks into the ``summary``
+section, so the page opens with the current verdicts.
 """
 from __future__ import annotations
 
@@ -10,21 +12,24 @@ import os
 import platform
 import re
 import subprocess
-import time
+import sys
 from importlib import metadata
+from importlib.util import find_spec
 from pathlib import Path
 from typing import Any
 
 REPO = Path(__file__).resolve().parents[1]
 RESULTS = REPO / 'bench' / 'results'
 DOC = REPO / 'docs' / 'benchmarks.md'
-DOC_HEADER = ('# Benchmarks\n\nEvery figure here was written by the script named in its section, '
-              'on the machine it names. Re-run a section with its command.\n')
+DOC_HEADER = '# Benchmarks\n'
+VERSIONED = ('numpy', 'scipy', 'rosbags', 'rclpy')
+SPEED_RESULTS = ('core_speed', 'replay_throughput', 'node_latency', 'node_memory')
 
 
 def machine() -> dict[str, Any]:
-    """What the figures were measured on."""
-    cpu = platform.processor() or ''
+    """What the figures were measured on: CPU, cores, Python, the measured commit and the versions
+    of the libraries the figures depend on."""
+    cpu = platform.processor() or '?'
     try:
         for line in Path('/proc/cpuinfo').read_text().splitlines():
             if line.startswith('model name'):
@@ -32,21 +37,31 @@ def machine() -> dict[str, Any]:
                 break
     except OSError:
         pass
-    try:
-        commit = subprocess.run(['git', 'rev-parse', '--short', 'HEAD'], cwd=REPO, text=True,
-                                capture_output=True, check=False).stdout.strip()
-    except OSError:
-        commit = ''
     return {'cpu': cpu, 'cores': os.cpu_count(), 'python': platform.python_version(),
-            'platform': platform.platform(), 'commit': commit, 'versions': versions(),
-            'speed_reference_ms': speed_reference()}
+            'commit': _commit(), 'versions': _versions()}
 
 
-VERSIONED = ('numpy', 'scipy', 'rosbags', 'rclpy')
+def measured_tree() -> Path:
+    """The checkout whose ``hac_ros`` this process imports (PYTHONPATH may point at another
+    than this one's: bench/ab.py)."""
+    spec = find_spec('hac_ros')
+    return Path(spec.origin).resolve().parents[1] if spec and spec.origin else REPO
 
 
-def versions() -> dict[str, str]:
-    """The installed versions of the libraries the figures depend on ('' when not installed)."""
+def _commit() -> str:
+    """The measured checkout's commit, ``+modified`` when its package files differ from it."""
+    def git(*args: str) -> str:
+        return subprocess.run(['git', *args], cwd=measured_tree(), text=True,
+                              capture_output=True, check=False).stdout.strip()
+    try:
+        commit = git('rev-parse', '--short', 'HEAD')
+        modified = git('status', '--porcelain', '--', 'hac_ros', 'msg_adapters', 'config')
+    except OSError:
+        return ''
+    return commit + ('+modified' if modified else '')
+
+
+def _versions() -> dict[str, str]:
     found = {}
     for name in VERSIONED:
         try:
@@ -56,52 +71,25 @@ def versions() -> dict[str, str]:
     return found
 
 
-def speed_reference(repeats: int = 7) -> dict[str, float]:
-    """This machine's speed now, to compare runs made on different hosts or days: the median ms of
-    a fixed pure-Python loop (1M additions) and of the literal cone median over 1M fixed points
-    (one ray; numpy). The issue's targets were set where the literal method cost ~180 ms per
-    frame at 1M points (bench/core_speed.py measures that per frame). Written out here, not
-    hac_ros.core.reference.literal_cone_median: a reference must not change when the package does."""
-    import numpy as np
-
-    rng = np.random.default_rng(0)
-    points = rng.random((1_000_000, 3)) - 0.5
-    direction = np.array([0.0, 0.0, 1.0])
-    python_ms, numpy_ms = [], []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        total = 0
-        for i in range(1_000_000):
-            total += i
-        python_ms.append((time.perf_counter() - start) * 1e3)
-        start = time.perf_counter()
-        dist = np.sqrt(np.einsum('ij,ij->i', points, points))
-        cos = (points @ direction) / dist
-        np.median(dist[cos > 0.99])
-        numpy_ms.append((time.perf_counter() - start) * 1e3)
-    return {'python_loop_1m_ms': float(np.median(python_ms)),
-            'numpy_cone_1m_ms': float(np.median(numpy_ms))}
-
-
-def run_machine(info: dict[str, Any]) -> str:
-    """A short name of the machine and commit of one run, for a table column."""
-    cpu = str(info.get('cpu', '?')).replace('(R)', '').replace(' Processor', '').replace('  ', ' ')
-    ref = info.get('speed_reference_ms')
-    speed = f", ref {ref['numpy_cone_1m_ms']:.0f} ms" if ref else ''
-    return f"{cpu.strip()}{speed}, {info.get('commit') or '?'}"
-
-
 def machine_line(info: dict[str, Any]) -> str:
+    """One line naming the machine, the commit and the library versions."""
     line = (f"Machine: {info['cpu']}, {info['cores']} cores, Python {info['python']}, "
-            f"commit {info['commit'] or 'uncommitted'}.")
+            f"commit {info.get('commit') or '?'}.")
     if info.get('versions'):
         line += ' ' + ', '.join(f'{k} {v}' for k, v in info['versions'].items() if v) + '.'
-    ref = info.get('speed_reference_ms')
-    if ref:
-        line += (f" Speed reference (median ms, `bench/_report.py` speed_reference): Python loop "
-                 f"{ref['python_loop_1m_ms']:.0f}, numpy cone over 1M points "
-                 f"{ref['numpy_cone_1m_ms']:.1f}.")
     return line
+
+
+def check(what: str, measured: str, target: str, met: bool) -> dict[str, Any]:
+    """One ratio as measured (text, e.g. ``'1067x'``), its target (e.g. ``'>= 100x'``) and whether
+    it is met: a row of the summary."""
+    return {'what': what, 'measured': measured, 'target': target, 'met': bool(met)}
+
+
+def command_line(script: str, argv: list[str] | None = None) -> str:
+    """How this run was started, for its section: ``python bench/NAME.py ARGS``."""
+    args = sys.argv[1:] if argv is None else argv
+    return ' '.join(['python', f'bench/{Path(script).name}', *args])
 
 
 def write_json(name: str, data: dict[str, Any]) -> Path:
@@ -112,22 +100,57 @@ def write_json(name: str, data: dict[str, Any]) -> Path:
 
 
 def write_section(name: str, markdown: str) -> None:
-    """Replace (or append) this benchmark's section of docs/benchmarks.md."""
-    DOC.parent.mkdir(parents=True, exist_ok=True)
+    """Replace (or append) the section ``name`` of docs/benchmarks.md."""
     text = DOC.read_text() if DOC.exists() else DOC_HEADER
     start, end = f'<!-- {name}:start -->', f'<!-- {name}:end -->'
     block = f'{start}\n{markdown.rstrip()}\n{end}'
     pattern = re.compile(re.escape(start) + '.*?' + re.escape(end), re.S)
-    text = pattern.sub(lambda _: block, text) if pattern.search(text) else text.rstrip() + '\n\n' + block + '\n'
+    if pattern.search(text):
+        text = pattern.sub(lambda _: block, text)
+    else:
+        text = text.rstrip() + '\n\n' + block + '\n'
+    DOC.parent.mkdir(parents=True, exist_ok=True)
     DOC.write_text(text)
 
 
+def publish(name: str, data: dict[str, Any], markdown: str) -> None:
+    """A speed benchmark's outputs: its JSON, its section and the summary at the top."""
+    write_json(name, data)
+    write_section(name, markdown)
+    write_summary()
+
+
+def write_summary() -> None:
+    """The ``summary`` section: every speed result's checks, from bench/results/*.json."""
+    rows = []
+    for name in SPEED_RESULTS:
+        path = RESULTS / f'{name}.json'
+        if not path.exists():
+            continue
+        data = json.loads(path.read_text())
+        for c in data.get('checks', []):
+            rows.append([c['what'], c['measured'], c['target'], 'yes' if c['met'] else '**no**',
+                         f'`bench/{name}.py`', data['machine'].get('commit', '?')])
+    write_section('summary', '\n'.join([
+        '## The ratios at a glance', '',
+        table(['ratio', 'measured', 'target', 'met', 'by', 'commit'], rows)]))
+
+
+def section(title: str, command: str, what: str, body: str, info: dict[str, Any]) -> str:
+    """A benchmark's section: title, command, one paragraph of what is measured, its table and the
+    machine line."""
+    return '\n'.join([f'## {title}', '', f'`{command}`', '', what, '', body, '',
+                      machine_line(info)])
+
+
 def table(headers: list[str], rows: list[list[Any]]) -> str:
-    """A markdown table; floats with 3 significant decimals."""
-    def fmt(v: Any) -> str:
-        if isinstance(v, float):
-            return f'{v:.3g}' if abs(v) < 1000 else f'{v:.0f}'
-        return str(v)
+    """A markdown table; floats with 3 significant digits."""
     lines = ['| ' + ' | '.join(headers) + ' |', '|' + '---|' * len(headers)]
-    lines += ['| ' + ' | '.join(fmt(v) for v in row) + ' |' for row in rows]
+    lines += ['| ' + ' | '.join(_fmt(v) for v in row) + ' |' for row in rows]
     return '\n'.join(lines)
+
+
+def _fmt(v: Any) -> str:
+    if isinstance(v, float):
+        return f'{v:.3g}' if abs(v) < 1000 else f'{v:.0f}'
+    return str(v)
