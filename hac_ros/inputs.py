@@ -1,8 +1,9 @@
 """Input messages into the calibrator, the same way for the node and the replay.
 
-SLAM poses and HMR joints come as CDR bytes (a raw subscription's, or a recording's), CameraInfo as
-a message object (rclpy's or rosbags'), so that the same message gives the same calibrator call
-online and replayed. Map clouds come as CDR bytes too: the shell reads the header
+SLAM poses, HMR joints and CameraInfo come as message objects (rclpy's in the node, rosbags' in
+the replay: the adapters read both alike), so that the same message gives the same calibrator call
+online and replayed; ``None`` stands for a message whose bytes did not deserialize. Map clouds come
+as CDR bytes: the shell reads the header
 (``parse_cloud_cdr``) where the message arrives and a :class:`MapBuilder` decodes and indexes the
 points on a worker thread; the shell hands each :class:`MapBuilt` to the calibrator on its own
 thread, in order. A message that does not decode is a counted rejection with its kind's reason
@@ -20,33 +21,41 @@ import numpy as np
 from hac_ros.core.calibrator import Calibrator
 from hac_ros.core.outputs import Output
 from hac_ros.core.reference import MapIndex
-from msg_adapters import (MessageError, RawCloud, RawPose, camera_info_to_intrinsics, cloud_points,
-                          parse_joints_cdr, parse_pose_cdr, stamp_to_ns)
+from msg_adapters import (MessageError, RawCloud, camera_info_to_intrinsics, cloud_points,
+                          pose_array_to_joints, pose_msg_to_rt, stamp_to_ns)
 
 # Calibrator.build_index: (stamp_ns, points_map (N, 3) SLAM units, frame_id) -> MapIndex
 IndexBuilder = Callable[[int, Any, str], MapIndex]
 
 
-def add_pose_cdr(calibrator: Calibrator, data: bytes | memoryview, msgtype: str
-                 ) -> tuple[list[Output], RawPose | None]:
-    """A serialized SLAM pose of ROS type ``msgtype`` → the calibrator's outputs, and the pose
-    read (None when it did not decode: rejected as ``pose_nonfinite``)."""
+def add_pose_msg(calibrator: Calibrator, msg: Any
+                 ) -> tuple[list[Output], tuple[int, np.ndarray, np.ndarray] | None]:
+    """A SLAM pose (PoseStamped or Odometry, or None) → the calibrator's outputs, and the pose read:
+    (stamp ns, R_wc (3, 3) camera to map, c (3,) SLAM units, map frame), or None when it is not a
+    valid pose (rejected as ``pose_nonfinite``)."""
     try:
-        pose = parse_pose_cdr(data, msgtype)
+        if msg is None:
+            raise MessageError('the pose message did not deserialize')
+        stamp = stamp_to_ns(msg.header.stamp)
+        R_wc, c_map = pose_msg_to_rt(msg)
     except MessageError:
         return calibrator.reject('pose_nonfinite', -1), None
-    return calibrator.add_pose(pose.stamp_ns, pose.R_wc, pose.c_map, pose.frame_id,
-                               pose.child_frame_id), pose
+    outputs = calibrator.add_pose(stamp, R_wc, c_map, msg.header.frame_id,
+                                  getattr(msg, 'child_frame_id', ''))
+    return outputs, (stamp, R_wc, c_map)
 
 
-def add_joints_cdr(calibrator: Calibrator, data: bytes | memoryview) -> list[Output]:
-    """A serialized PoseArray of HMR joints → the calibrator's outputs (rejected as
-    ``joints_malformed`` when it does not decode)."""
+def add_joints_msg(calibrator: Calibrator, msg: Any) -> list[Output]:
+    """A PoseArray of HMR joints (or None) → the calibrator's outputs (rejected as
+    ``joints_malformed`` when it is not P blocks of 24 joints or has an invalid stamp)."""
     try:
-        stamp, frame_id, joints_cam = parse_joints_cdr(data)
+        if msg is None:
+            raise MessageError('the joints message did not deserialize')
+        stamp = stamp_to_ns(msg.header.stamp)
+        joints_cam = pose_array_to_joints(msg)
     except MessageError:
         return calibrator.reject('joints_malformed', -1)
-    return calibrator.add_joints(stamp, joints_cam, frame_id)
+    return calibrator.add_joints(stamp, joints_cam, msg.header.frame_id)
 
 
 def add_camera_info_msg(calibrator: Calibrator, msg: Any

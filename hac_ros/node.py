@@ -38,13 +38,14 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy,
                        qos_policy_name_from_kind)
+from rclpy.serialization import deserialize_message
 
 from hac_ros.core.calibrator import Calibrator
 from hac_ros.core.errors import ParameterError
 from hac_ros.core.outputs import NoticeOut, OdometryOut, Output, ResetOut
 from hac_ros.core.params import NODE_NAME, POSE_MSGTYPES, HacParams, describe, names
 from hac_ros.core.reference import MapIndex
-from hac_ros.inputs import MapBuilder, add_camera_info_msg, add_joints_cdr, add_pose_cdr
+from hac_ros.inputs import MapBuilder, add_camera_info_msg, add_joints_msg, add_pose_msg
 from hac_ros.messages import OUTPUT_TOPICS, OutputMessages
 from hac_ros.node_parameters import (RESUBSCRIBE, ROS_OWN_PARAMETERS, SHELL_ONLY,
                                      parameter_descriptor)
@@ -211,13 +212,16 @@ class HacNode(Node):
     # ------------------------------------------------------------------ inputs
     # A message that cannot be decoded (msg_adapters.MessageError, an invalid stamp included) is
     # rejected with its kind's reason: pose_nonfinite, joints_malformed, camera_info_invalid.
-    # Poses and joints arrive as CDR bytes (raw subscriptions) and go through hac_ros.inputs, as
-    # in the replay: one np.frombuffer instead of a message object per pose.
+    # Poses and joints arrive as CDR bytes (raw subscriptions) and are deserialized here by
+    # rclpy, so that bytes that do not deserialize are a counted rejection too, never an
+    # exception in the executor.
     def _on_pose(self, data: bytes) -> None:
-        self._emit(add_pose_cdr(self.calibrator, data, POSE_MSGTYPES[self.params.pose_type])[0])
+        msg = _deserialize(data, TYPES.get(POSE_MSGTYPES[self.params.pose_type]))
+        self._emit(add_pose_msg(self.calibrator, msg)[0])
 
     def _on_joints(self, data: bytes) -> None:
-        self._emit(add_joints_cdr(self.calibrator, data))
+        msg = _deserialize(data, TYPES.get('geometry_msgs/msg/PoseArray'))
+        self._emit(add_joints_msg(self.calibrator, msg))
 
     def _on_camera_info(self, msg: Any) -> None:
         outputs, intrinsics = add_camera_info_msg(self.calibrator, msg)
@@ -359,6 +363,14 @@ class HacNode(Node):
     def destroy_node(self) -> None:
         self._builder.close()
         super().destroy_node()
+
+
+def _deserialize(data: bytes, msg_type: type) -> Any:
+    """rclpy's message of ``data``, or None when the bytes do not deserialize as ``msg_type``."""
+    try:
+        return deserialize_message(data, msg_type)
+    except Exception:  # noqa: BLE001 - rclpy raises several types for bytes it cannot read
+        return None
 
 
 # ---------------------------------------------------------------------------------------- main

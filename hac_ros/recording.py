@@ -120,12 +120,21 @@ class Recording:
 
     def deserialize(self, raw: Any, topic: str, log_ns: int = -1) -> Any:
         """A message of ``topic``; a ROS 1 message is converted to its ROS 2 Jazzy type first
-        (``std_msgs/Header`` loses ``seq``, ``CameraInfo.K`` becomes ``k``, ...)."""
+        (``std_msgs/Header`` loses ``seq``, ``CameraInfo.K`` becomes ``k``, ...). HacError when it
+        does not convert or deserialize."""
         data = self.to_cdr(raw, topic, log_ns)
         try:
             return self.typestore.deserialize_cdr(data, self.topics[topic])
         except Exception as exc:
             raise self._corrupt(topic, log_ns, exc) from exc
+
+    def deserialize_or_none(self, data: Any, topic: str) -> Any:
+        """The message of ROS 2 CDR bytes ``data`` of ``topic`` (as :meth:`to_cdr` gives them), or
+        None when they do not deserialize (a malformed message: the caller counts it)."""
+        try:
+            return self.typestore.deserialize_cdr(data, self.topics[topic])
+        except Exception:  # noqa: BLE001 - rosbags raises several types for malformed bytes
+            return None
 
     @property
     def typestore(self) -> Any:

@@ -40,8 +40,8 @@ from hac_ros.core.numeric import NS
 from hac_ros.core.offline import OfflineScale, offline_scale
 from hac_ros.core.outputs import NoticeOut, OdometryOut, Output, ResetOut, SampleOut, Status
 from hac_ros.core.params import POSE_MSGTYPES, HacParams
-from hac_ros.inputs import (MapBuilder, MapBuilt, add_camera_info_msg, add_joints_cdr,
-                            add_pose_cdr)
+from hac_ros.inputs import (MapBuilder, MapBuilt, add_camera_info_msg, add_joints_msg,
+                            add_pose_msg)
 from hac_ros.messages import OUTPUT_TOPICS, SAMPLES, Message, OutputMessages, samples_message
 from hac_ros.recording import (STORAGES, OutputWriter, Recording, check_output_path,
                                staged_output)
@@ -170,15 +170,18 @@ class CoreFeeder:
             return item.result().hand_to(cal)
         topic = {'pose': self.topics.pose, 'joints': self.topics.joints,
                  'camera_info': self.topics.camera_info}[kind]
+        # malformed bytes (msg None) are a counted rejection of their kind, as in the node
+        msg = self.recording.deserialize_or_none(self.recording.to_cdr(item, topic, log_ns), topic)
         if kind == 'pose':
-            outputs, pose = add_pose_cdr(cal, self.recording.to_cdr(item, topic, log_ns),
-                                         self.topics.pose_type)
+            outputs, pose = add_pose_msg(cal, msg)
             if pose is not None and self.poses is not None:
-                self.poses.append((pose.stamp_ns, pose.R_wc, pose.c_map))
+                self.poses.append(pose)
             return outputs
         if kind == 'joints':
-            return add_joints_cdr(cal, self.recording.to_cdr(item, topic, log_ns))
-        return add_camera_info_msg(cal, self.recording.deserialize(item, topic, log_ns))[0]
+            return add_joints_msg(cal, msg)
+        if msg is None:
+            return cal.reject('camera_info_invalid', -1)
+        return add_camera_info_msg(cal, msg)[0]
 
 
 def tie_ordered(messages: Iterable[tuple[str, int, Any]], kinds: dict[str, str]

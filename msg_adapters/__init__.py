@@ -5,8 +5,7 @@ Readers are duck-typed; builders take a :class:`MessageTypes` (``rclpy_types()``
 input raises :class:`MessageError`. Poses are camera-to-map ``(R_wc, c)`` (SPEC, conventions).
 """
 from msg_adapters.camera_info import camera_info_to_intrinsics, intrinsics_to_camera_info
-from msg_adapters.cdr import (RawCloud, RawPose, cloud_points, parse_cloud_cdr, parse_joints_cdr,
-                              parse_pose_cdr)
+from msg_adapters.cdr import RawCloud, cloud_points, parse_cloud_cdr
 from msg_adapters.errors import MessageError
 from msg_adapters.joints import JOINTS_PER_PERSON, joints_to_pose_array, pose_array_to_joints
 from msg_adapters.pointcloud import cloud_to_xyz, xyz_from_buffer, xyz_to_cloud
@@ -17,10 +16,9 @@ from msg_adapters.stamps import make_header, ns_to_stamp, stamp_to_ns
 from msg_adapters.types import MessageTypes, rclpy_types, rosbags_types
 
 __all__ = [
-    'JOINTS_PER_PERSON', 'MessageError', 'MessageTypes', 'RawCloud', 'RawPose', 'camera_info_to_intrinsics',
+    'JOINTS_PER_PERSON', 'MessageError', 'MessageTypes', 'RawCloud', 'camera_info_to_intrinsics',
     'cloud_points', 'cloud_to_xyz', 'intrinsics_to_camera_info', 'joints_to_pose_array',
-    'make_header', 'matrix_to_quat', 'ns_to_stamp', 'parse_cloud_cdr', 'parse_joints_cdr',
-    'parse_pose_cdr', 'pose_array_to_joints',
+    'make_header', 'matrix_to_quat', 'ns_to_stamp', 'parse_cloud_cdr', 'pose_array_to_joints',
     'pose_msg_to_rt', 'pose_to_rt', 'quat_to_matrix', 'rclpy_types', 'rosbags_types',
     'rt_to_odometry', 'rt_to_pose', 'rt_to_pose_stamped', 'rt_to_transform_stamped',
     'stamp_to_ns', 'xyz_from_buffer', 'xyz_to_cloud',

@@ -416,22 +416,22 @@ def test_corrupt_recordings_are_errors(walk_bag, tmp_path):
     assert not list(tmp_path.glob('.*partial'))
 
 
-def _with_clouds_broken(source: Path, target: Path, broken: dict[int, Callable[[bytes], bytes]]
-                        ) -> Path:
-    """A copy of ``source`` whose k-th /slam/cloud message's bytes are ``broken[k](bytes)``."""
+def _with_messages_broken(source: Path, target: Path, broken: dict[int, Callable[[bytes], bytes]],
+                          topic: str = '/slam/cloud') -> Path:
+    """A copy of ``source`` whose k-th message of ``topic`` has the bytes ``broken[k](bytes)``."""
     from rosbags.rosbag2 import Reader, StoragePlugin, Writer
 
     writer = Writer(target, version=9, storage_plugin=StoragePlugin.MCAP)
     writer.open()
-    clouds = 0
+    count = 0
     with Reader(source) as reader:
         conns = {c.id: writer.add_connection(c.topic, c.msgtype, typestore=None,
                                              msgdef=c.msgdef.data, rihs01=c.digest)
                  for c in reader.connections}
         for conn, log_ns, raw in reader.messages():
-            if conn.topic == '/slam/cloud':
-                raw = broken.get(clouds, bytes)(bytes(raw))
-                clouds += 1
+            if conn.topic == topic:
+                raw = broken.get(count, bytes)(bytes(raw))
+                count += 1
             writer.write(conns[conn.id], log_ns, bytes(raw))
     writer.close()
     return target
@@ -455,7 +455,7 @@ def test_a_malformed_map_cloud_is_a_counted_rejection_as_in_the_node(tmp_path, m
         return bytes(typestore.serialize_cdr(msg, cloud_type))
 
     source = write_recording(tmp_path / 'rec', walking_scene(frames=80), cloud_every=20)
-    bad = _with_clouds_broken(source, tmp_path / 'bad', {1: one_point_short, 2: lambda b: b[:14]})
+    bad = _with_messages_broken(source, tmp_path / 'bad', {1: one_point_short, 2: lambda b: b[:14]})
     good = replay(source, tmp_path / 'good', mode=mode, progress=False)
     summary = replay(bad, tmp_path / 'out', mode=mode, progress=False)
     assert summary.status.rejected.get('cloud_malformed') == 2
@@ -463,6 +463,20 @@ def test_a_malformed_map_cloud_is_a_counted_rejection_as_in_the_node(tmp_path, m
     assert summary.status.frames == good.status.frames == 80
     # the floor is the same in every cloud: the map before the broken ones serves as well
     assert summary.status.scale == pytest.approx(good.status.scale, rel=1e-9)
+
+
+@pytest.mark.parametrize('mode', ['online', 'offline'])
+def test_pose_and_joints_bytes_that_do_not_deserialize_are_counted_rejections(tmp_path, mode):
+    """A SLAM pose and a joints message truncated inside their header are rejected as
+    ``pose_nonfinite`` and ``joints_malformed`` at their place (hac_node counts the same bytes the
+    same way); the replay goes on, and the frame whose pose is gone is interpolated."""
+    source = write_recording(tmp_path / 'rec', walking_scene(frames=80))
+    poses_cut = _with_messages_broken(source, tmp_path / 'p', {30: lambda b: b[:10]}, '/slam/pose')
+    bad = _with_messages_broken(poses_cut, tmp_path / 'bad', {40: lambda b: b[:10]}, '/hmr/joints')
+    summary = replay(bad, tmp_path / 'out', mode=mode, progress=False)
+    assert summary.status.rejected.get('pose_nonfinite') == 1
+    assert summary.status.rejected.get('joints_malformed') == 1
+    assert summary.status.frames == 79
 
 
 def test_invalid_parameter_is_an_error(walk_bag, tmp_path):
