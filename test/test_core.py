@@ -14,6 +14,7 @@ from hac_ros.core.calibrator import Calibrator
 from hac_ros.core.estimator import RollingScale, SortedWindow
 from hac_ros.core.ground import GroundModel, Plane
 from hac_ros.core.outputs import (HumanJointsOut, OdometryOut, ResetOut, SampleOut, ScaleOut)
+from hac_ros.core.numeric import median_1d, quantile_1d
 from hac_ros.core.params import HacParams
 from hac_ros.core.reference import MapIndex, literal_cone_median, lowest_segment_offset
 from scenes import NS, Scene, walking_scene
@@ -313,6 +314,54 @@ def test_lowest_segment_ignores_isolated_points_below_the_floor():
     assert abs(b - 0.0) < 0.01  # n·p = -z = 0 on the floor
 
 
+def _lowest_segment_offset_with_numpy(points, normal):
+    """lowest_segment_offset written with numpy's generic quantile, histogram and median."""
+    h = points @ normal
+    lo, hi = np.quantile(h, [0.005, 0.995])
+    if not hi - lo > 1e-9 * max(abs(lo), abs(hi), 1e-300):
+        return float(np.median(h))
+    counts, edges = np.histogram(h, bins=100, range=(lo, hi))
+    nonempty = counts[counts > 0]  # none when every value is outside the range (tiny maps)
+    threshold = max(5, 4.0 * float(np.median(nonempty))) if nonempty.size else 5
+    dense = np.flatnonzero(counts >= threshold)
+    if dense.size == 0:
+        return float(np.quantile(h, 0.99))
+    k = int(dense[-1])
+    for _ in range(3):
+        if k > 0 and counts[k - 1] >= counts[k]:
+            k -= 1
+        else:
+            break
+    width = edges[1] - edges[0]
+    centre = 0.5 * (edges[k] + edges[k + 1])
+    for _ in range(2):
+        seg = h[np.abs(h - centre) <= 3 * width]
+        if seg.size == 0:
+            break
+        centre = float(np.median(seg))
+    return centre
+
+
+def test_lowest_segment_offset_equals_numpy_quantile_histogram_median():
+    """The fast floor offset (one partition per quantile, a bincount histogram) gives what numpy's
+    generic quantile, histogram and median give, on rooms, slopes, tiny and flat maps."""
+    rng = np.random.default_rng(3)
+    for trial in range(60):
+        n = int(rng.choice([1, 2, 7, 150, 201, 3000, 16384]))  # 201: hi is a value (last bin closed)
+        floor = np.c_[rng.uniform(-5, 5, (n, 2)), rng.normal(0, 0.01, n)]
+        wall = np.c_[rng.uniform(-5, 5, n // 2), np.full(n // 2, 3.0), rng.uniform(0, 2.5, n // 2)]
+        points = np.vstack([floor, wall]) if trial % 3 else floor[:, [0, 1]] @ np.eye(2, 3)
+        normal = np.array([0.0, 0.0, -1.0]) + rng.normal(0, 0.05, 3)
+        normal /= np.linalg.norm(normal)
+        assert lowest_segment_offset(points, normal) == pytest.approx(
+            _lowest_segment_offset_with_numpy(points, normal), rel=1e-12, abs=1e-12), trial
+    assert math.isnan(lowest_segment_offset(np.empty((0, 3)), np.array([0.0, 0.0, -1.0])))
+    for n in (1, 2, 3, 201, 1000, 16384):  # quantile_1d is numpy's quantile, exactly
+        values = rng.normal(size=n)
+        for q in ((0.005, 0.995), (0.99, 0.99), (0.0, 1.0), (0.3, 0.7)):
+            assert (quantile_1d(values, q[0]), quantile_1d(values, q[1])) == tuple(np.quantile(values, q))
+
+
 def test_hmr_normal_needs_no_scale_and_survives_a_handstand():
     """The body's up axis gives the normal; upside-down bodies give the same axis."""
     scene = walking_scene(frames=10)
@@ -428,6 +477,16 @@ def test_sorted_window_grows_and_removes_like_a_sorted_list(values):
         window.remove(2e6)
 
 
+@settings(max_examples=60, deadline=None)
+@given(values=st.lists(st.floats(-1e6, 1e6), min_size=0, max_size=50))
+def test_median_1d_equals_numpy(values):
+    a = np.array(values, dtype=float)
+    if a.size == 0:
+        assert math.isnan(median_1d(a))
+    else:
+        assert median_1d(a) == np.median(a)
+
+
 def test_window_evicts_by_stamp_time_and_gates_outliers_then_relocks():
     est = RollingScale(window_s=1.0, window_max_samples=1000, min_samples=5)
     for i in range(20):
@@ -489,11 +548,12 @@ def test_core_and_adapters_import_without_rclpy():
     subprocess.run([sys.executable, '-c', code], check=True)
 
 
-def test_rotation_log_recovers_the_rotation_vector():
-    """transforms.rotation_log (the odometry's angular velocity): the rotation vector of R_aᵀ R_b
-    for no, tiny, moderate and near-pi relative rotations (closed form, scipy beyond 3 rad)."""
+def test_the_odometry_twist_in_plain_floats_matches_the_matrix_formula():
+    """MetricStage's twist (metric._velocities, plain floats) against R_bᵀ(p_b − p_a)/dt and
+    log(R_aᵀ R_b)/dt in numpy, for small, moderate and near-pi relative rotations and none."""
     from scipy.spatial.transform import Rotation
 
+    from hac_ros.core.metric import _velocities
     from hac_ros.core.transforms import rotation_log
 
     rng = np.random.default_rng(5)
@@ -501,6 +561,11 @@ def test_rotation_log_recovers_the_rotation_vector():
         for _ in range(20):
             R_a = Rotation.random(random_state=rng).as_matrix()
             axis = rng.normal(size=3)
-            axis /= np.linalg.norm(axis)
-            R_b = R_a @ Rotation.from_rotvec(angle * axis).as_matrix()
-            assert np.allclose(rotation_log(R_a.T @ R_b), angle * axis, atol=1e-6)
+            R_b = R_a @ Rotation.from_rotvec(angle * axis / np.linalg.norm(axis)).as_matrix()
+            p_a, p_b, dt = rng.normal(size=3), rng.normal(size=3), float(rng.uniform(0.01, 1.0))
+            linear, angular = _velocities(R_a, p_a, R_b, p_b, dt)
+            assert np.allclose(linear, R_b.T @ (p_b - p_a) / dt, rtol=1e-12, atol=1e-12)
+            assert np.allclose(angular, rotation_log(R_a.T @ R_b) / dt, rtol=1e-9, atol=1e-9)
+            assert np.isclose(np.linalg.norm(angular) * dt, angle, atol=1e-6)
+            # and the rotation vector itself (rotation_log's closed form and scipy's beyond 3 rad)
+            assert np.allclose(angular * dt, angle * axis / np.linalg.norm(axis), atol=1e-6)

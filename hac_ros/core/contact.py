@@ -13,6 +13,7 @@ import math
 
 import numpy as np
 
+from hac_ros.core.numeric import median_1d
 
 PELVIS, NECK, HEAD = 0, 12, 15
 LEFT_FOOT, RIGHT_FOOT = 10, 11
@@ -25,20 +26,23 @@ def candidate_joints(mode: str, joints_cam: np.ndarray, R_wc: np.ndarray,
 
     joints_cam: (24, 3) metres, camera optical frame, finite, the person in front of the camera.
     R_wc: (3, 3) camera to map. normal_map: (3,) down-pointing ground normal in the map, or None.
-    Only joints in front of the camera (z > 0) are candidates.
+    Only joints in front of the camera (z > 0) are candidates. Plain Python over the 24 joints:
+    numpy's per-call cost dominates at this size.
     """
-    front = joints_cam[:, 2] > 0.0
+    depth = joints_cam[:, 2].tolist()
     if mode in FIXED_JOINTS:
-        return [j for j in FIXED_JOINTS[mode] if front[j]]
+        return [j for j in FIXED_JOINTS[mode] if depth[j] > 0.0]
     if mode == 'max_ratio':
-        return np.flatnonzero(front).tolist()
-    if not front.any():
-        return []
+        return [j for j, z in enumerate(depth) if z > 0.0]
     if mode == 'lowest_gravity' and normal_map is not None:
-        height_down = joints_cam @ (R_wc.T @ normal_map)  # along gravity, camera-centred
+        height_down = (joints_cam @ (R_wc.T @ normal_map)).tolist()  # along gravity, camera-centred
     else:  # 'lowest' (and lowest_gravity before a normal exists)
-        height_down = joints_cam[:, 1]
-    return [int(np.argmax(np.where(front, height_down, -np.inf)))]  # the first of equals
+        height_down = joints_cam[:, 1].tolist()
+    best, lowest = -1, -math.inf
+    for j, z in enumerate(depth):
+        if z > 0.0 and (best < 0 or height_down[j] > lowest):  # the first of equals, as argmax
+            best, lowest = j, height_down[j]
+    return [best] if best >= 0 else []
 
 
 def combine_ratios(mode: str, ratios: list[float]) -> float:
@@ -53,20 +57,23 @@ def combine_ratios(mode: str, ratios: list[float]) -> float:
         return float('nan')
     if mode == 'max_ratio':
         return max(finite)
-    return float(np.median(finite))
+    return median_1d(np.array(finite))
 
 
 def in_view(joints_cam: np.ndarray, K: np.ndarray | None, width: int, height: int) -> list[bool]:
     """Which joints (M, 3) project inside the image (all in front of it without intrinsics).
 
-    joints_cam: metres, camera optical frame; K: (3, 3) pixels or None; width, height: pixels.
+    A plain loop: M is a person's few candidate joints, where numpy's per-call cost dominates.
     """
-    x, y, z = joints_cam.T
-    front = z > 0.0
     if K is None:
-        return front.tolist()
-    (fx, skew, cx), (_, fy, cy) = K[:2]
-    depth = np.where(front, z, 1.0)
-    u = (fx * x + skew * y) / depth + cx
-    v = fy * y / depth + cy
-    return (front & (u >= 0.0) & (u < width) & (v >= 0.0) & (v < height)).tolist()
+        return [z > 0.0 for z in joints_cam[:, 2].tolist()]
+    (fx, skew, cx), (_, fy, cy) = K[:2].tolist()
+    out = []
+    for x, y, z in joints_cam.tolist():
+        if z <= 0.0:
+            out.append(False)
+            continue
+        u = (fx * x + skew * y) / z + cx
+        v = fy * y / z + cy
+        out.append(0.0 <= u < width and 0.0 <= v < height)
+    return out

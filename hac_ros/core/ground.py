@@ -22,7 +22,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hac_ros.core.contact import NECK, PELVIS
 from hac_ros.core.reference import MapIndex
 
 COS_MIN_RAY_PLANE = np.cos(np.deg2rad(87.0))  # rays within 3° of parallel to the plane: no answer
@@ -112,11 +111,11 @@ class GroundModel:
         self.reset()
 
     def reset(self) -> None:
-        # sums over the frames, map frame: the body up axes' scatter (3, 3), the up axes (3,), and
-        # the cameras' down (y) axes (3,)
-        self._scatter = np.zeros((3, 3))
-        self._body_up_sum = np.zeros(3)
-        self._camera_down = np.zeros(3)
+        # sums over the frames, map frame, as plain floats (one update per frame): the body up
+        # axes' scatter (3x3, row-major), the up axes, and the cameras' down (y) axes
+        self._scatter = [0.0] * 9
+        self._body_up_sum = [0.0] * 3
+        self._camera_down = [0.0] * 3
         self._body_frames = 0
         self._body_cache: tuple[int, np.ndarray | None] = (0, None)
         # ring buffer of the last CONTACT_BUFFER contact joints, SLAM units, map frame
@@ -131,17 +130,24 @@ class GroundModel:
     # ------------------------------------------------------------------ evidence
     def add_camera(self, R_wc: np.ndarray) -> None:
         """The camera's down axis (its y axis) in the map: the sign of the normal."""
-        self._camera_down += R_wc[:, 1]
+        down = self._camera_down
+        for axis, value in enumerate(R_wc[:, 1].tolist()):
+            down[axis] += value
 
     def add_body(self, R_wc: np.ndarray, joints_cam: np.ndarray) -> None:
         """One person's up axis (pelvis → neck), joints_cam (24, 3) metres, camera optical frame."""
-        up_cam = joints_cam[NECK] - joints_cam[PELVIS]
-        norm = float(np.linalg.norm(up_cam))
+        (px, py, pz), (nx, ny, nz) = joints_cam[0].tolist(), joints_cam[12].tolist()
+        x, y, z = nx - px, ny - py, nz - pz
+        norm = math.sqrt(x * x + y * y + z * z)
         if not math.isfinite(norm) or norm <= 0.0:
             return
-        up_map = R_wc @ (up_cam / norm)
-        self._body_up_sum += up_map
-        self._scatter += np.outer(up_map, up_map)
+        x, y, z = x / norm, y / norm, z / norm
+        up_map = [r0 * x + r1 * y + r2 * z for r0, r1, r2 in R_wc.tolist()]
+        scatter, total = self._scatter, self._body_up_sum
+        for i, u in enumerate(up_map):
+            total[i] += u
+            for j in range(3):
+                scatter[3 * i + j] += u * up_map[j]
         self._body_frames += 1
 
     def add_contact(self, contact_map: np.ndarray, scale: float) -> None:
@@ -203,10 +209,10 @@ class GroundModel:
     # ------------------------------------------------------------------ internals
     def _orient_down(self, normal: np.ndarray) -> np.ndarray:
         """Flip ``normal`` to point down: along the cameras' mean y axis, else against the bodies' up."""
-        down = self._camera_down
+        down = np.array(self._camera_down)
         if np.linalg.norm(down) > 0 and abs(normal @ down) > 0.3 * np.linalg.norm(down):
             return normal if normal @ down > 0 else -normal
-        return normal if normal @ self._body_up_sum <= 0 else -normal
+        return normal if normal @ np.array(self._body_up_sum) <= 0 else -normal
 
     def _body_normal(self) -> np.ndarray | None:
         """The bodies' axis, recomputed when the evidence grew by BODY_REFRESH_REL (so that the
@@ -221,7 +227,7 @@ class GroundModel:
         return normal
 
     def _compute_body_normal(self) -> np.ndarray | None:
-        eigval, eigvec = np.linalg.eigh(self._scatter)
+        eigval, eigvec = np.linalg.eigh(np.reshape(self._scatter, (3, 3)))
         if eigval[-1] < BODY_MIN_ANISOTROPY * max(eigval[-2], 1e-12):
             return None
         return self._orient_down(eigvec[:, -1])

@@ -14,11 +14,13 @@ the SLAM map frame, ``c_map`` (3,) is the camera centre in SLAM units, map frame
 from __future__ import annotations
 
 import bisect
+import math
 from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
 
+from hac_ros.core.numeric import median_1d
 from hac_ros.core.transforms import interpolate_pose
 
 JUMP_HISTORY = 30  # recent pose speeds whose median is the "normal" speed
@@ -67,8 +69,8 @@ class PoseTrack:
         self._stamps: deque[int] = deque(maxlen=buffer)  # parallel to poses
         self.suspects: list[Pose] = []
         self._speeds: deque[float] = deque(maxlen=JUMP_HISTORY)
-        # the camera centres' bounding box (SLAM units, map frame): lower and upper corners (3,)
-        self._bbox: tuple[np.ndarray, np.ndarray] | None = None
+        # the camera centres' bounding box (SLAM units, map frame): lower and upper corners
+        self._bbox: tuple[list[float], list[float]] | None = None
 
     @property
     def last(self) -> Pose | None:
@@ -95,7 +97,7 @@ class PoseTrack:
         last = self.last
         if last is None:
             return None
-        step = float(np.linalg.norm(pose.c_map - last.c_map))
+        step = math.dist(pose.c_map.tolist(), last.c_map.tolist())
         return step, step / max(pose.stamp_ns - last.stamp_ns, 1)
 
     def is_jump(self, move: tuple[float, float] | None) -> bool:
@@ -106,9 +108,9 @@ class PoseTrack:
         if move is None or len(self._speeds) < JUMP_MIN_HISTORY:
             return False
         step, speed = move
-        typical = float(np.median(self._speeds))
+        typical = median_1d(np.array(self._speeds))
         assert self._bbox is not None  # set with the first accepted pose
-        extent = float(np.linalg.norm(self._bbox[1] - self._bbox[0]))
+        extent = math.dist(*self._bbox)
         return speed > self.jump_factor * typical and step > self.jump_min_rel * extent
 
     def follow(self, pose: Pose) -> Verdict:
@@ -132,9 +134,14 @@ class PoseTrack:
             self._speeds.append(move[1])
         self.poses.append(pose)
         self._stamps.append(pose.stamp_ns)
-        c = pose.c_map
-        lo, hi = (c, c) if self._bbox is None else self._bbox
-        self._bbox = (np.minimum(lo, c), np.maximum(hi, c))
+        c = pose.c_map.tolist()
+        if self._bbox is None:
+            self._bbox = (c, list(c))
+        else:
+            lo, hi = self._bbox
+            for axis in range(3):
+                lo[axis] = min(lo[axis], c[axis])
+                hi[axis] = max(hi[axis], c[axis])
 
     def at(self, stamp_ns: int) -> tuple[np.ndarray, np.ndarray] | None:
         """The camera pose (R_wc, c_map) at a joints stamp: the nearest accepted pose within the

@@ -30,6 +30,7 @@ from itertools import chain
 import numpy as np
 from scipy.spatial import cKDTree
 
+from hac_ros.core.numeric import median_1d, quantile_1d
 
 # The chain's balls advance geometrically by (1 + 2 tan θ): each ball then covers one cone segment
 # with about twice the segment's volume, a good trade between look-ups and excess points.
@@ -136,7 +137,7 @@ class MapIndex:
             return None
         if mode == 'nearest_to_ray':
             return RayHit(float(dist[int(np.argmax(cos))]), count)
-        return RayHit(float(np.median(dist)), count)
+        return RayHit(median_1d(dist), count)
 
     def _cone(self, origin_map: np.ndarray, direction_map: np.ndarray, cos_min: float,
               window: tuple[float, float] | None) -> tuple[np.ndarray, np.ndarray]:
@@ -229,23 +230,31 @@ def lowest_segment_offset(points_map: np.ndarray, normal: np.ndarray) -> float:
     symmetric window around a symmetric noise gives an unbiased middle). Without a dense bin: the
     0.99 quantile (the authors' code). SLAM units.
 
-    points_map: (N, 3) float, SLAM units, map frame; normal: (3,) unit, map frame.
+    points_map: (N, 3) float, SLAM units, map frame; normal: (3,) unit, map frame. Written for the
+    node's frame thread (a new map or a new normal needs it): :func:`quantile_1d` for the range
+    and a ``bincount`` histogram, ~4x faster than ``np.quantile`` + ``np.histogram`` on a 16k-point
+    sample; bins are half-open ``[e_k, e_k+1)`` as numpy's (a value within rounding of an edge may
+    fall either side).
     """
     h = np.asarray(points_map, dtype=np.float64) @ np.asarray(normal, dtype=np.float64)
     if h.size == 0:
         return float('nan')
-    lo, hi = np.quantile(h, [0.005, 0.995])
+    lo, hi = quantile_1d(h, 0.005), quantile_1d(h, 0.995)
     if not hi - lo > 1e-9 * max(abs(lo), abs(hi), 1e-300):  # flat to rounding: one segment
-        return float(np.median(h))
+        return median_1d(h)
     width = (hi - lo) / OFFSET_BINS
-    counts, _ = np.histogram(h, bins=OFFSET_BINS, range=(lo, hi))
+    bins = np.floor((h - lo) * (OFFSET_BINS / (hi - lo)))
+    bins[h == hi] = OFFSET_BINS - 1  # the last bin is closed, as numpy's
+    # below the range -> bin -1, above -> OFFSET_BINS: counted apart, then dropped
+    np.clip(bins, -1, OFFSET_BINS, out=bins)
+    counts = np.bincount((bins + 1).astype(np.intp), minlength=OFFSET_BINS + 2)[1:-1]
     nonempty = counts[counts > 0]
     threshold = float(OFFSET_MIN_COUNT)  # also when every value is outside the range (tiny maps)
     if nonempty.size:
-        threshold = max(threshold, OFFSET_DENSE_FACTOR * float(np.median(nonempty)))
+        threshold = max(threshold, OFFSET_DENSE_FACTOR * median_1d(nonempty.astype(np.float64)))
     dense = np.flatnonzero(counts >= threshold)
     if dense.size == 0:
-        return float(np.quantile(h, 0.99))
+        return quantile_1d(h, 0.99)
     k = int(dense[-1])  # n points down: the largest n·p is the lowest
     for _ in range(OFFSET_WINDOW_BINS):  # climb to the peak of the floor's segment
         if k > 0 and counts[k - 1] >= counts[k]:
@@ -257,7 +266,7 @@ def lowest_segment_offset(points_map: np.ndarray, normal: np.ndarray) -> float:
         seg = h[np.abs(h - centre) <= OFFSET_WINDOW_BINS * width]
         if seg.size == 0:
             break
-        centre = float(np.median(seg))
+        centre = median_1d(seg)
     return float(centre)
 
 
@@ -273,4 +282,4 @@ def literal_cone_median(points_map: np.ndarray, origin_map: np.ndarray, directio
     inside = cos > cos_min
     if np.count_nonzero(inside) < max(min_points, 1):
         return float('nan')
-    return float(np.median(dist[inside]))
+    return median_1d(dist[inside])
