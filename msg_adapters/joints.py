@@ -40,18 +40,7 @@ def pose_array_to_joints(msg: Any, joints_per_person: int = JOINTS_PER_PERSON) -
     except (AttributeError, TypeError, ValueError) as exc:
         raise MessageError(f'PoseArray: every pose needs a numeric position x, y, z '
                            f'({exc})') from exc
-    return positions_to_joints(flat, 'PoseArray', joints_per_person)
-
-
-def positions_to_joints(positions: np.ndarray, where: str = 'PoseArray',
-                        joints_per_person: int = JOINTS_PER_PERSON) -> np.ndarray:
-    """Positions (N, 3) → joints (N / joints_per_person, joints_per_person, 3), same frame and
-    unit; MessageError when N is not a multiple of ``joints_per_person``."""
-    n = len(positions)
-    if n % joints_per_person:
-        raise MessageError(f'{where}: {n} poses is not a multiple of {joints_per_person} '
-                           '(one block of joints per person)')
-    return positions.reshape(n // joints_per_person, joints_per_person, 3)
+    return flat.reshape(n // joints_per_person, joints_per_person, 3)
 
 
 def joints_to_pose_array(joints: np.ndarray, stamp_ns: int, frame_id: str,

@@ -104,22 +104,13 @@ def pose_to_rt(pose: Any) -> tuple[np.ndarray, np.ndarray]:
     except (AttributeError, TypeError, ValueError) as exc:
         raise MessageError(f'Pose: expected position (x, y, z) and orientation (x, y, z, w) '
                            f'({exc})') from exc
-    return pose_values_to_rt(c, quat, 'Pose')
-
-
-def pose_values_to_rt(position: np.ndarray, quat_xyzw: Any, where: str = 'Pose'
-                      ) -> tuple[np.ndarray, np.ndarray]:
-    """A pose's values → (R (3, 3), c (3,)) float64: the checks of :func:`pose_to_rt`.
-
-    position: (3,) float64; quat_xyzw: 4 numbers. ``where`` names the message in errors.
-    """
-    if not np.isfinite(position).all():
-        raise MessageError(f'{where}: position is not finite: {np.asarray(position).tolist()}')
+    if not np.isfinite(c).all():
+        raise MessageError(f'Pose: position is not finite: {c.tolist()}')
     try:
-        R = quat_to_matrix(*quat_xyzw)
+        R = quat_to_matrix(*quat)
     except MessageError as exc:
-        raise MessageError(f'{where}: orientation: {exc}') from exc
-    return R, position
+        raise MessageError(f'Pose: orientation: {exc}') from exc
+    return R, c
 
 
 def pose_msg_to_rt(msg: Any) -> tuple[np.ndarray, np.ndarray]:
