@@ -1,27 +1,61 @@
 """An HMR-like predictor: the true joints seen from the true camera, with HMR's kinds of error.
 
-- joint noise of a few centimetres;
-- a per-recording depth bias: HMR is consistently too near or too far for a whole video, so the
-  person's root translation is scaled along its ray by (1 + bias) while the body keeps its size;
+Measured HMR models (4D-Humans, WHAM, TRAM) place the body well in the image but poorly in depth:
+
+- joint noise of a few centimetres (:data:`JOINT_NOISE_M`);
+- a per-frame depth error of the whole person along the camera's viewing ray, about 5 cm
+  (:data:`DEPTH_NOISE_M`), the body keeping its size;
+- a depth bias: for a whole video a model is consistently too near or too far by a few percent, and
+  that bias wanders slowly (:class:`DepthBias`: a mean drawn per recording plus a correlated
+  wander, an Ornstein–Uhlenbeck process of :data:`BIAS_WANDER` sigma and
+  :data:`BIAS_CORRELATION_S` correlation time);
 - occasional outlier frames (a wrong depth and a scrambled pose);
 - a person is predicted only when in view, but all their joints are predicted, in view or not.
 """
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
 from hac_ros.simulate.camera import project
 
 JOINT_NOISE_M = 0.02
+DEPTH_NOISE_M = 0.05  # per-frame depth error of the person (its root), metres
 OUTLIER_RATE = 0.02
 OUTLIER_DEPTH = 0.3  # an outlier frame's depth is off by up to this fraction
 OUTLIER_NOISE_M = 0.10
 MIN_JOINTS_IN_VIEW = 4
-DEFAULT_BIAS_RANGE = 0.04  # |bias| drawn up to this when not given
+DEFAULT_BIAS_RANGE = 0.04  # the mean bias is drawn up to this when not given
+BIAS_WANDER = 0.01  # stationary sigma of the bias's slow wander around its mean
+BIAS_CORRELATION_S = 5.0  # correlation time of the wander, seconds
 
 
 def draw_bias(rng: np.random.Generator) -> float:
     return float(rng.uniform(-DEFAULT_BIAS_RANGE, DEFAULT_BIAS_RANGE))
+
+
+class DepthBias:
+    """The depth bias of one recording at each frame: ``mean`` plus a slow wander (0 when clean).
+
+    stamps_s: (T,) frame times, seconds. With ``mean`` 0 and ``wander`` False the recording is clean
+    (no bias at all; the per-frame depth noise remains).
+    """
+
+    def __init__(self, mean: float, stamps_s: np.ndarray, rng: np.random.Generator,
+                 wander: bool = True) -> None:
+        self.mean = float(mean)
+        t = np.asarray(stamps_s, dtype=float)
+        x = np.zeros(len(t))
+        if wander and len(t):
+            x[0] = rng.normal(0.0, BIAS_WANDER)
+            for i in range(1, len(t)):  # an exact Ornstein-Uhlenbeck step over any dt
+                a = math.exp(-(t[i] - t[i - 1]) / BIAS_CORRELATION_S)
+                x[i] = a * x[i - 1] + math.sqrt(1.0 - a * a) * rng.normal(0.0, BIAS_WANDER)
+        self.values = self.mean + x  # (T,) relative depth error of each frame
+
+    def __getitem__(self, i: int) -> float:
+        return float(self.values[i])
 
 
 def in_view(joints_cam: np.ndarray, K: np.ndarray, width: int, height: int) -> bool:
@@ -33,16 +67,21 @@ def in_view(joints_cam: np.ndarray, K: np.ndarray, width: int, height: int) -> b
 
 def predict(joints_world: np.ndarray, R_wc: np.ndarray, c: np.ndarray, bias: float,
             rng: np.random.Generator) -> tuple[np.ndarray, bool]:
-    """One person's predicted joints (24, 3), metres, camera optical frame; and whether it is an outlier.
+    """One person's predicted joints (K, 3), metres, camera optical frame; and whether it is an outlier.
 
-    joints_world: (24, 3) true joints, world frame; R_wc, c: the true camera (camera-to-world).
+    joints_world: (K, 3) true joints, world frame; R_wc, c: the true camera (camera-to-world);
+    bias: this frame's relative depth bias (:class:`DepthBias`). The person's root is moved along
+    its viewing ray by ``bias`` of its depth plus :data:`DEPTH_NOISE_M` of noise; the body keeps
+    its size and shape.
     """
     cam = (joints_world - c) @ R_wc
     pred = cam + rng.normal(0.0, JOINT_NOISE_M, cam.shape)
     outlier = bool(rng.random() < OUTLIER_RATE)
-    depth = 1.0 + bias
-    if outlier:
-        depth *= 1.0 + rng.uniform(-OUTLIER_DEPTH, OUTLIER_DEPTH)
-        pred += rng.normal(0.0, OUTLIER_NOISE_M, cam.shape)
     root = pred[0].copy()
-    return pred - root + root * depth, outlier
+    depth = float(np.linalg.norm(root))
+    new_depth = depth * (1.0 + bias) + rng.normal(0.0, DEPTH_NOISE_M)
+    if outlier:
+        new_depth *= 1.0 + rng.uniform(-OUTLIER_DEPTH, OUTLIER_DEPTH)
+        pred += rng.normal(0.0, OUTLIER_NOISE_M, cam.shape)
+    new_depth = max(new_depth, 0.1 * depth)  # never behind the camera
+    return pred - root + root * (new_depth / max(depth, 1e-9)), outlier

@@ -14,14 +14,19 @@ import numpy as np
 from hac_ros.core.errors import HacError
 from hac_ros.simulate import camera as rigs
 from hac_ros.simulate import humans
-from hac_ros.simulate.hmr import draw_bias, in_view, predict
+from hac_ros.simulate.hmr import DepthBias, draw_bias, in_view, predict
 from hac_ros.simulate.slam import MapMessage, run_slam
 from hac_ros.simulate.world import Box, World, room
 
 SCALE_RANGE = (0.2, 5.0)  # the true scale is drawn log-uniformly from this range
 LANDMARK_DENSITY = 60.0  # textured landmarks per m² of surface (times each surface's texture)
 START_NS = 1_700_000_000_000_000_000  # recordings start at a fixed, plausible wall-clock stamp
-DRIFT_TOTAL = 0.30  # the drift scenario's scale drifts by 30 % over the run
+DRIFT_TOTAL = 0.40  # the drift scenario's scale drifts by 40 % over the run
+# The contact joint's height above the sole, drawn per person (shoes and feet differ), metres: the
+# foot joints of the procedural gait and the skater, the hand joints of the handstand. Drawn
+# independently of any model the core uses for it; the real motion (--motion) keeps its own.
+SOLE_HEIGHT_M = (0.015, 0.045)
+HAND_HEIGHT_M = (0.01, 0.03)
 
 
 @dataclass
@@ -33,7 +38,9 @@ class Scenario:
     true camera in the fixed world frame; ``true_scale`` (T,) metres per SLAM unit.
     Humans at ``joints_stamps_ns`` (F,) (the stamps with someone in view): ``joints_cam[k]``
     (P, 24, 3) the HMR prediction, metres, camera optical frame; ``gt_joints_world[k]`` the truth,
-    world frame; ``person_ids[k]`` which people.
+    world frame; ``person_ids[k]`` which people. ``contact_heights`` (people,): each person's
+    contact joint's height above the surface it stands on, metres (NaN: real motion, its own);
+    ``hmr_bias``: the mean of the HMR depth bias, ``hmr_bias_frames`` (T,) its value at each frame.
     """
 
     name: str
@@ -56,6 +63,8 @@ class Scenario:
     gt_joints_world: list[np.ndarray]
     person_ids: list[np.ndarray]
     hmr_bias: float
+    hmr_bias_frames: np.ndarray
+    contact_heights: np.ndarray
     outlier_frames: np.ndarray
     segment_starts: list[int]
     world: World = field(repr=False)
@@ -91,7 +100,7 @@ SCENARIOS: dict[str, tuple[float, str]] = {
     'skate': (20.0, 'a standing pose gliding across the world'),
     'occluded': (30.0, 'tables between the camera and the feet'),
     'crowd': (30.0, 'three people'),
-    'drift': (60.0, 'the SLAM scale drifts by 30 % over the run'),
+    'drift': (90.0, 'the SLAM scale drifts by 40 % over the run'),
     'reset': (40.0, 'the SLAM re-initialises mid-run: new map frame, new scale'),
     'static': (20.0, 'a camera that does not move'),
 }
@@ -124,6 +133,9 @@ def make_scenario(name: str, seed: int = 0, duration: float | None = None, rate:
     if rate <= 0 or (duration is not None and duration <= 0):
         raise HacError('rate and duration must be positive')
     rng = np.random.default_rng([seed, sorted(SCENARIOS).index(name)])
+    # the contact heights and the HMR depth process have a generator of their own (adding them
+    # left every other draw of a seed as it was)
+    body_rng = np.random.default_rng([seed, sorted(SCENARIOS).index(name), 1])
     duration = SCENARIOS[name][0] if duration is None else float(duration)
     T = max(2, int(round(duration * rate)) + 1)
     t = np.arange(T) / rate
@@ -156,8 +168,13 @@ def make_scenario(name: str, seed: int = 0, duration: float | None = None, rate:
         people = [humans.gait(t, humans.circle_path((0.0, 0.0), 3.2, 1.0), world)]
     else:  # walk, drift, reset, static
         people = [humans.gait(t, humans.circle_path((0.0, 0.0), 3.0, 1.1), world)]
+    heights = body_rng.uniform(*(HAND_HEIGHT_M if name == 'handstand' else SOLE_HEIGHT_M),
+                               len(people))
+    for person, height in zip(people, heights):
+        person[:, :, 2] += height  # the contact joint stands ``height`` above its surface
     if motion is not None:
         people[0] = humans.load_motion(motion, t)
+        heights[0] = math.nan
 
     root = people[0][:, 0]
     if name == 'ego':
@@ -194,6 +211,7 @@ def make_scenario(name: str, seed: int = 0, duration: float | None = None, rate:
                     (rigs.WIDTH, rigs.HEIGHT), scale_fn, segments, rng)
 
     # --- HMR
+    depth_bias = DepthBias(bias, t, body_rng, wander=hmr_bias is None or hmr_bias != 0.0)
     j_stamps, j_cam, j_world, ids, outliers = [], [], [], [], []
     for i in range(T):
         preds, truths, who = [], [], []
@@ -201,7 +219,7 @@ def make_scenario(name: str, seed: int = 0, duration: float | None = None, rate:
             cam = (person[i] - c_world[i]) @ R_world[i]
             if not in_view(cam, K, rigs.WIDTH, rigs.HEIGHT):
                 continue
-            pred, outlier = predict(person[i], R_world[i], c_world[i], bias, rng)
+            pred, outlier = predict(person[i], R_world[i], c_world[i], depth_bias[i], body_rng)
             preds.append(pred)
             truths.append(person[i])
             who.append(pid)
@@ -218,6 +236,7 @@ def make_scenario(name: str, seed: int = 0, duration: float | None = None, rate:
         slam_frame_ids=slam.frame_ids, gt_R_wc=R_world, gt_c=c_world, true_scale=slam.scale,
         maps=slam.maps, joints_stamps_ns=np.array(j_stamps, dtype=np.int64), joints_cam=j_cam,
         gt_joints_world=j_world, person_ids=ids, hmr_bias=bias,
+        hmr_bias_frames=depth_bias.values, contact_heights=heights,
         outlier_frames=np.array(sorted(set(outliers)), dtype=int), segment_starts=segments,
         world=world)
 
