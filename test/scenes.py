@@ -1,6 +1,9 @@
 """Constructed scenes with known answers for the core tests (no noise unless asked).
 
 World: z up, metres, floor z = 0. A level camera 1.5 m high follows a person walking along x.
+The person's foot joints stand at the height above the sole the core assumes for them
+(SOLE_M: hac_ros.core.contact's prior for this skeleton), so that the surface a contact joint
+touches is exactly the floor below it.
 The SLAM map frame is the first camera's optical frame and the SLAM unit is ``1 / true_scale``
 metres: ``p_slam = R_c0ᵀ (p_world − c0) / true_scale``.
 """
@@ -10,6 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from hac_ros.core.contact import SOLE_HEIGHT_REL, leg_length
 from hac_ros.core.numeric import NS
 
 # A standing SMPL-24 skeleton, world metres, pelvis above the origin, facing -y (towards the camera)
@@ -30,6 +34,9 @@ STANDING = np.array([
     [0.24, -0.03, 0.86], [-0.24, -0.03, 0.86],  # 20, 21 wrists
     [0.25, -0.05, 0.78], [-0.25, -0.05, 0.78],  # 22, 23 hands
 ])
+# the feet stand at their sole height above the floor (10, 11 are the foot joints)
+SOLE_M = SOLE_HEIGHT_REL[10] * leg_length(STANDING)
+STANDING = STANDING + [0.0, 0.0, SOLE_M]
 
 
 def look_at(camera: np.ndarray, target: np.ndarray) -> np.ndarray:
@@ -69,9 +76,9 @@ class Scene:
         return np.einsum('tji,tkj->tki', self.R_wc_world, self.joints_world - self.c_world[:, None, :])
 
     def contact_world(self) -> np.ndarray:
-        """(T, 3): the lowest joint (on the floor) of each frame."""
+        """(T, 3): where each frame's lowest joint touches the floor (the floor point below it)."""
         idx = np.argmin(self.joints_world[:, :, 2], axis=1)
-        return self.joints_world[np.arange(len(idx)), idx]
+        return self.joints_world[np.arange(len(idx)), idx] * [1.0, 1.0, 0.0]
 
     def floor_points_slam(self, half_size: float = 6.0, step: float = 0.25) -> np.ndarray:
         g = np.arange(-half_size, half_size + 1e-9, step)
@@ -82,7 +89,8 @@ class Scene:
 def walking_scene(frames: int = 40, true_scale: float = 2.5, rate: float = 10.0,
                   camera_height: float = 1.5, stride: float = 0.05) -> Scene:
     """A person walking along +x, feet alternating between the floor and a 10 cm swing; a level
-    camera 4 m away following them. The lowest joint of every frame is exactly on the floor."""
+    camera 4 m away following them. The lowest joint of every frame stands SOLE_M above the floor
+    (the stance foot)."""
     stamps = (np.arange(frames) * NS / rate).astype(np.int64) + NS
     joints = np.empty((frames, 24, 3))
     R = np.empty((frames, 3, 3))

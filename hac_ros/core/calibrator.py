@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hac_ros.core.contact import candidate_joints, combine_ratios, in_view
+from hac_ros.core.contact import candidate_joints, combine_ratios, in_view, sole_points
 from hac_ros.core.estimator import RollingScale
 from hac_ros.core.ground import GroundModel, Plane
 from hac_ros.core.metric import MetricStage
@@ -368,11 +368,16 @@ class Calibrator:
         if not candidates:
             return self._rejected_sample(stamp, person, 'behind_camera')
         visible = in_view(joints[candidates], self._K, *self._image_size)
+        # the points on the surface the candidates touch (metres, camera frame): the joints
+        # themselves, or moved down onto the sole (sole_correction)
+        points = joints[candidates]
+        if self.params.sole_correction:
+            down_cam = R_wc.T @ normal if normal is not None else np.array([0.0, 1.0, 0.0])
+            points = sole_points(joints, candidates, down_cam)
         plane = self.ground.plane(self.map)
         ratios = [math.nan] * len(candidates)  # d_A / d_S of each candidate, metres per SLAM unit
         from_map = [False] * len(candidates)
-        for k, j in enumerate(candidates):
-            joint = joints[j]
+        for k, joint in enumerate(points):
             distance_metric = math.sqrt(float(joint @ joint))
             direction_map = R_wc @ (joint / distance_metric)
             plane_distance = plane.ray_distance(c_map, direction_map) if plane is not None else math.nan
@@ -402,7 +407,7 @@ class Calibrator:
         if not accepted:
             out += self.reject('gated', stamp)
         elif source == 'map' and self.converged:
-            contact_map = c_map + R_wc @ joints[candidates[chosen]] / self.scale
+            contact_map = c_map + R_wc @ points[chosen] / self.scale
             self.ground.add_contact(contact_map, self.scale)
         return out
 

@@ -18,6 +18,12 @@ from hac_ros.core.numeric import median_1d
 PELVIS, NECK, HEAD = 0, 12, 15
 LEFT_FOOT, RIGHT_FOOT = 10, 11
 FIXED_JOINTS = {'feet': (LEFT_FOOT, RIGHT_FOOT), 'pelvis': (PELVIS,), 'head': (HEAD,)}
+LEGS = ((1, 4, 7), (2, 5, 8))  # (hip, knee, ankle) of each leg
+# A joint that touches the scene is not on the surface: its height above the sole (or the palm),
+# as a fraction of the person's leg length (thigh plus shank). SMPL's regressor puts the foot
+# joints about 3 cm and the ankles about 7 cm above the sole of an 0.83 m leg, the hands about
+# 1.5 cm above the palm. Other joints: 0. docs/method.md, "The contact point".
+SOLE_HEIGHT_REL = {LEFT_FOOT: 0.036, RIGHT_FOOT: 0.036, 7: 0.085, 8: 0.085, 22: 0.018, 23: 0.018}
 
 
 def candidate_joints(mode: str, joints_cam: np.ndarray, R_wc: np.ndarray,
@@ -43,6 +49,27 @@ def candidate_joints(mode: str, joints_cam: np.ndarray, R_wc: np.ndarray,
         if z > 0.0 and (best < 0 or height_down[j] > lowest):  # the first of equals, as argmax
             best, lowest = j, height_down[j]
     return [best] if best >= 0 else []
+
+
+def sole_points(joints_cam: np.ndarray, candidates: list[int], down_cam: np.ndarray) -> np.ndarray:
+    """The candidates' contact points on the surface: each joint moved along ``down_cam`` by its
+    height above the sole (:data:`SOLE_HEIGHT_REL` times the person's leg length).
+
+    joints_cam: (24, 3) metres, camera optical frame; down_cam: (3,) unit, camera frame, pointing
+    down (the ground normal). Returns (len(candidates), 3) metres, camera optical frame.
+    """
+    points = joints_cam[candidates]
+    heights = [SOLE_HEIGHT_REL.get(j, 0.0) for j in candidates]
+    if not any(heights):
+        return points
+    return points + (leg_length(joints_cam) * np.asarray(heights))[:, None] * down_cam
+
+
+def leg_length(joints: np.ndarray) -> float:
+    """The person's leg length, metres: thigh plus shank (bone lengths: whatever the pose) of the
+    longer leg. joints: (24, 3) metres, any frame."""
+    return max(math.dist(joints[h].tolist(), joints[k].tolist())
+               + math.dist(joints[k].tolist(), joints[a].tolist()) for h, k, a in LEGS)
 
 
 def combine_ratios(mode: str, ratios: list[float]) -> float:

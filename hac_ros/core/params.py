@@ -18,7 +18,7 @@ from hac_ros.core.errors import ParameterError
 NODE_NAME = 'hac_node'
 
 CONTACT_MODES = ('lowest', 'max_ratio', 'lowest_gravity', 'feet', 'pelvis', 'head')
-REFERENCE_MODES = ('cone_median', 'nearest_to_ray')
+REFERENCE_MODES = ('cone_median', 'nearest_to_ray', 'cone_plane')
 GROUND_MODES = ('hmr', 'slam_y', 'largest_plane', 'none')
 POSE_TYPES = ('PoseStamped', 'Odometry')
 # pose_type -> the ROS message type of pose_topic
@@ -54,7 +54,10 @@ class HacParams:
 
     # --- method (SPEC: the method)
     contact_mode: str = _p('lowest_gravity', 'how the contact joint is chosen', choices=CONTACT_MODES)
-    reference_mode: str = _p('cone_median', 'map ray query', choices=REFERENCE_MODES)
+    reference_mode: str = _p('cone_plane', 'map ray query', choices=REFERENCE_MODES)
+    sole_correction: bool = _p(True, 'cast the contact joint\'s ray from the surface it touches: '
+                               'the joint moved down by its height above the sole (a fraction of '
+                               'the leg length per joint)')
     cone_angle_deg: float = _p(2.56, 'half angle of the ray cone (2.56 deg = authors cos 0.999)',
                                low=0.05, high=20.0)
     cone_min_points: int = _p(3, 'map points needed in the cone for a hit', low=1, high=1000)

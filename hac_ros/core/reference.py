@@ -43,6 +43,13 @@ OFFSET_DENSE_FACTOR = 4.0  # a dense bin holds this many times the median non-em
 OFFSET_MIN_COUNT = 5
 OFFSET_WINDOW_BINS = 3  # half width of the floor segment around its peak, in bins
 OVERLAP_SAMPLE = 256  # new-map points checked against the previous map
+# cone_plane: the local surface around the cone's hit
+PLANE_NEIGHBOURS = 12  # map points nearest the cone's hit that the local plane is fitted to
+PLANE_RADIUS_REL = 0.08  # ... within this fraction of the hit's distance from the camera
+PLANE_MIN_POINTS = 6
+PLANE_INLIER_MADS = 3.0  # a point further from the plane than this many robust sigmas is dropped
+PLANE_MAX_SHIFT_REL = 0.25  # the plane's intersection is used within this fraction of the median
+COS_MIN_RAY_SURFACE = math.cos(math.radians(87.0))  # rays nearer parallel to the surface: no answer
 OVERLAP_DISTANCE_REL = 0.02  # a point overlaps when this close (fraction of the old map's extent)
 
 
@@ -130,14 +137,59 @@ class MapIndex:
     def query(self, origin_map: np.ndarray, direction_map: np.ndarray, *, mode: str,
               cos_min: float, min_points: int,
               window: tuple[float, float] | None = None) -> RayHit | None:
-        """``d_S`` along one ray (SPEC step 3) or None for "no hit"."""
+        """``d_S`` along one ray (SPEC step 3) or None for "no hit".
+
+        cone_median: the median distance of the cone's points (the authors' code);
+        nearest_to_ray: the distance of the point nearest the ray in angle (the paper);
+        cone_plane: the cone's median hit locates the surface, a plane fitted robustly to the map
+        points around it (:func:`local_plane`) is intersected exactly with the ray (a cone cut by
+        a surface seen at a grazing angle holds more points beyond the ray's hit than before it,
+        so its median reads far); the median where no plane can be fitted.
+        """
         dist, cos = self._cone(origin_map, direction_map, cos_min, window)
         count = len(dist)
         if count < min_points or count == 0:
             return None
         if mode == 'nearest_to_ray':
             return RayHit(float(dist[int(np.argmax(cos))]), count)
-        return RayHit(median_1d(dist), count)
+        median = median_1d(dist)
+        if mode == 'cone_plane':
+            exact = self.surface_distance(origin_map, direction_map, median)
+            if exact is not None:
+                return RayHit(exact, count)
+        return RayHit(median, count)
+
+    def surface_distance(self, origin_map: np.ndarray, direction_map: np.ndarray,
+                         near_distance: float) -> float | None:
+        """Where the ray meets the local surface around its point at ``near_distance``, SLAM
+        units from the origin, or None (too few points around, no plane, the ray nearly parallel
+        to it, or a hit further than PLANE_MAX_SHIFT_REL from ``near_distance``).
+
+        The PLANE_NEIGHBOURS map points nearest that point within PLANE_RADIUS_REL of its
+        distance (scene-relative: no SLAM-unit threshold) are fitted by :func:`local_plane`.
+        """
+        assert self.tree is not None
+        o = np.asarray(origin_map, dtype=np.float64)
+        d = np.asarray(direction_map, dtype=np.float64)
+        guess = o + near_distance * d
+        if self.size < PLANE_MIN_POINTS:
+            return None
+        dist, idx = self.tree.query(guess, k=min(PLANE_NEIGHBOURS, self.size),
+                                    distance_upper_bound=PLANE_RADIUS_REL * near_distance)
+        idx = idx[np.isfinite(dist)]
+        if len(idx) < PLANE_MIN_POINTS:
+            return None
+        plane = local_plane(self.points_map[idx])
+        if plane is None:
+            return None
+        normal, point = plane
+        along = float(normal @ d)
+        if abs(along) < COS_MIN_RAY_SURFACE:
+            return None
+        t = float(normal @ (point - o)) / along
+        if not abs(t - near_distance) <= PLANE_MAX_SHIFT_REL * near_distance:
+            return None
+        return t
 
     def _cone(self, origin_map: np.ndarray, direction_map: np.ndarray, cos_min: float,
               window: tuple[float, float] | None) -> tuple[np.ndarray, np.ndarray]:
@@ -217,6 +269,30 @@ def _chain_shape(count: int, tan: float) -> tuple[np.ndarray, np.ndarray, np.nda
     for a in (bounds, mids, radii):
         a.flags.writeable = False
     return bounds, mids, radii
+
+
+def local_plane(points: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """A plane through (N, 3) points, robust to a few off it: (unit normal, a point on it), or None
+    when the points do not span a plane (collinear).
+
+    Least squares (the centroid and the smallest principal axis), then again on the points within
+    PLANE_INLIER_MADS robust sigmas (1.4826 MAD of the distances) of the first plane.
+    """
+    keep = np.ones(len(points), dtype=bool)
+    for _ in range(2):
+        inliers = points[keep]
+        if len(inliers) < 3:
+            return None
+        centroid = inliers.mean(axis=0)
+        centred = inliers - centroid
+        eigval, eigvec = np.linalg.eigh(centred.T @ centred)
+        if eigval[1] <= 1e-12 * max(eigval[2], 1e-300):  # collinear: no plane
+            return None
+        normal = eigvec[:, 0]
+        residual = np.abs((points - centroid) @ normal)
+        sigma = 1.4826 * median_1d(residual[keep])
+        keep = residual <= PLANE_INLIER_MADS * sigma if sigma > 0.0 else keep
+    return normal, centroid
 
 
 def lowest_segment_offset(points_map: np.ndarray, normal: np.ndarray) -> float:
