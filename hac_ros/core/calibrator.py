@@ -233,7 +233,9 @@ class Calibrator:
 
     @property
     def scale(self) -> float:
-        return self.estimator.median()
+        """The current estimate, metres per SLAM unit (RollingScale.current: the window's median,
+        or its drift trend while the scale drifts)."""
+        return self.estimator.current()
 
     def published_scale(self, stamp_ns: int) -> float | None:
         """The scale the metric outputs use at ``stamp_ns``, metres per SLAM unit (None: nothing
