@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from hac_ros.core import metrics
+from hac_ros.core.humans import smooth_outputs
 from hac_ros.core.outputs import HumanJointsOut, OdometryOut, Output, ScaleOut
 from hac_ros.core.params import HacParams
 from hac_ros.recording import (CameraTrack, JointsTrack, Recording, Replayed, ScaleTrack, Truth,
@@ -91,7 +92,10 @@ def reference_runs(gt_path: str | Path, params: HacParams, truth: Truth) -> dict
     runs: dict[str, Replayed] = {}
     for name, output_scale in scales.items():
         collect = _Collector()
-        collect(calibrator.metric.fresh().resolve(deferred, output_scale))
+        resolved = calibrator.metric.fresh().resolve(deferred, output_scale)
+        if params.human_filter == 'smooth':  # as the replay does offline
+            smooth_outputs(resolved)
+        collect(resolved)
         runs[name] = collect.as_replayed()
     return runs
 

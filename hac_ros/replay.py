@@ -35,6 +35,7 @@ import numpy as np
 
 from hac_ros.core.calibrator import Calibrator
 from hac_ros.core.errors import HacError
+from hac_ros.core.humans import smooth_outputs
 from hac_ros.core.metric import finite_scale
 from hac_ros.core.numeric import NS
 from hac_ros.core.offline import OfflineScale, offline_scale
@@ -425,12 +426,15 @@ def _offline(feeder: CoreFeeder, handler: OutputHandler,
                              np.array([s.scale for s in samples]), resets, p.window_s,
                              p.min_samples)
     stage = calibrator.metric.fresh()
-    with _progress(progress, len(recorded), 'write') as bar:
-        for outputs in recorded:
-            handler(stage.resolve(outputs, schedule, schedule.error))
+    resolved = [stage.resolve(outputs, schedule, schedule.error) for outputs in recorded]
+    recorded.clear()
+    if p.human_filter == 'smooth':
+        smooth_outputs([o for outputs in resolved for o in outputs])
+    with _progress(progress, len(resolved), 'write') as bar:
+        for outputs in resolved:
+            handler(outputs)
             if bar is not None:
                 bar.update(1)
-    recorded.clear()
     pending = calibrator.pending_status()
     return stage.status(pending, finite_scale(schedule(pending.status.stamp_ns))), schedule
 

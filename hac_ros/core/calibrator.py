@@ -28,6 +28,7 @@ import numpy as np
 from hac_ros.core.contact import candidate_joints, combine_ratios, in_view, sole_points
 from hac_ros.core.estimator import RollingScale
 from hac_ros.core.ground import GroundModel, Plane
+from hac_ros.core.humans import RootFilter
 from hac_ros.core.metric import MetricStage
 from hac_ros.core.numeric import MEDIAN_STD_ERROR, NS
 from hac_ros.core.outputs import (REASONS, NoticeOut, Output, PendingFrame, PendingOdometry,
@@ -84,7 +85,8 @@ class Calibrator:
         self._diag_second: int | None = None
         # the anchor of each SLAM map and the last metric pose: what depends on the published scale
         self.metric = MetricStage(_base_from_camera(p.base_to_camera) if p.base_frame else None,
-                                  p.orientation_variance)
+                                  p.orientation_variance,
+                                  RootFilter() if p.human_filter == 'smooth' else None)
 
     # ================================================================== inputs
     def add_camera_info(self, K: np.ndarray, width: int, height: int, frame_id: str = '') -> list[Output]:

@@ -22,6 +22,7 @@ from typing import Callable, Iterable
 
 import numpy as np
 
+from hac_ros.core.humans import RootFilter
 from hac_ros.core.numeric import NS
 from hac_ros.core.outputs import (PENDING, DiagnosticsOut, HumanJointsOut, OdometryOut, Output,
                                   PendingFrame, PendingOdometry, PendingReset, PendingStatus,
@@ -41,21 +42,25 @@ class MetricStage:
     """Applies a published scale to pending outputs, keeping the anchor and the last metric pose.
 
     base_from_camera: the base's pose in the camera frame (R (3, 3), t (3,) metres), or None to
-    publish the camera itself; orientation_variance: rad², the odometry's orientation covariance.
+    publish the camera itself; orientation_variance: rad², the odometry's orientation covariance;
+    humans: the online filter of the world humans (hac_ros.core.humans.RootFilter) or None.
     """
 
     def __init__(self, base_from_camera: tuple[np.ndarray, np.ndarray] | None,
-                 orientation_variance: float) -> None:
+                 orientation_variance: float, humans: RootFilter | None = None) -> None:
         self.anchor = Anchor()
         self.base_from_camera = base_from_camera
         self.orientation_variance = orientation_variance
+        self.humans = humans
         # camera, metric frame: (stamp ns, R camera->metric (3, 3), centre (3,) metres)
         self.last_metric: tuple[int, np.ndarray, np.ndarray] | None = None
         # the odometry covariance without the scale's share: position floor, orientation variance
         self._covariance_floor = np.diag([POSITION_VARIANCE_FLOOR] * 3 + [orientation_variance] * 3)
 
     def fresh(self) -> 'MetricStage':
-        """A new stage with this one's configuration (identity anchor, no metric pose yet)."""
+        """A new stage with this one's configuration (identity anchor, no metric pose yet), for
+        resolving deferred outputs: without the online filter of the humans (offline they are
+        smoothed over the whole recording, :func:`hac_ros.core.humans.smooth_people`)."""
         return MetricStage(self.base_from_camera, self.orientation_variance)
 
     def resolve(self, outputs: Iterable[Output], scale_at: ScaleAt,
@@ -84,6 +89,8 @@ class MetricStage:
             if scale is None:
                 return []
             joints = self.anchor.joints(pending.R_wc, pending.c_map, scale, pending.joints_cam)
+            if self.humans is not None:
+                joints = self.humans.update(pending.stamp_ns, joints)
             return [HumanJointsOut(pending.stamp_ns, joints),
                     ScaleOut(pending.stamp_ns, scale, pending.spread)]
         if isinstance(pending, PendingReset):

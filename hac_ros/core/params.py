@@ -24,6 +24,7 @@ POSE_TYPES = ('PoseStamped', 'Odometry')
 # pose_type -> the ROS message type of pose_topic
 POSE_MSGTYPES = {'PoseStamped': 'geometry_msgs/msg/PoseStamped', 'Odometry': 'nav_msgs/msg/Odometry'}
 CLOUD_MODES = ('replace', 'accumulate')
+HUMAN_FILTERS = ('none', 'smooth')
 INPUT_QOS = ('best_effort', 'reliable')
 CLOUD_QOS = ('transient_local', 'volatile')
 
@@ -84,6 +85,9 @@ class HacParams:
     cloud_qos: str = _p('transient_local', 'QoS durability of the map subscription',
                         choices=CLOUD_QOS)
     publish_markers: bool = _p(True, 'publish /hac/markers for RViz')
+    human_filter: str = _p('smooth', 'world humans: none (the joints as they come) or smooth (each '
+                           "person's world root filtered: causally online, zero-phase offline)",
+                           choices=HUMAN_FILTERS)
 
     # --- beyond SPEC's table: documented extras with metric or scene-relative units
     interp_max_gap_s: float = _p(0.2, 'largest gap between two poses that a joints stamp may be '
