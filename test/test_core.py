@@ -109,7 +109,7 @@ def test_metric_outputs_follow_spec_transforms():
     """Odometry c = s·o and world joints R J + s·o reproduce the true metric world (first camera frame)."""
     scene = walking_scene(true_scale=1.7)
     contacts = scene.to_slam(scene.contact_world())
-    params = HacParams(cone_min_points=1, map_overlap_min=0.0)
+    params = HacParams(cone_min_points=1, map_overlap_min=0.0, human_filter='none')
     _, outs = run(scene, params, maps=lambda t: contacts[t:t + 1])
     odom = [o for o in outs if isinstance(o, OdometryOut)]
     joints = [o for o in outs if isinstance(o, HumanJointsOut)]
