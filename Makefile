@@ -31,6 +31,7 @@ bench: $(STAMP)
 	$(PY) bench/accuracy.py
 	$(PY) bench/core_speed.py
 	$(PY) bench/replay_throughput.py
+	$(PY) bench/batch_throughput.py
 	$(PY) bench/node_latency.py
 	$(PY) bench/node_memory.py
 

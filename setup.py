@@ -33,8 +33,11 @@ setup(
     extras_require={
         # A system ROS 2 install already provides rclpy and the messages: the wheels are opt-in.
         'ros': ['ros-jazzy-rclpy[fastrtps]', 'ros-jazzy-common-interfaces'],
+        # `hac batch --ray`: a local Ray or a cluster (docs/batch.md)
+        'cluster': ['ray[default]>=2.9'],
         'dev': [
             'pytest>=7',
+            'ray>=2.9',  # the tests run `hac batch --ray local` (the core of the cluster extra)
             'hypothesis>=6.80',
             'evo>=1.20',
             'colcon-core',

@@ -71,14 +71,27 @@ class InputTopics:
     camera_info: str  # '' when off or absent from the recording
 
     @classmethod
-    def check(cls, recording: Recording, params: HacParams) -> 'InputTopics':
-        """The parameters' topics, checked against what the recording holds."""
-        pose_type = POSE_MSGTYPES[params.pose_type]
-        other = next(k for k, v in POSE_MSGTYPES.items() if k != params.pose_type)
+    def check(cls, recording: Recording, params: HacParams,
+              pose_type: str | None = None) -> 'InputTopics':
+        """The parameters' topics, checked against what the recording holds.
+
+        The SLAM pose type is the recording's own (SPEC: PoseStamped or Odometry, so recordings of
+        both kinds replay without flags) unless ``pose_type`` (``--pose-type``) overrides it; the
+        parameters' ``pose_type`` (the node's subscription type) only names the type expected of a
+        pose topic that is neither.
+        """
+        recorded = recording.topics.get(params.pose_topic)
+        if pose_type is None:
+            pose_type = next((k for k, v in POSE_MSGTYPES.items() if v == recorded),
+                             params.pose_type)
+        elif pose_type not in POSE_MSGTYPES:
+            raise HacError(f'--pose-type must be one of {", ".join(POSE_MSGTYPES)}, '
+                           f'not {pose_type!r}')
+        other = next(k for k in POSE_MSGTYPES if k != pose_type)
         hint = ''
-        if recording.topics.get(params.pose_topic) == POSE_MSGTYPES[other]:
-            hint = f' (use --pose-type {other})'
-        recording.check_topic(params.pose_topic, [pose_type], 'SLAM pose', hint)
+        if recorded == POSE_MSGTYPES[other]:
+            hint = f' (use --pose-type {other}, or no --pose-type: it is read from the recording)'
+        recording.check_topic(params.pose_topic, [POSE_MSGTYPES[pose_type]], 'SLAM pose', hint)
         recording.check_topic(params.joints_topic, [INPUT_TYPES['joints']], 'HMR joints',
                               ' (use --joints-topic)')
         recording.check_topic(params.cloud_topic, [INPUT_TYPES['cloud']], 'map cloud',
@@ -88,8 +101,8 @@ class InputTopics:
             recording.check_topic(camera_info, [INPUT_TYPES['camera_info']], 'CameraInfo')
         elif camera_info:
             camera_info = ''
-        return cls(params.pose_topic, pose_type, params.joints_topic, params.cloud_topic,
-                   camera_info)
+        return cls(params.pose_topic, POSE_MSGTYPES[pose_type], params.joints_topic,
+                   params.cloud_topic, camera_info)
 
     def kinds(self) -> dict[str, str]:
         """topic -> 'pose' | 'joints' | 'cloud' | 'camera_info'."""
@@ -335,13 +348,14 @@ class ReplaySummary:
 def replay(input_path: str | Path, output_path: str | Path, params: HacParams | None = None,
            mode: str = 'offline', storage: str = 'mcap', copy_inputs: bool = False,
            export_tum: str | Path | None = None, progress: bool | None = None,
-           notices: Any = None) -> ReplaySummary:
+           notices: Any = None, pose_type: str | None = None) -> ReplaySummary:
     """Calibrate the recording at ``input_path`` into a new recording at ``output_path``.
 
     mode: ``offline`` or ``online`` (module docstring); storage: of OUT, ``mcap`` or ``sqlite3``;
     copy_inputs: every topic of IN is copied into OUT too; export_tum: a directory for TUM files
     (:func:`hac_ros.tum.write_tum_exports`); progress: a bar on stderr (default: when it is a
-    terminal); notices: the stream notices are printed on (default stderr).
+    terminal); notices: the stream notices are printed on (default stderr); pose_type:
+    ``PoseStamped`` or ``Odometry`` overrides the SLAM pose type read from IN (``--pose-type``).
     Raises :class:`HacError` (OUT exists, IN missing or unreadable, missing topics, ...). On any
     error or KeyboardInterrupt nothing is left at ``output_path``.
     """
@@ -358,7 +372,7 @@ def replay(input_path: str | Path, output_path: str | Path, params: HacParams | 
         progress = sys.stderr.isatty()
     start = time.perf_counter()
     with Recording(input_path) as recording:
-        topics = InputTopics.check(recording, params)
+        topics = InputTopics.check(recording, params, pose_type)
         start_ns = recording.start_ns
         printer = NoticePrinter(notices, start_ns)
         if params.camera_info_topic and not topics.camera_info:

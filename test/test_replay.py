@@ -305,14 +305,31 @@ def test_a_ros1_bag_gives_the_same_outputs(walk_bag, tmp_path):
         assert from_ros1[topic] == items, topic
 
 
-def test_odometry_pose_type(tmp_path):
+def test_odometry_pose_type_is_read_from_the_recording(tmp_path):
     source = write_recording(tmp_path / 'odom', walking_scene(frames=40), pose_type='Odometry')
-    wrong = hac('replay', str(source), '-o', str(tmp_path / 'a'))
-    assert wrong.returncode == 2
-    assert 'nav_msgs/msg/Odometry' in wrong.stderr and '--pose-type Odometry' in wrong.stderr
+    found = hac('replay', str(source), '-o', str(tmp_path / 'a'))
+    assert found.returncode == 0, found.stderr
+    assert 'frames 40' in found.stdout
     right = hac('replay', str(source), '-o', str(tmp_path / 'b'), '--pose-type', 'Odometry')
     assert right.returncode == 0, right.stderr
-    assert 'frames 40' in right.stdout
+    assert read_all(tmp_path / 'a') == read_all(tmp_path / 'b')
+
+
+def test_pose_type_read_from_the_recording_and_a_wrong_override_is_an_error(tmp_path):
+    scene = walking_scene(frames=40)
+    odometry = write_recording(tmp_path / 'odom', scene, pose_type='Odometry')
+    pose = write_recording(tmp_path / 'pose', scene, pose_type='PoseStamped')
+    # the parameters' pose_type (the node's, e.g. config/hac.yaml) does not stop a mixed set
+    for source in (odometry, pose):
+        for node_type in ('PoseStamped', 'Odometry'):
+            summary = replay(source, tmp_path / f'{source.name}_{node_type}',
+                             HacParams(pose_type=node_type), progress=False)
+            assert summary.status.frames == 40
+    with pytest.raises(HacError, match='nav_msgs/msg/Odometry.*--pose-type Odometry'):
+        replay(odometry, tmp_path / 'wrong', pose_type='PoseStamped', progress=False)
+    with pytest.raises(HacError, match='--pose-type PoseStamped'):
+        replay(pose, tmp_path / 'wrong', pose_type='Odometry', progress=False)
+    assert not (tmp_path / 'wrong').exists()
 
 
 def test_summary_names_frames_scale_fallback_rejections_resets_and_speed(walk_bag, tmp_path):

@@ -1,4 +1,4 @@
-"""The ``hac`` command: ``simulate | replay | eval | plot | demo``.
+"""The ``hac`` command: ``simulate | replay | batch | eval | plot | demo``.
 
 Thin: each sub-command is a module of this package with ``add_arguments(parser)`` and
 ``run(args) -> int``, and only argument parsing in it; the work is done by the library modules
@@ -21,6 +21,7 @@ from msg_adapters import MessageError
 COMMANDS = {
     'simulate': ('simulate', 'make a recording with ground truth'),
     'replay': ('replay', 'calibrate a recording (same core and parameters as the node)'),
+    'batch': ('batch', 'calibrate many recordings in parallel (a process pool, or Ray)'),
     'eval': ('evaluate', 'metrics of a replayed recording against ground truth'),
     'plot': ('plot', 'figures of a replayed recording'),
     'demo': ('demo', 'replay, evaluate and plot the bundled sample recording'),

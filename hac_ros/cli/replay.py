@@ -24,7 +24,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--cloud-topic', help='overrides cloud_topic')
     parser.add_argument('--joints-topic', help='overrides joints_topic')
     parser.add_argument('--camera-info-topic', help='overrides camera_info_topic ("" = off)')
-    parser.add_argument('--pose-type', choices=tuple(POSE_MSGTYPES), help='overrides pose_type')
+    parser.add_argument('--pose-type', choices=tuple(POSE_MSGTYPES),
+                        help='the SLAM pose topic\'s type (default: read from the recording)')
     parser.add_argument('--copy-inputs', action='store_true',
                         help='also copy every topic of IN into OUT (so OUT alone can be evaluated)')
     parser.add_argument('--export-tum', metavar='DIR',
@@ -38,9 +39,9 @@ def run(args: argparse.Namespace) -> int:
 
     params = HacParams.load(args.params, {
         'pose_topic': args.pose_topic, 'cloud_topic': args.cloud_topic,
-        'joints_topic': args.joints_topic, 'camera_info_topic': args.camera_info_topic,
-        'pose_type': args.pose_type})
+        'joints_topic': args.joints_topic, 'camera_info_topic': args.camera_info_topic})
     summary = replay(args.input, args.output, params, mode=args.mode, storage=args.storage,
+                     pose_type=args.pose_type,
                      copy_inputs=args.copy_inputs, export_tum=args.export_tum,
                      progress=False if args.no_progress else None)
     print(summary.text())

@@ -1,0 +1,40 @@
+"""``hac batch IN... -o DIR``: calibrate many recordings in parallel (a process pool, or Ray)."""
+from __future__ import annotations
+
+import argparse
+
+from hac_ros.core.params import HacParams
+from hac_ros.replay import MODES
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument('inputs', metavar='IN', nargs='+',
+                        help='input recordings (rosbag2 directories, .mcap, .db3 or ROS 1 .bag); '
+                        'each is replayed into DIR/<its name without .mcap/.db3/.bag>')
+    parser.add_argument('-o', '--output', metavar='DIR', required=True,
+                        help='output directory: one recording per input, logs/, summary.csv, '
+                        'summary.md')
+    parser.add_argument('--workers', metavar='N', type=int,
+                        help='recordings calibrated at once (default: the cores this process may '
+                        'use; with --ray ADDRESS the cluster\'s CPUs decide)')
+    parser.add_argument('--ray', metavar='ADDRESS',
+                        help='each recording a Ray task: "local" starts a Ray on this machine, '
+                        'HOST:PORT (or ray://HOST:PORT, auto) joins a cluster; needs '
+                        'pip install hac_ros[cluster]')
+    parser.add_argument('--resume', action='store_true',
+                        help='skip inputs whose output is complete for the same input, parameters '
+                        'and mode; redo the others')
+    parser.add_argument('--mode', choices=MODES, default='offline',
+                        help='offline (default) or online, as hac replay')
+    parser.add_argument('--params', metavar='FILE',
+                        help='the node\'s parameters file (hac_node: ros__parameters:), for every '
+                        'recording; the SLAM pose type is read from each recording')
+
+
+def run(args: argparse.Namespace) -> int:
+    from hac_ros.batch import batch
+
+    result = batch(args.inputs, args.output, HacParams.load(args.params), mode=args.mode,
+                   workers=args.workers, ray=args.ray, resume=args.resume)
+    print(result.text())
+    return result.exit_code
