@@ -2,7 +2,8 @@
 
 Three rows, so that a number has something to be compared with:
 
-- ``hac``: the outputs in OUT (``/hac/odometry``, ``/hac/human_joints``, ``/hac/scale``);
+- ``hac``: the outputs in OUT (the camera of ``/hac/pose``, ``/hac/odometry``,
+  ``/hac/human_joints``, ``/hac/scale``);
 - ``no calibration``: the same core on IN with the scale fixed at 1 (SLAM units taken as metres);
 - ``true scale``: the same core on IN with the true scale of each moment (``/gt/scale``), the best
   any scale estimate could do with these SLAM poses and HMR joints.
@@ -10,7 +11,8 @@ Three rows, so that a number has something to be compared with:
 The two reference rows run the core once on IN with its metric outputs deferred and resolve them
 with each reference scale (:mod:`hac_ros.core.metric`), so that resets are anchored as in OUT.
 Metrics (SPEC, "Metrics"; implemented in :mod:`hac_ros.core.metrics`): ATE and ATE-S (m, camera
-centres, Sim(3) / SE(3) alignment, mean), W-MPJPE and WA-MPJPE (mm, 100-frame chunks), RTE (%),
+centres of ``/hac/pose``, Sim(3) / SE(3) alignment, mean), RPE (m and %, the translation of
+``/hac/odometry`` over 1 s steps: odometry is judged by its relative error), W-MPJPE and WA-MPJPE (mm, 100-frame chunks), RTE (%),
 PA-MPJPE (mm), and the scale error (%) of the final estimate and of every frame against the truth
 of that moment.
 """
@@ -25,7 +27,7 @@ import numpy as np
 
 from hac_ros.core import metrics
 from hac_ros.core.humans import smooth_outputs
-from hac_ros.core.outputs import HumanJointsOut, OdometryOut, Output, ScaleOut
+from hac_ros.core.outputs import HumanJointsOut, OdometryOut, Output, PoseOut, ScaleOut
 from hac_ros.core.params import HacParams
 from hac_ros.recording import (CameraTrack, JointsTrack, Recording, Replayed, ScaleTrack, Truth,
                                read_output, read_truth)
@@ -38,6 +40,8 @@ ROWS = ('hac', 'no calibration', 'true scale')
 COLUMNS = (  # key, header, format
     ('ate_m', 'ATE (m)', '.3f'),
     ('ate_s_m', 'ATE-S (m)', '.3f'),
+    ('rpe_m', 'RPE 1 s (m)', '.3f'),
+    ('rpe_pct', 'RPE (%)', '.2f'),
     ('w_mpjpe_mm', 'W-MPJPE (mm)', '.1f'),
     ('wa_mpjpe_mm', 'WA-MPJPE (mm)', '.1f'),
     ('rte_pct', 'RTE (%)', '.2f'),
@@ -50,13 +54,16 @@ COLUMNS = (  # key, header, format
 # ============================================================================ reference rows
 @dataclass
 class _Collector:
+    poses: list[PoseOut] = field(default_factory=list)
     odometry: list[OdometryOut] = field(default_factory=list)
     joints: list[HumanJointsOut] = field(default_factory=list)
     scale: list[ScaleOut] = field(default_factory=list)
 
     def __call__(self, outputs: list[Output]) -> None:
         for o in outputs:
-            if isinstance(o, OdometryOut):
+            if isinstance(o, PoseOut):
+                self.poses.append(o)
+            elif isinstance(o, OdometryOut):
                 self.odometry.append(o)
             elif isinstance(o, HumanJointsOut):
                 self.joints.append(o)
@@ -64,22 +71,25 @@ class _Collector:
                 self.scale.append(o)
 
     def as_replayed(self) -> Replayed:
-        if self.odometry:
-            camera = CameraTrack(np.array([o.stamp_ns for o in self.odometry], dtype=np.int64),
-                                 np.array([o.position_metric for o in self.odometry]),
-                                 np.array([o.rotation_metric for o in self.odometry]))
-        else:
-            camera = CameraTrack()
+        camera, odometry = _track(self.poses), _track(self.odometry)
         joints = JointsTrack(np.array([o.stamp_ns for o in self.joints], dtype=np.int64),
                              [o.joints_metric for o in self.joints])
         scale = ScaleTrack(np.array([o.stamp_ns for o in self.scale], dtype=np.int64),
                            np.array([o.scale for o in self.scale]))
-        return Replayed(camera, joints, scale, [], None)
+        return Replayed(camera, joints, scale, [], None, odometry)
+
+
+def _track(outputs: list[PoseOut] | list[OdometryOut]) -> CameraTrack:
+    if not outputs:
+        return CameraTrack()
+    return CameraTrack(np.array([o.stamp_ns for o in outputs], dtype=np.int64),
+                       np.array([o.position_metric for o in outputs]),
+                       np.array([o.rotation_metric for o in outputs]))
 
 
 def reference_runs(gt_path: str | Path, params: HacParams, truth: Truth) -> dict[str, Replayed]:
     """'no calibration' (scale 1) and 'true scale' (/gt/scale) through the core on IN."""
-    from hac_ros.replay import deferred_run
+    from hac_ros.feeder import deferred_run
 
     scales: dict[str, Any] = {'no calibration': lambda stamp_ns: 1.0}
     if truth.scale is not None and len(truth.scale):
@@ -133,13 +143,19 @@ def row_metrics(run: Replayed, truth: Truth) -> dict[str, float]:
     out: dict[str, float] = {k: math.nan for k, _, _ in COLUMNS}
     out['camera_frames'] = 0
     out['joints_frames'] = 0
-    if truth.camera is not None and len(run.odometry) >= 3:
-        ie, ig = match(run.odometry.stamps_ns, truth.camera.stamps_ns)
+    if truth.camera is not None and len(run.camera) >= 3:
+        ie, ig = match(run.camera.stamps_ns, truth.camera.stamps_ns)
         if len(ie) >= 3:
-            est, gt = run.odometry.positions[ie], truth.camera.positions[ig]
+            est, gt = run.camera.positions[ie], truth.camera.positions[ig]
             out['ate_m'] = float(metrics.ate(est, gt))
             out['ate_s_m'] = float(metrics.ate_s(est, gt))
             out['camera_frames'] = int(len(ie))
+    if truth.camera is not None and len(run.odometry) >= 2:
+        ie, ig = match(run.odometry.stamps_ns, truth.camera.stamps_ns)
+        if len(ie) >= 2:
+            out['rpe_m'], out['rpe_pct'] = metrics.rpe(
+                run.odometry.positions[ie], run.odometry.rotations[ie], truth.camera.positions[ig],
+                truth.camera.rotations[ig], run.odometry.stamps_ns[ie])
     if truth.joints is not None and len(run.joints):
         tracks = person_tracks(run.joints, truth.joints)
         if tracks:

@@ -5,6 +5,9 @@ Both shells call :meth:`OutputMessages.convert` on every output of the
 what comes back, so that the same recording gives the same bytes online and replayed. The messages
 are encoded straight from numpy by :mod:`msg_adapters.cdr_write` (the same bytes as building the
 message objects and serializing them, at a fraction of the cost). Topics and types: SPEC, "Outputs".
+
+Topic names are relative (a namespaced node moves them all) except ``/diagnostics``; the replay
+writes them resolved against ``/`` (:func:`in_root`).
 """
 from __future__ import annotations
 
@@ -13,22 +16,24 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hac_ros.core.outputs import (DiagnosticsOut, HumanJointsOut, OdometryOut, Output, SampleOut,
-                                  ScaleOut, Status)
+from hac_ros.core.outputs import (CloudOut, DiagnosticsOut, HumanJointsOut, OdometryOut, Output,
+                                  PoseOut, SampleOut, ScaleOut, Status)
 from hac_ros.core.params import HacParams
 from msg_adapters import cdr_write
 from msg_adapters.poses import matrix_to_quat
 
-ODOMETRY = ('/hac/odometry', 'nav_msgs/msg/Odometry')
-HUMAN_JOINTS = ('/hac/human_joints', 'geometry_msgs/msg/PoseArray')
-SCALE = ('/hac/scale', 'std_msgs/msg/Float64')
-MARKERS = ('/hac/markers', 'visualization_msgs/msg/MarkerArray')
+ODOMETRY = ('hac/odometry', 'nav_msgs/msg/Odometry')
+POSE = ('hac/pose', 'geometry_msgs/msg/PoseWithCovarianceStamped')
+HUMAN_JOINTS = ('hac/human_joints', 'geometry_msgs/msg/PoseArray')
+SCALE = ('hac/scale', 'std_msgs/msg/Float64')
+CLOUD = ('hac/cloud', 'sensor_msgs/msg/PointCloud2')
+MARKERS = ('hac/markers', 'visualization_msgs/msg/MarkerArray')
 DIAGNOSTICS = ('/diagnostics', 'diagnostic_msgs/msg/DiagnosticArray')
-OUTPUT_TOPICS = (ODOMETRY, HUMAN_JOINTS, SCALE, MARKERS, DIAGNOSTICS)
+OUTPUT_TOPICS = (ODOMETRY, POSE, HUMAN_JOINTS, SCALE, CLOUD, MARKERS, DIAGNOSTICS)
 # Replay-only topic (not published by the node): one message per processed frame, at its stamp.
 # data = [person, scale, source, accepted] per person, scale in metres per SLAM unit (NaN when
 # rejected), source 0 = map hit, 1 = ground-plane fallback, 2 = rejected.
-SAMPLES = ('/hac/samples', 'std_msgs/msg/Float64MultiArray')
+SAMPLES = ('hac/samples', 'std_msgs/msg/Float64MultiArray')
 SAMPLE_FIELDS = 4
 SAMPLE_LABEL = 'person,scale,source(0 map 1 ground 2 rejected),accepted'
 SOURCE_CODES = {'map': 0.0, 'ground': 1.0}
@@ -55,9 +60,18 @@ PLANE_RGBA = (0.6, 0.6, 0.6, 0.4)
 SKELETON_WIDTH_M, PATH_WIDTH_M = 0.03, 0.02
 
 
+def in_root(topic: str) -> str:
+    """A topic name resolved in the root namespace (``hac/pose`` -> ``/hac/pose``), as the replay
+    writes and reads it; absolute names are kept. ``~`` (private) names have no meaning there."""
+    if topic.startswith('~'):
+        raise ValueError(f'{topic!r}: a private (~) topic name needs a node')
+    return topic if topic.startswith('/') else '/' + topic
+
+
 @dataclass
 class Message:
-    """One serialized message to publish or write: topic, type name, CDR bytes, stamp (log time)."""
+    """One serialized message to publish or write: topic (relative, see :func:`in_root`), type
+    name, CDR bytes, stamp (log time)."""
 
     topic: str
     msgtype: str
@@ -80,13 +94,22 @@ class OutputMessages:
         """The messages of one calibrator output (none for samples, notices and resets)."""
         frame = self.params.metric_frame
         stamp = output.stamp_ns if not isinstance(output, DiagnosticsOut) else output.status.stamp_ns
-        if isinstance(output, OdometryOut):
+        if isinstance(output, PoseOut):
             self._path[self._path_count % PATH_LENGTH] = output.position_metric
             self._path_count += 1
-            data = cdr_write.odometry(stamp, frame, output.child_frame_id, output.position_metric,
-                                      matrix_to_quat(output.rotation_metric), output.covariance,
-                                      output.linear_velocity, output.angular_velocity)
+            data = cdr_write.pose_with_covariance_stamped(
+                stamp, frame, output.position_metric, matrix_to_quat(output.rotation_metric),
+                output.covariance)
+            return [Message(*POSE, data, stamp)]
+        if isinstance(output, OdometryOut):
+            data = cdr_write.odometry(stamp, self.params.odom_frame, output.child_frame_id,
+                                      output.position_metric, matrix_to_quat(output.rotation_metric),
+                                      output.covariance, output.linear_velocity,
+                                      output.angular_velocity, output.twist_covariance)
             return [Message(*ODOMETRY, data, stamp)]
+        if isinstance(output, CloudOut):
+            return [Message(*CLOUD, cdr_write.point_cloud_xyz32(stamp, frame, output.points_metric),
+                            stamp)]
         if isinstance(output, HumanJointsOut):
             msgs = [Message(*HUMAN_JOINTS, cdr_write.pose_array(stamp, frame, output.joints_metric),
                             stamp)]
@@ -115,13 +138,23 @@ class OutputMessages:
             ('fallback_rate', f'{status.fallback_rate:.4f}'),
             ('resets', str(status.resets)),
             ('map_points', str(status.map_points)),
+            ('drifting', str(status.drifting).lower()),
+            ('frozen', str(status.frozen).lower()),
+            ('alignment', status.alignment),
             ('rejected_total', str(sum(status.rejected.values()))),
         ]
+        values += [(f'service.{name}', str(count)) for name, count in sorted(status.services.items())]
         values += [(f'rejected.{reason}', str(count))
                    for reason, count in sorted(status.rejected.items())]
         level = DIAG_OK if status.converged else DIAG_WARN
         message = (f'converged: scale {status.scale:.6g} +- {status.spread:.2g}' if status.converged
                    else f'not converged: {status.samples} samples')
+        if status.frozen:
+            message += ' (frozen)'
+        if status.alignment == 'slam' and self.params.metric_frame_alignment == 'gravity':
+            level = DIAG_WARN
+            message += '; metric frame: SLAM axes (no usable ground normal)'
+
         return cdr_write.diagnostic_array(
             status.stamp_ns, '', [(level, DIAGNOSTIC_NAME, message, self.params.metric_frame, values)])
 

@@ -17,8 +17,12 @@ used from the first frame processed after it is ready whose stamp is not before 
 This is the one place where the node may differ from ``hac replay``, which always has the map at
 its stamp.
 
+Names. Topics are relative (``slam/pose`` in, ``hac/pose`` out: a namespace moves them all),
+``/diagnostics`` and ``/tf`` absolute, the services private: ``~/reset``, ``~/freeze``.
+
 Run: ``ros2 run hac_ros hac_node --ros-args --params-file config/hac.yaml`` or
-``python -m hac_ros.node --ros-args ...``.
+``python -m hac_ros.node --ros-args ...``; the managed variant is ``hac_lifecycle_node``
+(:mod:`hac_ros.lifecycle_node`).
 """
 from __future__ import annotations
 
@@ -42,13 +46,14 @@ from rclpy.serialization import deserialize_message
 
 from hac_ros.core.calibrator import Calibrator
 from hac_ros.core.errors import ParameterError
-from hac_ros.core.outputs import NoticeOut, OdometryOut, Output, ResetOut
+from hac_ros.core.outputs import NoticeOut, OdometryOut, Output, PoseOut, ResetOut
 from hac_ros.core.params import NODE_NAME, POSE_MSGTYPES, HacParams, describe, names
 from hac_ros.core.reference import MapIndex
 from hac_ros.inputs import MapBuilder, add_camera_info_msg, add_joints_msg, add_pose_msg
-from hac_ros.messages import OUTPUT_TOPICS, OutputMessages
-from hac_ros.node_parameters import (RESUBSCRIBE, ROS_OWN_PARAMETERS, SHELL_ONLY,
+from hac_ros.messages import CLOUD, DIAGNOSTICS, OUTPUT_TOPICS, OutputMessages
+from hac_ros.node_parameters import (RESUBSCRIBE, ROS_OWN_PARAMETERS, SHELL_ONLY, TF_PARAMETERS,
                                      parameter_descriptor)
+from hac_ros.tf_broadcast import TfSender
 from msg_adapters import MessageError, RawCloud, parse_cloud_cdr, rclpy_types
 
 TYPES = rclpy_types()  # rclpy's message classes by ROS name
@@ -59,7 +64,7 @@ DDS_PROFILE_VARIABLES = ('FASTRTPS_DEFAULT_PROFILES_FILE', 'FASTDDS_DEFAULT_PROF
 # ---------------------------------------------------------------------------------------- QoS
 INPUT_DEPTH = 100  # pose/joints/camera_info kept per subscription: > 3 s at 30 Hz, absorbs bursts
 CLOUD_DEPTH = 2  # only the newest map matters; 2 lets one arrive while the previous is read
-OUTPUT_DEPTH = 100  # odometry/joints/scale/markers: 3 s at 30 Hz for slow subscribers
+OUTPUT_DEPTH = 100  # odometry/pose/joints/scale/markers: 3 s at 30 Hz for slow subscribers
 DIAGNOSTICS_DEPTH = 10
 
 # ---------------------------------------------------------------------------------------- maps
@@ -81,6 +86,17 @@ def cloud_qos(params: HacParams) -> QoSProfile:
                       reliability=ReliabilityPolicy.RELIABLE, durability=durability)
 
 
+def output_qos(topic: str) -> QoSProfile:
+    """Outputs: reliable; /hac/cloud also transient local (a late subscriber gets the map)."""
+    if topic == CLOUD[0]:
+        return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
+                          reliability=ReliabilityPolicy.RELIABLE,
+                          durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST,
+                      depth=DIAGNOSTICS_DEPTH if topic == DIAGNOSTICS[0] else OUTPUT_DEPTH,
+                      reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
+
+
 def qos_hint(kind: str, policy: str) -> str:
     """What the user can change when a publisher's QoS does not match subscription ``kind``."""
     if kind == 'cloud' and policy == 'DURABILITY':
@@ -93,18 +109,37 @@ def qos_hint(kind: str, policy: str) -> str:
     return f'change the publisher\'s {policy} policy (input_qos/cloud_qos cannot match it)'
 
 
-# ---------------------------------------------------------------------------------------- map builder
-# ---------------------------------------------------------------------------------------- the node
-class HacNode(Node):
-    """Subscribes to the inputs, feeds the calibrator, publishes its outputs (SPEC's topics)."""
+# ---------------------------------------------------------------------------------------- the shell
+class HacShell:
+    """Everything ``hac_node`` does, shared by :class:`HacNode` and the managed
+    :class:`hac_ros.lifecycle_node.HacLifecycleNode`; mixed into an rclpy ``Node``.
 
-    def __init__(self, node_name: str = NODE_NAME, **kwargs: Any) -> None:
-        super().__init__(node_name, **kwargs)
+    Its life in four steps (the lifecycle's transitions; HacNode takes them all at start-up):
+    :meth:`_declare` (parameters and their callbacks), :meth:`_configure` (reads the parameters,
+    makes the calibrator and the map builder), :meth:`_activate` (publishers, subscriptions,
+    services, TF), :meth:`_deactivate` (drops those and keeps the state) and :meth:`_cleanup`
+    (drops the state).
+    """
+
+    params: HacParams
+    calibrator: Calibrator | None = None
+    active = False
+
+    # ------------------------------------------------------------------ life
+    def _declare(self) -> None:
         for name in names():
             self.declare_parameter(name, describe(name)['default'], parameter_descriptor(name))
         self._warn_unknown_overrides()
+        self.add_on_set_parameters_callback(self._validate_parameters)
+        self.add_post_set_parameters_callback(self._apply_parameters)
+        # a finished map wakes the executor, which hands it to the calibrator on its own thread
+        # (made once: a guard condition made inside a callback is not waited on, rclpy Jazzy)
+        self._maps_ready = self.create_guard_condition(self._on_maps_ready)
+
+    def _configure(self) -> None:
+        """Reads the parameters (ParameterError with the reason) and makes the state."""
         values = {name: self.get_parameter(name).value for name in names()}
-        self.params = HacParams().replace(**values)  # raises ParameterError with the reason
+        self.params = HacParams().replace(**values)
         self.calibrator = Calibrator(self.params)
         self.outputs = OutputMessages(self.params)
         self.notices: Counter[str] = Counter()  # causes of the NoticeOut logged (once each)
@@ -118,27 +153,50 @@ class HacNode(Node):
         self._map_index: MapIndex | None = None  # the last index handed to the calibrator
         self._last_cloud: RawCloud | None = None  # the last cloud received (its bytes are kept)
         self._failed_callbacks: set[str] = set()
-
-        self._output_publishers = {}
-        for topic, msgtype in OUTPUT_TOPICS:
-            depth = DIAGNOSTICS_DEPTH if topic == '/diagnostics' else OUTPUT_DEPTH
-            self._output_publishers[topic] = self.create_publisher(TYPES.get(msgtype), topic, depth)
         self._builder = MapBuilder(self._build_index, workers=1)
         self._maps_building: deque[Future] = deque()  # in arrival order
-        # a finished map wakes the executor, which hands it to the calibrator on its own thread
-        self._maps_ready = self.create_guard_condition(self._on_maps_ready)
+        self._output_publishers: dict[str, Any] = {}
         self._subscriptions_by_kind: dict[str, Any] = {}
+        self._hac_services: list[Any] = []
+        self.tf: TfSender | None = None
+
+    def _activate(self) -> None:
+        for topic, msgtype in OUTPUT_TOPICS:
+            self._output_publishers[topic] = self.create_publisher(
+                TYPES.get(msgtype), topic, output_qos(topic))
         for kind in ('pose', 'joints', 'camera_info', 'cloud'):
             self._subscribe(kind)
-        self.tf = None
+        self._hac_services = [self.create_service(TYPES.get('std_srvs/srv/Trigger'), '~/reset',
+                                              self._on_reset),
+                          self.create_service(TYPES.get('std_srvs/srv/SetBool'), '~/freeze',
+                                              self._on_freeze)]
         self._update_tf()
-        self.add_on_set_parameters_callback(self._validate_parameters)
-        self.add_post_set_parameters_callback(self._apply_parameters)
+        self.active = True
+        p = self.params
         self.get_logger().info(
-            f'hac_node: {self.params.pose_topic} ({self.params.pose_type}) + '
-            f'{self.params.joints_topic} + {self.params.cloud_topic} -> /hac/* in '
-            f'{self.params.metric_frame!r} (contact_mode {self.params.contact_mode}, '
-            f'input_qos {self.params.input_qos}, cloud_qos {self.params.cloud_qos})')
+            f'{self.get_name()}: {self.resolve_topic_name(p.pose_topic)} ({p.pose_type}) + '
+            f'{self.resolve_topic_name(p.joints_topic)} + {self.resolve_topic_name(p.cloud_topic)}'
+            f' -> {self.resolve_topic_name("hac")}/* in {p.metric_frame!r} '
+            f'({p.metric_frame_alignment}) and {p.odom_frame!r} (contact_mode {p.contact_mode}, '
+            f'input_qos {p.input_qos}, cloud_qos {p.cloud_qos})')
+
+    def _deactivate(self) -> None:
+        self.active = False
+        for kind in list(self._subscriptions_by_kind):
+            self.destroy_subscription(self._subscriptions_by_kind.pop(kind))
+        for service in self._hac_services:
+            self.destroy_service(service)
+        self._hac_services = []
+        for publisher in self._output_publishers.values():
+            self.destroy_publisher(publisher)
+        self._output_publishers = {}
+        self.tf = None
+
+    def _cleanup(self) -> None:
+        if self.calibrator is None:
+            return
+        self._builder.close()
+        self.calibrator = None
 
     def _warn_unknown_overrides(self) -> None:
         """A parameters file with a misspelt name would otherwise be silently ignored by ROS."""
@@ -184,6 +242,7 @@ class HacNode(Node):
 
     def _on_incompatible_qos(self, kind: str, topic: str, info: Any) -> None:
         policy = qos_policy_name_from_kind(info.last_policy_kind)
+        topic = self.resolve_topic_name(topic)
         self.qos_incompatible[topic] += 1
         self.get_logger().warning(
             f'QoS mismatch on {topic}: a publisher offers an incompatible {policy} policy, so no '
@@ -290,10 +349,26 @@ class HacNode(Node):
                 continue
             if isinstance(output, ResetOut):
                 continue  # announced by the NoticeOut that comes with it; counted in diagnostics
-            if isinstance(output, OdometryOut) and self.tf is not None:
-                self.tf.send(output, self.params.metric_frame)
+            if self.tf is not None and isinstance(output, (OdometryOut, PoseOut)):
+                self.tf.send(output)
             for message in self.outputs.convert(output):
                 self._output_publishers[message.topic].publish(message.msg)
+
+    # ------------------------------------------------------------------ services
+    def _on_reset(self, request: Any, response: Any) -> Any:
+        """``~/reset`` (Trigger): a new segment at the next SLAM pose (SPEC, Services)."""
+        self.calibrator.request_reset()
+        response.success = True
+        response.message = 'a new segment starts at the next SLAM pose (map and ground normal kept)'
+        return response
+
+    def _on_freeze(self, request: Any, response: Any) -> Any:
+        """``~/freeze`` (SetBool): hold the scale (true) or resume with a fresh window (false)."""
+        self.calibrator.request_freeze(bool(request.data))
+        response.success = True
+        response.message = ('the scale is held from the next SLAM pose' if request.data else
+                            'the scale is released at the next SLAM pose: a fresh window converges')
+        return response
 
     # ------------------------------------------------------------------ parameters
     def _changes(self, parameters: list[Parameter]) -> dict[str, Any]:
@@ -301,16 +376,21 @@ class HacNode(Node):
         return {p.name: p.value for p in parameters if p.name in ours}
 
     def _validate_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
-        """All or nothing: the whole set is checked by HacParams.replace before anything changes."""
+        """All or nothing: the whole set is checked by HacParams.replace before anything changes
+        (before configure, against the defaults: configure reads and checks them all)."""
         try:
-            self.params.replace(**self._changes(parameters))
+            (self.params if self.calibrator is not None else HacParams()).replace(
+                **self._changes(parameters))
         except ParameterError as exc:
             return SetParametersResult(successful=False, reason=str(exc))
         return SetParametersResult(successful=True)
 
     def _apply_parameters(self, parameters: list[Parameter]) -> None:
+        """A runtime change (node_parameters: re-subscribes, takes effect at once or rebuilds the
+        estimator). Unconfigured, nothing: configure reads the parameters; inactive, the new
+        subscriptions and TF wait for activate."""
         changes = self._changes(parameters)
-        if not changes:
+        if not changes or self.calibrator is None:
             return
         new = self.params.replace(**changes)  # validated in _validate_parameters
         changed = {k for k in changes if getattr(new, k) != getattr(self.params, k)}
@@ -318,10 +398,11 @@ class HacNode(Node):
             return
         self.params = new
         self.outputs.params = new
-        for kind in sorted({kind for name in changed for kind in RESUBSCRIBE.get(name, ())}):
-            self._subscribe(kind)
-        if 'publish_tf' in changed:
-            self._update_tf()
+        if self.active:
+            for kind in sorted({kind for name in changed for kind in RESUBSCRIBE.get(name, ())}):
+                self._subscribe(kind)
+            if changed & TF_PARAMETERS:
+                self._update_tf()
         estimator = sorted(changed - SHELL_ONLY - set(RESUBSCRIBE))
         if estimator:
             self._rebuild_calibrator(estimator)
@@ -352,16 +433,24 @@ class HacNode(Node):
             f'its estimate restarts (metric outputs resume after {self.params.min_samples} samples)')
 
     def _update_tf(self) -> None:
-        if not self.params.publish_tf:
-            self.tf = None
-            return
-        from hac_ros.tf_broadcast import make_tf_broadcast
+        """TF when publish_tf or publish_odom_tf is set and tf2_ros is importable (a warning
+        otherwise); hac_ros.tf_broadcast keeps tf2_ros out of everything else."""
+        from hac_ros.tf_broadcast import make_tf_sender
 
-        self.tf = make_tf_broadcast(self)
+        self.tf = make_tf_sender(self, self.params)
 
-    # ------------------------------------------------------------------ shutdown
+
+class HacNode(HacShell, Node):
+    """hac_node: subscribes to the inputs, feeds the calibrator, publishes its outputs (SPEC)."""
+
+    def __init__(self, node_name: str = NODE_NAME, **kwargs: Any) -> None:
+        super().__init__(node_name, **kwargs)
+        self._declare()
+        self._configure()
+        self._activate()
+
     def destroy_node(self) -> None:
-        self._builder.close()
+        self._cleanup()
         super().destroy_node()
 
 

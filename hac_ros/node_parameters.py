@@ -26,7 +26,9 @@ RESUBSCRIBE: dict[str, tuple[str, ...]] = {
     'input_qos': ('pose', 'joints', 'camera_info'),
 }
 # - these only change what the shell publishes (the calibrator does not read them);
-SHELL_ONLY = frozenset({'metric_frame', 'publish_markers', 'publish_tf'})
+SHELL_ONLY = frozenset({'metric_frame', 'odom_frame', 'publish_markers', 'publish_tf',
+                        'publish_odom_tf'})
+TF_PARAMETERS = frozenset({'metric_frame', 'odom_frame', 'publish_tf', 'publish_odom_tf'})
 # - every other parameter is an estimator parameter: the calibrator is rebuilt with the new values
 #   (its estimate restarts; the current map and CameraInfo are handed to the new one).
 RUNTIME_NOTE = {**{name: 're-subscribes' for name in RESUBSCRIBE},

@@ -78,9 +78,9 @@ def se3_fit(run: Replayed, truth: Truth) -> tuple[np.ndarray, np.ndarray] | None
     from hac_ros.core.metrics import umeyama
 
     src, dst = [], []
-    if truth.camera is not None and len(run.odometry):
-        i, j = match(run.odometry.stamps_ns, truth.camera.stamps_ns)
-        src.append(run.odometry.positions[i])
+    if truth.camera is not None and len(run.camera):
+        i, j = match(run.camera.stamps_ns, truth.camera.stamps_ns)
+        src.append(run.camera.positions[i])
         dst.append(truth.camera.positions[j])
     if truth.joints is not None and len(run.joints):
         for pred, gt in person_tracks(run.joints, truth.joints):
@@ -118,15 +118,15 @@ def plot_trajectories(path: Path, run: Replayed, truth: Truth | None,
             up = fit[0] @ up
     if up is None:
         up = np.array([0.0, 0.0, 1.0])
-    base = reference_camera.positions if reference_camera is not None else run.odometry.positions
+    base = reference_camera.positions if reference_camera is not None else run.camera.positions
     basis = plane_basis(up, base if len(base) else np.zeros((1, 3)))
 
     fig, ax = plt.subplots(figsize=FIGSIZE['trajectories'], dpi=DPI)
     if reference_camera is not None and len(reference_camera):
         xy = reference_camera.positions @ basis.T
         ax.plot(xy[:, 0], xy[:, 1], color=COLOURS['gt'], lw=2.0, label='camera, ground truth')
-    if len(run.odometry):
-        xy = _apply(fit, run.odometry.positions) @ basis.T
+    if len(run.camera):
+        xy = _apply(fit, run.camera.positions) @ basis.T
         ax.plot(xy[:, 0], xy[:, 1], color=COLOURS['hac'], lw=1.5, label='camera, calibrated')
     if slam is not None and len(slam):
         # the metric frame is the SLAM map frame scaled (until a reset): the same placement
@@ -177,7 +177,7 @@ def _resets(run: Replayed) -> list[int]:
 
 
 def _t0(run: Replayed, truth: Truth | None) -> int:
-    candidates = [a[0] for a in (run.odometry.stamps_ns, run.scale.stamps_ns,
+    candidates = [a[0] for a in (run.camera.stamps_ns, run.scale.stamps_ns,
                                  run.samples.stamps_ns if run.samples is not None else [])
                   if len(a)]
     candidates += [s for s, _ in run.diagnostics[:1]]
@@ -317,7 +317,7 @@ def make_plots(output_path: str | Path, directory: str | Path,
     run = read_output(output_path)
     truth = read_truth(gt_path) if gt_path is not None else None
     slam = read_slam(gt_path) if gt_path is not None else read_slam(output_path)
-    if not len(run.odometry) and not len(run.scale) and not run.diagnostics:
+    if not len(run.camera) and not len(run.scale) and not run.diagnostics:
         raise HacError(f'{output_path} has nothing to plot (no odometry, scale or diagnostics)')
     directory.mkdir(parents=True, exist_ok=True)
     paths = {name: directory / f'{name}.png' for name in FIGSIZE}

@@ -151,6 +151,15 @@ class Recording:
                         f'not decode as {self.topics[topic]}: {_reason(exc)}')
 
 
+def _latched_qos() -> Any:
+    from rosbags.interfaces import (Qos, QosDurability, QosHistory, QosLiveliness,
+                                    QosReliability, QosTime)
+
+    never = QosTime(0, 0)
+    return Qos(QosHistory.KEEP_LAST, 1, QosReliability.RELIABLE, QosDurability.TRANSIENT_LOCAL,
+               never, never, QosLiveliness.AUTOMATIC, never, False)
+
+
 def _reason(exc: BaseException) -> str:
     """The first line of an exception's text (rosbags' messages can run to many lines)."""
     text = str(exc).strip() or type(exc).__name__
@@ -174,11 +183,16 @@ class OutputWriter:
         self._connections: dict[str, Any] = {}
         self.counts: Counter[str] = Counter()
 
-    def connection(self, topic: str, msgtype: str, typestore: Any = None) -> Any:
-        """The connection of ``topic`` (added on first use)."""
+    def connection(self, topic: str, msgtype: str, typestore: Any = None,
+                   latched: bool = False) -> Any:
+        """The connection of ``topic`` (added on first use); ``latched``: recorded as offered
+        reliable + transient local (depth 1), so that ``ros2 bag play`` latches it as the node
+        does."""
         conn = self._connections.get(topic)
         if conn is None:
-            conn = self.writer.add_connection(topic, msgtype, typestore=typestore or self.typestore)
+            qos = [_latched_qos()] if latched else []
+            conn = self.writer.add_connection(topic, msgtype, typestore=typestore or self.typestore,
+                                              offered_qos_profiles=qos)
             self._connections[topic] = conn
         return conn
 
@@ -367,32 +381,39 @@ class Samples:
 
 @dataclass
 class Replayed:
-    """What a replay wrote: metric camera (metres, metric frame), world joints, scale,
-    diagnostics [(log time ns, {key: value})] and the per-frame samples."""
+    """What a replay wrote: the metric camera (/hac/pose: metres, metric frame), world joints,
+    scale, diagnostics [(log time ns, {key: value})], the per-frame samples and the continuous
+    odometry (/hac/odometry: metres, odom frame)."""
 
-    odometry: CameraTrack
+    camera: CameraTrack
     joints: JointsTrack
     scale: ScaleTrack
     diagnostics: list[tuple[int, dict[str, str]]]
     samples: Samples | None
+    odometry: CameraTrack = field(default_factory=CameraTrack)
 
 
 def read_output(path: str | Path) -> Replayed:
     """Read a recording written by ``hac replay`` (SPEC's output topics and /hac/samples)."""
-    from hac_ros.messages import DIAGNOSTICS, HUMAN_JOINTS, ODOMETRY, SAMPLES, SCALE
+    from hac_ros.messages import (DIAGNOSTICS, HUMAN_JOINTS, ODOMETRY, POSE, SAMPLES, SCALE,
+                                  in_root)
 
+    pose, odom, diag = in_root(POSE[0]), in_root(ODOMETRY[0]), DIAGNOSTICS[0]
+    joints_topic, scale_topic, samples_topic = (in_root(HUMAN_JOINTS[0]), in_root(SCALE[0]),
+                                                in_root(SAMPLES[0]))
     with Recording(path) as rec:
-        if not rec.has(DIAGNOSTICS[0]) and not rec.has(ODOMETRY[0]):
-            raise HacError(f'{path} is not a recording written by hac replay (no {ODOMETRY[0]} '
-                           f'or {DIAGNOSTICS[0]}); it contains: {rec.describe()}')
-        odometry = read_camera(rec, ODOMETRY[0]) if rec.has(ODOMETRY[0]) else CameraTrack()
-        joints = read_joints(rec, HUMAN_JOINTS[0]) if rec.has(HUMAN_JOINTS[0]) else JointsTrack()
-        scale = read_scale(rec, SCALE[0]) if rec.has(SCALE[0]) else ScaleTrack()
+        if not rec.has(diag) and not rec.has(pose):
+            raise HacError(f'{path} is not a recording written by hac replay (no {pose} or '
+                           f'{diag}); it contains: {rec.describe()}')
+        camera = read_camera(rec, pose) if rec.has(pose) else CameraTrack()
+        odometry = read_camera(rec, odom) if rec.has(odom) else CameraTrack()
+        joints = read_joints(rec, joints_topic) if rec.has(joints_topic) else JointsTrack()
+        scale = read_scale(rec, scale_topic) if rec.has(scale_topic) else ScaleTrack()
         diagnostics = [(log_ns, {kv.key: kv.value for kv in status.values})
-                       for log_ns, msg in (rec.read(DIAGNOSTICS[0]) if rec.has(DIAGNOSTICS[0]) else [])
+                       for log_ns, msg in (rec.read(diag) if rec.has(diag) else [])
                        for status in msg.status]
-        samples = _read_samples(rec, SAMPLES[0]) if rec.has(SAMPLES[0]) else None
-    return Replayed(odometry, joints, scale, diagnostics, samples)
+        samples = _read_samples(rec, samples_topic) if rec.has(samples_topic) else None
+    return Replayed(camera, joints, scale, diagnostics, samples, odometry)
 
 
 def _read_samples(recording: Recording, topic: str) -> Samples:

@@ -1,9 +1,7 @@
 """The replay: a recording's inputs through the node's core, its outputs into a new recording.
 
 :func:`replay` reads a recording (:mod:`hac_ros.recording`), feeds every input message to a
-:class:`~hac_ros.core.calibrator.Calibrator` in log-time order with its header stamp (SPEC,
-processing order), exactly as ``hac_node`` does (:mod:`hac_ros.inputs`: the same decoders and the
-same map builder), converts the outputs with the node's :class:`~hac_ros.messages.OutputMessages`
+:class:`~hac_ros.core.calibrator.Calibrator` as ``hac_node`` does (:mod:`hac_ros.feeder`), converts the outputs with the node's :class:`~hac_ros.messages.OutputMessages`
 and writes them, each logged at its header stamp.
 
 Modes (docs/replay.md):
@@ -25,11 +23,10 @@ from __future__ import annotations
 import math
 import sys
 import time
-from collections import Counter, deque
-from concurrent.futures import Future
+from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Iterable, Iterator
+from typing import Any, Callable, Iterable
 
 import numpy as np
 
@@ -39,191 +36,16 @@ from hac_ros.core.humans import smooth_outputs
 from hac_ros.core.metric import finite_scale
 from hac_ros.core.numeric import NS
 from hac_ros.core.offline import OfflineScale, offline_scale
-from hac_ros.core.outputs import NoticeOut, OdometryOut, Output, ResetOut, SampleOut, Status
-from hac_ros.core.params import POSE_MSGTYPES, HacParams
-from hac_ros.inputs import (MapBuilder, MapBuilt, add_camera_info_msg, add_joints_msg,
-                            add_pose_msg)
-from hac_ros.messages import OUTPUT_TOPICS, SAMPLES, Message, OutputMessages, samples_message
+from hac_ros.core.outputs import (NoticeOut, Output, PendingFrame, PendingOdometry,
+                                  PoseOut, ResetOut, SampleOut, Status)
+from hac_ros.core.params import HacParams
+from hac_ros.feeder import CoreFeeder, InputTopics
+from hac_ros.messages import (CLOUD, MARKERS, OUTPUT_TOPICS, SAMPLES, Message, OutputMessages,
+                              in_root, samples_message)
 from hac_ros.recording import (STORAGES, OutputWriter, Recording, check_output_path,
                                staged_output)
-from msg_adapters import MessageError, parse_cloud_cdr
 
-INPUT_TYPES = {'joints': 'geometry_msgs/msg/PoseArray', 'cloud': 'sensor_msgs/msg/PointCloud2',
-               'camera_info': 'sensor_msgs/msg/CameraInfo'}
 MODES = ('offline', 'online')
-# Messages of the same log time are fed in this order (then any other topic): the camera's
-# intrinsics and the map before the frame they serve, the pose (the clock) before its joints.
-TIE_ORDER = {'camera_info': 0, 'cloud': 1, 'pose': 2, 'joints': 3}
-MAPS_AHEAD = 3  # map clouds decoded and indexed ahead of the calibrator
-MAP_WORKERS = 2  # threads indexing maps (scipy's k-d tree build releases the GIL)
-LOOKAHEAD_MESSAGES = 400  # at most this many messages read ahead of the calibrator (13 s at 30 Hz)
-
-
-# ============================================================================ feeding the core
-@dataclass
-class InputTopics:
-    """The input topics of one replay and their message types (SPEC: ROS 2 interface)."""
-
-    pose: str
-    pose_type: str
-    joints: str
-    cloud: str
-    camera_info: str  # '' when off or absent from the recording
-
-    @classmethod
-    def check(cls, recording: Recording, params: HacParams,
-              pose_type: str | None = None) -> 'InputTopics':
-        """The parameters' topics, checked against what the recording holds.
-
-        The SLAM pose type is the recording's own (SPEC: PoseStamped or Odometry, so recordings of
-        both kinds replay without flags) unless ``pose_type`` (``--pose-type``) overrides it; the
-        parameters' ``pose_type`` (the node's subscription type) only names the type expected of a
-        pose topic that is neither.
-        """
-        recorded = recording.topics.get(params.pose_topic)
-        if pose_type is None:
-            pose_type = next((k for k, v in POSE_MSGTYPES.items() if v == recorded),
-                             params.pose_type)
-        elif pose_type not in POSE_MSGTYPES:
-            raise HacError(f'--pose-type must be one of {", ".join(POSE_MSGTYPES)}, '
-                           f'not {pose_type!r}')
-        other = next(k for k in POSE_MSGTYPES if k != pose_type)
-        hint = ''
-        if recorded == POSE_MSGTYPES[other]:
-            hint = f' (use --pose-type {other}, or no --pose-type: it is read from the recording)'
-        recording.check_topic(params.pose_topic, [POSE_MSGTYPES[pose_type]], 'SLAM pose', hint)
-        recording.check_topic(params.joints_topic, [INPUT_TYPES['joints']], 'HMR joints',
-                              ' (use --joints-topic)')
-        recording.check_topic(params.cloud_topic, [INPUT_TYPES['cloud']], 'map cloud',
-                              ' (use --cloud-topic)')
-        camera_info = params.camera_info_topic
-        if camera_info and camera_info in recording.topics:
-            recording.check_topic(camera_info, [INPUT_TYPES['camera_info']], 'CameraInfo')
-        elif camera_info:
-            camera_info = ''
-        return cls(params.pose_topic, POSE_MSGTYPES[pose_type], params.joints_topic,
-                   params.cloud_topic, camera_info)
-
-    def kinds(self) -> dict[str, str]:
-        """topic -> 'pose' | 'joints' | 'cloud' | 'camera_info'."""
-        out = {self.pose: 'pose', self.joints: 'joints', self.cloud: 'cloud'}
-        if self.camera_info:
-            out[self.camera_info] = 'camera_info'
-        return out
-
-
-class CoreFeeder:
-    """Feeds a recording's input messages to one calibrator, the way ``hac_node`` feeds it.
-
-    ``poses`` keeps the raw SLAM trajectory when asked (for the TUM export):
-    [(stamp ns, R_wc (3, 3) camera to map, c (3,) SLAM units, map frame)].
-    """
-
-    def __init__(self, recording: Recording, topics: InputTopics, calibrator: Calibrator,
-                 keep_poses: bool = False) -> None:
-        self.recording = recording
-        self.topics = topics
-        self.kinds = topics.kinds()
-        self.calibrator = calibrator
-        self.poses: list[tuple[int, np.ndarray, np.ndarray]] | None = [] if keep_poses else None
-
-    def run(self, on_outputs: Callable[[list[Output]], None],
-            on_message: Callable[[str, int, Any], None] | None = None,
-            progress: Any = None) -> None:
-        """Feed every input message in log-time order, then flush. Map clouds are decoded and
-        indexed ahead on the map builder's threads and handed over in order, at their place."""
-        builder = MapBuilder(self.calibrator.build_index, workers=MAP_WORKERS)
-        try:
-            for topic, log_ns, item in self._lookahead(builder, on_message):
-                if progress is not None:
-                    progress.update(1)
-                if topic is not None:
-                    on_outputs(self.feed(self.kinds[topic], item, log_ns))
-        finally:
-            builder.close()
-        on_outputs(self.calibrator.flush())
-
-    def _lookahead(self, builder: MapBuilder, on_message: Callable[[str, int, Any], None] | None
-                   ) -> Iterator[tuple[str | None, int, Any]]:
-        """(topic, log time, item) in order: raw bytes, or the Future of a cloud's MapBuilt
-        (submitted to the builder up to MAPS_AHEAD clouds ahead); topic None for a message that
-        is only copied (``on_message``)."""
-        wanted = list(self.recording.topics) if on_message is not None else list(self.kinds)
-        queue: deque[tuple[str | None, int, Any]] = deque()
-        maps_waiting = 0
-        for topic, log_ns, raw in tie_ordered(self.recording.messages(wanted), self.kinds):
-            if on_message is not None:
-                on_message(topic, log_ns, raw)
-            kind = self.kinds.get(topic)
-            if kind == 'cloud':
-                queue.append((topic, log_ns, self._submit(builder, topic, log_ns, raw)))
-                maps_waiting += 1
-            else:
-                queue.append((topic if kind else None, log_ns, raw))
-            while queue and (maps_waiting >= MAPS_AHEAD or len(queue) > LOOKAHEAD_MESSAGES):
-                item = queue.popleft()
-                maps_waiting -= isinstance(item[2], Future)
-                yield item
-        yield from queue
-
-    def _submit(self, builder: MapBuilder, topic: str, log_ns: int, raw: Any) -> Future:
-        """The header read here, the points decoded and indexed on the builder (as hac_node); a
-        cloud whose header does not decode is rejected at its place in the order (stamp −1)."""
-        try:
-            cloud = parse_cloud_cdr(self.recording.to_cdr(raw, topic, log_ns))
-        except MessageError as exc:
-            failed: Future = Future()
-            failed.set_result(MapBuilt(-1, None, str(exc)))
-            return failed
-        return builder.submit(cloud)
-
-    def feed(self, kind: str, item: Any, log_ns: int) -> list[Output]:
-        """One input message (raw bytes, or the Future of a built map) -> calibrator outputs."""
-        cal = self.calibrator
-        if kind == 'cloud':
-            return item.result().hand_to(cal)
-        topic = {'pose': self.topics.pose, 'joints': self.topics.joints,
-                 'camera_info': self.topics.camera_info}[kind]
-        # malformed bytes (msg None) are a counted rejection of their kind, as in the node
-        msg = self.recording.deserialize_or_none(self.recording.to_cdr(item, topic, log_ns), topic)
-        if kind == 'pose':
-            outputs, pose = add_pose_msg(cal, msg)
-            if pose is not None and self.poses is not None:
-                self.poses.append(pose)
-            return outputs
-        if kind == 'joints':
-            return add_joints_msg(cal, msg)
-        if msg is None:
-            return cal.reject('camera_info_invalid', -1)
-        return add_camera_info_msg(cal, msg)[0]
-
-
-def tie_ordered(messages: Iterable[tuple[str, int, Any]], kinds: dict[str, str]
-                ) -> Iterator[tuple[str, int, Any]]:
-    """(topic, log time, raw) in log-time order, messages of equal log time in :data:`TIE_ORDER`.
-
-    Storage formats differ in how they order messages of equal log time (a ROS 1 bag's index groups
-    them by connection): a fixed order keeps the result independent of the storage. Otherwise the
-    storage's order (the recorder's arrival order) is kept.
-    """
-    last = len(TIE_ORDER)
-    group: list[tuple[str, int, Any]] = []
-    for item in messages:
-        if group and item[1] != group[0][1]:
-            yield from sorted(group, key=lambda m: TIE_ORDER.get(kinds.get(m[0], ''), last))
-            group = []
-        group.append(item)
-    yield from sorted(group, key=lambda m: TIE_ORDER.get(kinds.get(m[0], ''), last))
-
-
-def deferred_run(recording: Recording, params: HacParams) -> tuple[Calibrator, list[Output]]:
-    """One run of the calibrator over ``recording`` with its metric outputs deferred: the
-    calibrator and every output in order, to be resolved with any scale schedule
-    (``calibrator.metric.fresh().resolve(outputs, scale_at)``; :mod:`hac_ros.core.metric`)."""
-    calibrator = Calibrator(params, defer_metric=True)
-    outputs: list[Output] = []
-    CoreFeeder(recording, InputTopics.check(recording, params), calibrator).run(outputs.extend)
-    return calibrator, outputs
 
 
 # ============================================================================ writing outputs
@@ -231,12 +53,12 @@ class OutputHandler:
     """Writes the messages of the calibrator's outputs and keeps what the summary needs."""
 
     def __init__(self, params: HacParams, writer: OutputWriter | None, printer: 'NoticePrinter',
-                 keep_odometry: bool = False) -> None:
+                 keep_poses: bool = False) -> None:
         self.messages = OutputMessages(params)
         self.writer = writer
         self.printer = printer
         self.resets: list[ResetOut] = []
-        self.odometry: list[OdometryOut] | None = [] if keep_odometry else None
+        self.poses: list[PoseOut] | None = [] if keep_poses else None  # /hac/pose, for TUM
 
     def __call__(self, outputs: list[Output]) -> None:
         frame_samples: list[SampleOut] = []
@@ -253,8 +75,8 @@ class OutputHandler:
             if isinstance(output, ResetOut):
                 self.resets.append(output)
                 continue
-            if isinstance(output, OdometryOut) and self.odometry is not None:
-                self.odometry.append(output)
+            if isinstance(output, PoseOut) and self.poses is not None:
+                self.poses.append(output)
             for message in self.messages.convert(output):
                 self._write(message)
         if frame_samples:
@@ -262,7 +84,7 @@ class OutputHandler:
 
     def _write(self, message: Message) -> None:
         if self.writer is not None:
-            self.writer.write(message.topic, message.msgtype, message.stamp_ns, message.msg)
+            self.writer.write(in_root(message.topic), message.msgtype, message.stamp_ns, message.msg)
 
     def _write_samples(self, samples: list[SampleOut]) -> None:
         self._write(Message(*SAMPLES, samples_message(samples), samples[0].stamp_ns))
@@ -384,10 +206,11 @@ def replay(input_path: str | Path, output_path: str | Path, params: HacParams | 
         with staged_output(output_path) as staged:
             writer = OutputWriter(staged, storage)
             try:
-                handler = OutputHandler(params, writer, printer, keep_odometry=export_tum is not None)
+                handler = OutputHandler(params, writer, printer, keep_poses=export_tum is not None)
                 for topic, msgtype in (*OUTPUT_TOPICS, SAMPLES):
-                    if topic != '/hac/markers' or params.publish_markers:
-                        writer.connection(topic, msgtype)
+                    if ((topic != MARKERS[0] or params.publish_markers)
+                            and (topic != CLOUD[0] or params.publish_cloud)):
+                        writer.connection(in_root(topic), msgtype, latched=topic == CLOUD[0])
                 feeder = CoreFeeder(recording, topics,
                                     Calibrator(params, defer_metric=mode == 'offline'),
                                     keep_poses=export_tum is not None)
@@ -402,7 +225,7 @@ def replay(input_path: str | Path, output_path: str | Path, params: HacParams | 
                 writer.close()
             tum: dict[str, Path] = {}
             if export_tum is not None:
-                tum = write_tum_exports(Path(export_tum), handler.odometry or [], feeder.poses or [],
+                tum = write_tum_exports(Path(export_tum), handler.poses or [], feeder.poses or [],
                                         recording)
     return ReplaySummary(mode, input_path, output_path, status, time.perf_counter() - start,
                          n_inputs, dict(writer.counts), list(handler.resets), schedule, tum,
@@ -440,7 +263,8 @@ def _offline(feeder: CoreFeeder, handler: OutputHandler,
                              np.array([s.scale for s in samples]), resets, p.window_s,
                              p.min_samples)
     stage = calibrator.metric.fresh()
-    resolved = [stage.resolve(outputs, schedule, schedule.error) for outputs in recorded]
+    planes = final_planes(recorded)
+    resolved = [stage.resolve(outputs, schedule, schedule.error, planes) for outputs in recorded]
     recorded.clear()
     if p.human_filter == 'smooth':
         smooth_outputs([o for outputs in resolved for o in outputs])
@@ -453,13 +277,24 @@ def _offline(feeder: CoreFeeder, handler: OutputHandler,
     return stage.status(pending, finite_scale(schedule(pending.status.stamp_ns))), schedule
 
 
+def final_planes(recorded: Iterable[list[Output]]) -> dict[int, Any]:
+    """Segment -> its last ground plane (SLAM map frame) in a deferred run's outputs: offline, each
+    segment has one final alignment (SPEC, the metric frame)."""
+    planes: dict[int, Any] = {}
+    for outputs in recorded:
+        for output in outputs:
+            if isinstance(output, (PendingOdometry, PendingFrame)) and output.plane is not None:
+                planes[output.segment] = output.plane
+    return planes
+
+
 def _input_copier(recording: Recording, writer: OutputWriter) -> Callable[[str, int, Any], None]:
     """--copy-inputs: every input topic passes into OUT unchanged, at its log time.
 
     A topic of IN with an output topic's name (IN is itself a replay) is not copied, nor a ROS 1
     topic whose type ROS 2 Jazzy does not have.
     """
-    ours = {t for t, _ in (*OUTPUT_TOPICS, SAMPLES)}
+    ours = {in_root(t) for t, _ in (*OUTPUT_TOPICS, SAMPLES)}
     typestore = recording.typestore
     if not recording.is_ros2:
         ours |= {t for t, msgtype in recording.topics.items() if msgtype not in typestore.fielddefs}

@@ -62,10 +62,10 @@ def quats_to_rotations(q: np.ndarray) -> np.ndarray:
 TUM_FILES = {'metric': 'camera_metric.tum', 'slam': 'camera_slam.tum', 'gt': 'camera_gt.tum'}
 
 
-def write_tum_exports(directory: Path, odometry: list, poses: list[tuple[int, np.ndarray, np.ndarray]],
+def write_tum_exports(directory: Path, metric: list, poses: list[tuple[int, np.ndarray, np.ndarray]],
                       recording: Any) -> dict[str, Path]:
     """A replay's trajectories as TUM files for evo, into ``directory``: camera_metric.tum (the
-    metric camera: ``odometry``, a list of OdometryOut, metres), camera_slam.tum (``poses``, the raw
+    metric camera: ``metric``, a list of PoseOut (/hac/pose), metres, metric_frame), camera_slam.tum (``poses``, the raw
     SLAM poses: (stamp ns, R_wc (3, 3), c (3,) SLAM units)) and, when the recording has it,
     camera_gt.tum (/gt/camera_pose, metres). Returns kind -> path of the files written."""
     from hac_ros.recording import GT_CAMERA, read_camera
@@ -80,8 +80,8 @@ def write_tum_exports(directory: Path, odometry: list, poses: list[tuple[int, np
                       rotations_to_quats(np.asarray(rotations, dtype=float)))
             written[kind] = path
 
-    export('metric', [o.stamp_ns for o in odometry], [o.rotation_metric for o in odometry],
-           [o.position_metric for o in odometry])
+    export('metric', [o.stamp_ns for o in metric], [o.rotation_metric for o in metric],
+           [o.position_metric for o in metric])
     export('slam', [p[0] for p in poses], [p[1] for p in poses], [p[2] for p in poses])
     if recording.has(*GT_CAMERA):
         gt = read_camera(recording, GT_CAMERA[0])

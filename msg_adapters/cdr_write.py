@@ -132,6 +132,45 @@ def odometry(stamp_ns: int, frame_id: str, child_frame_id: str, position: np.nda
     return w.bytes()
 
 
+def pose_with_covariance_stamped(stamp_ns: int, frame_id: str, position: np.ndarray,
+                                 quat_xyzw: Sequence[float], covariance: np.ndarray) -> bytes:
+    """geometry_msgs/PoseWithCovarianceStamped: position (3,), quaternion (4,), covariance (6, 6)."""
+    w = CdrWriter()
+    w.header(stamp_ns, frame_id)
+    body = np.concatenate([np.ravel(position), np.ravel(quat_xyzw), np.ravel(covariance)])
+    if body.size != 3 + 4 + 36:
+        raise MessageError(f'pose with covariance: expected 43 numbers, got {body.size}')
+    w.f64_array(body)
+    return w.bytes()
+
+
+POINT_FIELD_FLOAT32 = 7  # sensor_msgs/PointField.FLOAT32
+
+
+def point_cloud_xyz32(stamp_ns: int, frame_id: str, points: np.ndarray) -> bytes:
+    """sensor_msgs/PointCloud2 of points (N, 3): fields x, y, z float32, one row, dense when every
+    point is finite."""
+    xyz = np.ascontiguousarray(points, dtype='<f4').reshape(-1, 3)
+    w = CdrWriter()
+    w.header(stamp_ns, frame_id)
+    w.u32(1)  # height
+    w.u32(len(xyz))  # width
+    w.u32(3)
+    for k, name in enumerate('xyz'):
+        w.string(name)
+        w.u32(4 * k)  # offset
+        w.octet(POINT_FIELD_FLOAT32)
+        w.u32(1)  # count
+    w.octet(0)  # is_bigendian
+    w.u32(12)  # point_step
+    w.u32(12 * len(xyz))  # row_step
+    data = xyz.tobytes()
+    w.u32(len(data))
+    w.buf += data
+    w.octet(int(bool(np.isfinite(xyz).all())))  # is_dense
+    return w.bytes()
+
+
 def float64_multi_array(dims: Iterable[tuple[str, int, int]], data: np.ndarray,
                         data_offset: int = 0) -> bytes:
     """std_msgs/Float64MultiArray: layout dimensions (label, size, stride) and the data."""

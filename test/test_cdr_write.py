@@ -103,6 +103,43 @@ def test_odometry(stamp, frame, child, values, twist):
     assert msg.twist.covariance.tolist() == (v[49:85].tolist() if twist else [0.0] * 36)
 
 
+@FUZZ
+@given(stamp=stamps, frame=names, values=st.lists(finite, min_size=43, max_size=43))
+def test_pose_with_covariance_stamped(stamp, frame, values):
+    v = np.array(values)
+    q = Rotation.from_rotvec(v[3:6] * 1e-6).as_quat()
+    data = cdr_write.pose_with_covariance_stamped(stamp, frame, v[:3], q, v[7:43].reshape(6, 6))
+    msg = roundtrip(data, 'geometry_msgs/msg/PoseWithCovarianceStamped')
+    assert (stamp_ns(msg.header), msg.header.frame_id) == (stamp, frame)
+    pose = msg.pose.pose
+    assert [pose.position.x, pose.position.y, pose.position.z] == v[:3].tolist()
+    assert [pose.orientation.x, pose.orientation.w] == [q[0], q[3]]
+    assert msg.pose.covariance.tolist() == v[7:43].tolist()
+
+
+@FUZZ
+@given(stamp=stamps, frame=names,
+       points=st.lists(st.tuples(finite, finite, finite), max_size=40), nan=st.booleans())
+def test_point_cloud_xyz32(stamp, frame, points, nan):
+    """Our cloud reads back through msg_adapters.pointcloud (the node's own input decoder)."""
+    from msg_adapters.cdr import cloud_points, parse_cloud_cdr
+
+    xyz = np.array(points, dtype=np.float32).reshape(-1, 3)
+    if nan and len(xyz):
+        xyz[0, 1] = np.nan
+    msg = roundtrip(cdr_write.point_cloud_xyz32(stamp, frame, xyz), 'sensor_msgs/msg/PointCloud2')
+    assert (stamp_ns(msg.header), msg.header.frame_id) == (stamp, frame)
+    assert (msg.height, msg.width, msg.point_step, msg.row_step) == (1, len(xyz), 12, 12 * len(xyz))
+    assert [(f.name, f.offset, f.datatype, f.count) for f in msg.fields] == [
+        ('x', 0, 7, 1), ('y', 4, 7, 1), ('z', 8, 7, 1)]
+    assert msg.is_dense == (not (nan and len(xyz)))
+    back = np.frombuffer(bytes(msg.data), dtype='<f4').reshape(-1, 3)
+    assert np.array_equal(back, xyz, equal_nan=True)
+    parsed = cloud_points(parse_cloud_cdr(cdr_write.point_cloud_xyz32(stamp, frame, xyz)))
+    keep = np.isfinite(xyz).all(axis=1) & xyz.any(axis=1)
+    assert np.array_equal(parsed, xyz[keep].astype(float))
+
+
 def test_odometry_refuses_wrong_sizes_and_stamps():
     with pytest.raises(MessageError):
         cdr_write.odometry(0, 'a', 'b', np.zeros(3), (0, 0, 0, 1), np.zeros((5, 5)), np.zeros(3),
@@ -195,10 +232,12 @@ def test_every_output_message_of_a_scenario_round_trips(name):
                         slow[ns].append(m.stamp_ns)
                 if m.topic == DIAGNOSTICS[0]:
                     assert msg.status[0].values[0].key == 'converged'
-    assert set(seen) == {'/hac/odometry', '/hac/human_joints', '/hac/scale', '/hac/markers',
-                         '/diagnostics'}
+    assert set(seen) == {'hac/odometry', 'hac/pose', 'hac/cloud', 'hac/human_joints',
+                         'hac/scale', 'hac/markers', '/diagnostics'}
     # the path and the plane are refreshed about once a second of stamp time, not every frame
     for ns, stamps in slow.items():
         assert len(stamps) >= 5, ns
         assert min(np.diff(stamps)) >= 1_000_000_000, ns
-        assert len(stamps) < seen['/hac/markers'] / 10, ns
+        assert len(stamps) < seen['hac/markers'] / 10, ns
+    # the metric map is latched and sent again only on a scale change or a new segment
+    assert 1 <= seen['hac/cloud'] < seen['hac/markers'] / 10

@@ -590,11 +590,11 @@ def test_core_and_adapters_import_without_rclpy():
 
 
 def test_the_odometry_twist_in_plain_floats_matches_the_matrix_formula():
-    """MetricStage's twist (metric._velocities, plain floats) against R_bᵀ(p_b − p_a)/dt and
+    """The odometry's twist (odometry.velocities, plain floats) against R_bᵀ(p_b − p_a)/dt and
     log(R_aᵀ R_b)/dt in numpy, for small, moderate and near-pi relative rotations and none."""
     from scipy.spatial.transform import Rotation
 
-    from hac_ros.core.metric import _velocities
+    from hac_ros.core.odometry import velocities as _velocities
     from hac_ros.core.transforms import rotation_log
 
     rng = np.random.default_rng(5)

@@ -74,7 +74,7 @@ def test_eval_rows_compare_hac_with_no_calibration_and_the_true_scale(replayed, 
     assert hac_row['pa_mpjpe_mm'] == pytest.approx(true['pa_mpjpe_mm'], abs=1e-6)  # scale-free
     assert none['rte_pct'] > hac_row['rte_pct']
     table = (tmp_path / 'e.md').read_text()
-    assert table.splitlines()[0].startswith('| | ATE (m) | ATE-S (m) | W-MPJPE (mm)')
+    assert table.splitlines()[0].startswith('| | ATE (m) | ATE-S (m) | RPE 1 s (m) | RPE (%) |')
     assert '| hac |' in table and '| no calibration |' in table and '| true scale |' in table
     assert table in result.stdout + '\n'
 

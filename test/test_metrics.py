@@ -144,3 +144,24 @@ def test_associate_stamps_pairs_nearest_within_tolerance():
     b = np.array([0, 100, 200, 300])
     ia, ib = metrics.associate_stamps(a, b, 10)
     assert ia.tolist() == [0, 1] and ib.tolist() == [1, 2]
+
+
+def test_rpe_is_frame_invariant_and_measures_a_scale_error_in_percent():
+    """RPE (hac eval's odometry metric): a rigid motion of the estimate changes nothing; a 3 %
+    scale error is 3 % of the distance; a jump costs its size once per pair that spans it."""
+    rng = np.random.default_rng(0)
+    n = 300
+    stamps = (np.arange(n) * 1e9 / 30).astype(np.int64)
+    R_gt = Rotation.from_rotvec(np.cumsum(rng.normal(0, 0.02, (n, 3)), axis=0)).as_matrix()
+    p_gt = np.cumsum(rng.normal(0, 0.05, (n, 3)), axis=0)
+    G = Rotation.from_rotvec([0.3, -1.0, 2.0]).as_matrix()
+    m, pct = metrics.rpe(p_gt @ G.T + [5.0, -2.0, 1.0], G @ R_gt, p_gt, R_gt, stamps)
+    assert m == pytest.approx(0.0, abs=1e-12) and pct == pytest.approx(0.0, abs=1e-9)
+    m, pct = metrics.rpe(1.03 * p_gt, R_gt, p_gt, R_gt, stamps)
+    assert pct == pytest.approx(3.0, rel=1e-9)
+    jumped = p_gt.copy()
+    jumped[150:] += [0.2, 0.0, 0.0]
+    m, _ = metrics.rpe(jumped, R_gt, p_gt, R_gt, stamps)
+    spanning = 30  # pairs (i, i + 30 frames) with i < 150 <= i + 30
+    assert m == pytest.approx(0.2 * spanning / (n - 30), rel=1e-9)
+    assert np.isnan(metrics.rpe(p_gt[:10], R_gt[:10], p_gt[:10], R_gt[:10], stamps[:10])[0])

@@ -284,7 +284,7 @@ def test_walk_converges_and_outputs_arrive_for_the_expected_stamps(harness, walk
     np.testing.assert_allclose(pose_array_to_joints(last_msg), last_core.joints_metric,
                                rtol=2e-3, atol=2e-3)
     odom = h.received['/hac/odometry'][-1][1]
-    assert odom.header.frame_id == 'map_metric' and odom.child_frame_id == walk.camera_frame
+    assert odom.header.frame_id == 'hac_odom' and odom.child_frame_id == walk.camera_frame
     diag = h.diagnostics()
     assert diag['converged'] == 'true' and 'rejected.internal_error' not in diag
     assert h.received['/hac/markers'], 'publish_markers is true by default'
@@ -450,7 +450,7 @@ def test_runtime_parameters(harness, walk):
 
     # a shell-only change takes effect at once, the estimate is kept
     markers_before = len(h.received['/hac/markers'])
-    assert set_atomically(publish_markers=False, metric_frame='metric').successful
+    assert set_atomically(publish_markers=False, odom_frame='odom2').successful
     assert h.node.calibrator is calibrator and h.node.calibrator.converged
     # a topic change re-subscribes: the joints now come on another topic
     assert set_atomically(joints_topic='/hmr/joints_renamed').successful
@@ -458,7 +458,7 @@ def test_runtime_parameters(harness, walk):
     h.play(walk.events[cut:second], topics={'joints': '/hmr/joints_renamed'})
     h.settle()
     assert len(h.received['/hac/markers']) == markers_before
-    assert h.received['/hac/odometry'][-1][1].header.frame_id == 'metric'
+    assert h.received['/hac/odometry'][-1][1].header.frame_id == 'odom2'
     assert h.stamps('/hac/human_joints')[-1] == max(
         e.stamp_ns for e in walk.events[:second] if e.kind == 'joints')
 

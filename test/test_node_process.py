@@ -126,7 +126,7 @@ def test_node_process_converges_warns_and_exits_cleanly_on_sigint(tmp_path, clie
     assert client.received['/hac/odometry'] and client.received['/diagnostics']
     warnings = [line for line in log.splitlines() if 'QoS mismatch on /slam/cloud' in line]
     assert len(warnings) == 1 and 'cloud_qos' in warnings[0] and "'volatile'" in warnings[0], log
-    assert log.count('publish_tf is true but tf2_ros is not available') == 1
+    assert log.count('publish_tf set but tf2_ros is not available') == 1
     assert 'Traceback' not in log and 'error handling a' not in log
 
 

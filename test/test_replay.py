@@ -19,14 +19,13 @@ import pytest
 from hac_ros.core.errors import HacError
 from hac_ros.core.offline import DRIFT_MIN_REL, offline_scale
 from hac_ros.core.params import HacParams
-from hac_ros.messages import SAMPLES
 from hac_ros.replay import replay
 from scenes import NS, Scene, walking_scene
 
 REPO = Path(__file__).resolve().parents[1]
 K = np.array([[500.0, 0.0, 320.0], [0.0, 500.0, 240.0], [0.0, 0.0, 1.0]])
-OUTPUT_TOPICS = ('/hac/odometry', '/hac/human_joints', '/hac/scale', '/hac/markers', '/diagnostics',
-                 SAMPLES[0])
+OUTPUT_TOPICS = ('/hac/odometry', '/hac/pose', '/hac/cloud', '/hac/human_joints', '/hac/scale',
+                 '/hac/markers', '/diagnostics', '/hac/samples')
 
 
 # ============================================================================ recordings
@@ -234,8 +233,10 @@ def test_online_replay_logs_each_output_at_its_header_stamp(walk_bag, tmp_path):
                 stamp = msg.header.stamp.sec * NS + msg.header.stamp.nanosec
                 assert stamp == log_ns, conn.topic
             if conn.topic == '/hac/odometry':
-                assert msg.header.frame_id == params.metric_frame
+                assert msg.header.frame_id == params.odom_frame
                 assert msg.child_frame_id == 'camera'
+            if conn.topic in ('/hac/pose', '/hac/cloud', '/hac/human_joints'):
+                assert msg.header.frame_id == params.metric_frame
     input_stamps = set(walking_scene(frames=80).stamps_ns.tolist())
     assert seen['/hac/odometry'] > 0 and seen['/hac/scale'] == seen['/hac/human_joints']
     # online: nothing metric before min_samples frames; diagnostics once per second of stamps
@@ -268,7 +269,8 @@ def test_offline_publishes_every_frame_with_one_scale(walk_bag, tmp_path):
 def test_params_file_is_read_and_flags_override_it(walk_bag, tmp_path):
     params_file = tmp_path / 'hac.yaml'
     params_file.write_text('hac_node:\n  ros__parameters:\n    pose_topic: /elsewhere\n'
-                           '    min_samples: 25\n    metric_frame: odom_metric\n')
+                           '    min_samples: 25\n    metric_frame: map_metric2\n'
+                           '    odom_frame: odom_metric\n')
     bad = hac('replay', str(walk_bag), '-o', str(tmp_path / 'a'), '--params', str(params_file))
     assert bad.returncode == 2 and '/elsewhere' in bad.stderr
     good = hac('replay', str(walk_bag), '-o', str(tmp_path / 'b'), '--params', str(params_file),
@@ -277,6 +279,7 @@ def test_params_file_is_read_and_flags_override_it(walk_bag, tmp_path):
     topics = read_all(tmp_path / 'b')
     assert len(topics['/hac/odometry']) == 80 - 25  # min_samples from the file
     assert b'odom_metric' in topics['/hac/odometry'][0][1]
+    assert b'map_metric2' in topics['/hac/pose'][0][1]
 
 
 def test_copy_inputs_carries_every_input_topic_unchanged(walk_bag, tmp_path):
@@ -641,7 +644,7 @@ def test_deferred_outputs_resolved_with_the_schedule_equal_a_run_with_that_sched
     from hac_ros.core.metric import finite_scale
     from hac_ros.core.outputs import ResetOut, SampleOut
     from hac_ros.recording import Recording
-    from hac_ros.replay import CoreFeeder, InputTopics, deferred_run
+    from hac_ros.feeder import CoreFeeder, InputTopics, deferred_run
 
     class Scheduled(Calibrator):
         """A calibrator whose metric outputs use a given scale schedule (stamp -> scale)."""

@@ -20,26 +20,28 @@ from __future__ import annotations
 
 import bisect
 import math
-from collections import Counter
+from collections import Counter, deque
 from dataclasses import dataclass
 
 import numpy as np
 
-from hac_ros.core.contact import candidate_joints, combine_ratios, in_view, sole_points
 from hac_ros.core.estimator import RollingScale
 from hac_ros.core.ground import GroundModel, Plane
 from hac_ros.core.humans import RootFilter
-from hac_ros.core.metric import MetricStage
+from hac_ros.core.metric import MetricStage, StageConfig
 from hac_ros.core.numeric import MEDIAN_STD_ERROR, NS
-from hac_ros.core.outputs import (REASONS, NoticeOut, Output, PendingFrame, PendingOdometry,
-                                  PendingReset, PendingStatus, ResetOut, SampleOut, Status)
+from hac_ros.core.outputs import (REASONS, NoticeOut, Output, PendingFrame, PendingMap,
+                                  PendingOdometry, PendingSegment, PendingStatus, ResetOut,
+                                  SampleOut, Status)
 from hac_ros.core.params import HacParams
 from hac_ros.core.poses import Pose, PoseTrack
 from hac_ros.core.reference import MapIndex
+from hac_ros.core.sample import Scene, person_sample
 from hac_ros.core.transforms import is_rotation
 
 JOINTS_PER_PERSON = 24
 PENDING_MAPS_MAX = 8  # maps waiting for a frame of their stamp
+GROUND_SHARE_SAMPLES = 30  # recent samples whose sources say whether the ground plane carries
 
 
 @dataclass
@@ -83,9 +85,20 @@ class Calibrator:
         self._expect_new_map = False
         self._last_frame_ns = -1
         self._diag_second: int | None = None
-        # the anchor of each SLAM map and the last metric pose: what depends on the published scale
-        self.metric = MetricStage(_base_from_camera(p.base_to_camera) if p.base_frame else None,
-                                  p.orientation_variance,
+        self.segment = -1  # the current segment (one SLAM map between re-initialisations)
+        self._map_handed_ns: int | None = None  # stamp of the last map handed to the metric stage
+        self._map_unhanded = False  # a map in use has not been handed to the metric stage yet
+        self._sources: deque[bool] = deque(maxlen=GROUND_SHARE_SAMPLES)  # True: a ground sample
+        self._requests: list[tuple[str, bool]] = []  # service requests for the next pose
+        self.services: Counter[str] = Counter()  # service requests taken
+        # ~/freeze: the held scale (published while frozen, and after the release until a fresh
+        # window converges) and whether it is held now
+        self._frozen: float | None = None
+        self._frozen_hold = False
+        self.frozen_samples = 0  # samples taken while frozen: counted, not used
+        # what depends on the published scale: the segments' placements, the continuous
+        # odometry, the cloud (hac_ros.core.metric)
+        self.metric = MetricStage(StageConfig.from_params(p),
                                   RootFilter() if p.human_filter == 'smooth' else None)
 
     # ================================================================== inputs
@@ -241,8 +254,49 @@ class Calibrator:
 
     def published_scale(self, stamp_ns: int) -> float | None:
         """The scale the metric outputs use at ``stamp_ns``, metres per SLAM unit (None: nothing
-        metric yet): the online estimate once converged."""
-        return self.scale if self.converged else None
+        metric yet): the online estimate once converged, the held one while frozen (and after,
+        until the fresh window converges)."""
+        return self._working_scale()
+
+    def _working_scale(self) -> float | None:
+        """The online scale the samples use (the map distance bound, the contacts' ground): the
+        same as ``published_scale`` unless a subclass publishes another schedule."""
+        if self._frozen_hold or not self.converged:
+            return self._frozen  # None unless frozen (or released, the fresh window converging)
+        return self.scale
+
+    # ================================================================== services
+    def request_reset(self) -> None:
+        """``~/reset``: start a new segment at the next SLAM pose, as a detected re-initialisation
+        does, keeping the map and the ground normal (the odometry stays continuous)."""
+        self._requests.append(('reset', True))
+
+    def request_freeze(self, frozen: bool) -> None:
+        """``~/freeze``: from the next SLAM pose, ``True`` holds the current scale (samples are
+        counted, not used, and nothing expires) until ``False``, which resumes with a fresh
+        window (the held scale stays published until it converges)."""
+        self._requests.append(('freeze', bool(frozen)))
+
+    def _take_requests(self, pose: Pose) -> list[Output]:
+        out: list[Output] = []
+        for name, value in self._requests:
+            self.services[f'{name}_{str(value).lower()}' if name == 'freeze' else name] += 1
+            if name == 'reset':
+                out += self._reset(pose, 'service', 'requested (~/reset)')
+                out.append(NoticeOut(pose.stamp_ns, 'service_reset', 'new segment requested '
+                                     '(~/reset): map and ground normal kept', 'info'))
+            elif value and not self._frozen_hold:
+                self._frozen = self.published_scale(pose.stamp_ns)
+                self._frozen_hold = self._frozen is not None
+                out.append(NoticeOut(pose.stamp_ns, 'service_freeze', 'scale frozen (~/freeze): '
+                                     f'held at {self._frozen}', 'info'))
+            elif not value and self._frozen_hold:
+                self._frozen_hold = False
+                self.estimator.reset()  # a fresh window; the held scale serves until it converges
+                out.append(NoticeOut(pose.stamp_ns, 'service_freeze', 'scale released '
+                                     '(~/freeze false): a fresh window converges', 'info'))
+        self._requests.clear()
+        return out
 
     def status(self, stamp_ns: int | None = None) -> Status:
         """A snapshot of the estimator at ``stamp_ns`` (default: the last frame's stamp)."""
@@ -259,9 +313,11 @@ class Calibrator:
             map_hits=self.map_hits, ground_fallbacks=self.ground_fallbacks, resets=self.resets,
             rejected=dict(self.rejected), map_points=len(self.map) if self.map is not None else 0,
             ground_normal_map=None if plane is None else plane.normal,
-            ground_offset_slam=float('nan') if plane is None else plane.offset)
+            ground_offset_slam=float('nan') if plane is None else plane.offset,
+            drifting=self.estimator.drifting, frozen=self._frozen_hold,
+            services=dict(self.services))
         last = self.track.last
-        return PendingStatus(status, plane, None if last is None else last.c_map)
+        return PendingStatus(status, plane, None if last is None else last.c_map, self.segment)
 
     @property
     def child_frame_id(self) -> str:
@@ -270,7 +326,9 @@ class Calibrator:
     # ================================================================== poses
     def _accept_pose(self, pose: Pose, move: tuple[float, float] | None = None) -> list[Output]:
         """Take ``pose`` as the camera's next one; ``move``: its step, if computed."""
-        out: list[Output] = []
+        out: list[Output] = self._take_requests(pose) if self._requests else []
+        if self.segment < 0:  # the very first pose starts the first segment
+            out += self._new_segment(pose, '')
         self.track.append(pose, self.track.step(pose) if move is None else move)
         self.ground.add_camera(pose.R_wc)
         # frames before this stamp first, then this pose's odometry, then the frame of this stamp
@@ -282,15 +340,27 @@ class Calibrator:
         return out
 
     # ================================================================== reset
+    def _new_segment(self, first_pose: Pose, cause: str) -> list[Output]:
+        self.segment += 1
+        keeps_map = cause in ('map_overlap', 'service')
+        out = self._metric(PendingSegment(first_pose.stamp_ns, self.segment, first_pose.R_wc,
+                                          first_pose.c_map, keeps_map, cause))
+        if keeps_map and self.map is not None:
+            self._map_unhanded = True  # the kept map, placed by the new segment
+        return out
+
     def _reset(self, first_pose: Pose, cause: str, text: str) -> list[Output]:
-        """Forget the old map's scale and anchor the new map at ``first_pose``."""
+        """Forget the old map's scale and anchor the new map at ``first_pose``; a ``service`` reset
+        keeps the map and the ground model (the same map, only a new estimate)."""
         self.estimator.reset()
-        self.ground.reset()
+        if cause != 'service':
+            self.ground.reset()
         self.resets += 1
-        out: list[Output] = self._metric(PendingReset(first_pose.stamp_ns, first_pose.R_wc,
-                                                      first_pose.c_map))
+        self._sources.clear()
+        self._frozen, self._frozen_hold = None, False  # a held scale belongs to the old segment
+        out: list[Output] = self._new_segment(first_pose, cause)
         self.track.clear()
-        if cause != 'map_overlap':
+        if cause not in ('map_overlap', 'service'):
             self.map = None
             self._maps.clear()
             self._expect_new_map = True
@@ -336,7 +406,20 @@ class Calibrator:
                 self.track.append(pose, None)  # the new segment starts at the last pose
         self._expect_new_map = False
         self.map = chosen
+        self._map_unhanded = True
         return out
+
+    def _hand_map(self, stamp_ns: int) -> list[Output]:
+        """The map in use to the metric stage (for /hac/cloud), at most once per
+        ``cloud_min_period_s``: the cloud cannot be published more often, and offline every map
+        handed over is kept until the recording ends."""
+        last = self._map_handed_ns
+        if (not self._map_unhanded or self.map is None or not self.params.publish_cloud
+                or last is not None and stamp_ns - last < self.params.cloud_min_period_s * NS):
+            return []
+        self._map_unhanded, self._map_handed_ns = False, stamp_ns
+        return self._metric(PendingMap(stamp_ns, self.segment,
+                                       self.map.thinned(self.params.cloud_out_max_points)))
 
     def _process(self, frame: _Frame) -> list[Output]:
         """One frame (SPEC steps 1–6) for every person in it."""
@@ -346,130 +429,69 @@ class Calibrator:
         if pose is None:
             return self.reject('no_pose', stamp)
         out += self._activate_map(stamp)
+        out += self._hand_map(stamp)
         R_wc, c_map = pose
         self._last_frame_ns = stamp
         self.frames += 1
-        self.estimator.advance(stamp)
+        if not self._frozen_hold:  # frozen: nothing expires
+            self.estimator.advance(stamp)
         for person, joints in enumerate(frame.joints_cam):
             out += self._person(stamp, person, R_wc, c_map, joints)
         if self.defer_metric or self.published_scale(stamp) is not None:
-            out += self._metric(PendingFrame(stamp, R_wc, c_map, frame.joints_cam,
-                                             self.estimator.spread()))
+            plane = self.ground.plane(self.map) if self.map is not None else None
+            out += self._metric(PendingFrame(stamp, self.segment, R_wc, c_map, frame.joints_cam,
+                                             self.estimator.spread(), plane))
         return out
 
     def _person(self, stamp: int, person: int, R_wc: np.ndarray, c_map: np.ndarray,
                 joints: np.ndarray) -> list[Output]:
-        """One person's scale sample (SPEC steps 1–5)."""
+        """One person's scale sample (SPEC steps 1–5, hac_ros.core.sample) and its bookkeeping."""
         self.people += 1
         if not np.isfinite(joints).all():
             return self._rejected_sample(stamp, person, 'nonfinite_joints')
         if not (joints[:, 2] > 0.0).any():
             return self._rejected_sample(stamp, person, 'behind_camera')
         self.ground.add_body(R_wc, joints)
-        scale_now = self.scale if self.converged else None
-        normal = self.ground.normal()
-        candidates = candidate_joints(self.params.contact_mode, joints, R_wc, normal)
-        if not candidates:
-            return self._rejected_sample(stamp, person, 'behind_camera')
-        visible = in_view(joints[candidates], self._K, *self._image_size)
-        # the points on the surface the candidates touch (metres, camera frame): the joints
-        # themselves, or moved down onto the sole (sole_correction)
-        points = joints[candidates]
-        if self.params.sole_correction:
-            down_cam = R_wc.T @ normal if normal is not None else np.array([0.0, 1.0, 0.0])
-            points = sole_points(joints, candidates, down_cam)
-        plane = self.ground.plane(self.map)
-        ratios = [math.nan] * len(candidates)  # d_A / d_S of each candidate, metres per SLAM unit
-        from_map = [False] * len(candidates)
-        for k, joint in enumerate(points):
-            distance_metric = math.sqrt(float(joint @ joint))
-            direction_map = R_wc @ (joint / distance_metric)
-            plane_distance = plane.ray_distance(c_map, direction_map) if plane is not None else math.nan
-            if visible[k] and self.map is not None:
-                d_slam = self._map_distance(c_map, direction_map, distance_metric, scale_now)
-                if d_slam is not None and self._plausible(d_slam, distance_metric, plane_distance,
-                                                          scale_now):
-                    ratios[k], from_map[k] = distance_metric / d_slam, True
-                    continue
-            if math.isfinite(plane_distance):
-                ratios[k] = distance_metric / plane_distance
-        finite = [k for k, r in enumerate(ratios) if math.isfinite(r)]
-        if not finite:
-            reason = 'no_map' if self.map is None and plane is None else 'no_reference'
-            return self._rejected_sample(stamp, person, reason)
-        sample = combine_ratios(self.params.contact_mode, ratios)
-        chosen = 0
-        if len(ratios) > 1 and self.params.contact_mode == 'max_ratio':
-            chosen = max(finite, key=ratios.__getitem__)  # the first of equals, as nanargmax
-        source = 'map' if from_map[chosen] else 'ground'
-        if source == 'map':
+        scale_now = self._working_scale()
+        scene = Scene(self.map, self.ground.plane(self.map), self.ground.normal(),
+                      self.ground.refined, self._K, self._image_size, scale_now, self._cos_min)
+        sample = person_sample(self.params, scene, R_wc, c_map, joints)
+        if isinstance(sample, str):
+            return self._rejected_sample(stamp, person, sample)
+        if sample.source == 'map':
             self.map_hits += 1
         else:
             self.ground_fallbacks += 1
-        accepted = self.estimator.add(stamp, sample)
-        out: list[Output] = [SampleOut(stamp, person, sample, source, accepted)]
+        if self._frozen_hold:  # counted, not used
+            self.frozen_samples += 1
+            return [SampleOut(stamp, person, sample.scale, sample.source, False)]
+        accepted = self.estimator.add(stamp, sample.scale)
+        out: list[Output] = [SampleOut(stamp, person, sample.scale, sample.source, accepted)]
         if not accepted:
             out += self.reject('gated', stamp)
-        elif source == 'map' and self.converged:
-            contact_map = c_map + R_wc @ points[chosen] / self.scale
-            self.ground.add_contact(contact_map, self.scale)
+        else:
+            self._sources.append(sample.source == 'ground')
+            if sample.source == 'map' and scale_now is not None:
+                contact_map = c_map + R_wc @ sample.contact_cam / scale_now
+                self.ground.add_contact(contact_map, scale_now)
         return out
-
-    def _map_distance(self, c_map: np.ndarray, direction_map: np.ndarray, distance_metric: float,
-                      scale: float | None) -> float | None:
-        window = None
-        if scale is not None and self.params.ray_window_rel > 0.0:
-            expected = distance_metric / scale
-            w = 1.0 + self.params.ray_window_rel
-            window = (expected / w, expected * w)
-        assert self.map is not None
-        hit = self.map.query(c_map, direction_map, mode=self.params.reference_mode,
-                             cos_min=self._cos_min, min_points=self.params.cone_min_points,
-                             window=window)
-        return None if hit is None else hit.distance
-
-    def _plausible(self, d_slam: float, distance_metric: float, plane_distance: float,
-                   scale: float | None) -> bool:
-        """Can this map hit be the surface the joint touches? (documented in docs/method.md)
-
-        1. Not beyond the ground plane: a ray cannot pass through the floor, so a hit further than
-           the ray's floor intersection (by more than ``plausibility_rel_tol``) is a far surface seen
-           past the person, or a wrong plane: fall back to the plane.
-        2. Once a scale exists: its metric distance must agree with the joint's own distance within
-           ``plausibility_rel_tol`` (an occluder in front of the foot is much nearer, a far wall
-           behind a gap much further).
-        3. Before a scale exists (after a reset), once the floor's normal has been refined by
-           contact joints, a hit much nearer than the floor is suspect too (an occluder, a stair
-           step): the floor decides until rule 2 can judge. The body-axis floor alone is too rough
-           for this: a forward lean of a few degrees moves a grazing ray's floor point a lot (on the
-           real-data composite, using it here took the scale error from 4.7 % to 43 %).
-        """
-        tol = self.params.plausibility_rel_tol
-        if math.isfinite(plane_distance):
-            if d_slam > plane_distance * (1.0 + tol):
-                return False
-            # before a scale: a hit well above a trusted floor may be an occluder
-            if scale is None and self.ground.refined and d_slam * (1.0 + tol) < plane_distance:
-                return False
-        if scale is not None and abs(scale * d_slam - distance_metric) > tol * distance_metric:
-            return False
-        return True
 
     def _rejected_sample(self, stamp: int, person: int, reason: str) -> list[Output]:
         return [SampleOut(stamp, person, float('nan'), reason, False), *self.reject(reason, stamp)]
 
     # ================================================================== outputs
     def _odometry(self, pose: Pose) -> list[Output]:
-        if not self.defer_metric and self.published_scale(pose.stamp_ns) is None:
-            return []
+        """Every accepted pose (the odometry integrates them all, also while a segment converges)."""
         # the position's uncertainty comes from the scale's standard error (MetricStage)
         n = max(self.estimator.samples, 1)
         sigma_scale = MEDIAN_STD_ERROR * self.estimator.spread() / math.sqrt(n)
-        return self._metric(PendingOdometry(pose.stamp_ns, self.child_frame_id, pose.R_wc,
-                                            pose.c_map, sigma_scale))
+        share = sum(self._sources) / len(self._sources) if self._sources else 0.0
+        plane = self.ground.plane(self.map) if self.map is not None else None
+        return self._metric(PendingOdometry(pose.stamp_ns, self.child_frame_id, self.segment,
+                                            pose.R_wc, pose.c_map, sigma_scale, plane, share))
 
-    def _metric(self, pending: PendingOdometry | PendingFrame | PendingReset | PendingStatus
-                ) -> list[Output]:
+    def _metric(self, pending: PendingOdometry | PendingFrame | PendingSegment | PendingMap
+                | PendingStatus) -> list[Output]:
         """A pending metric output: returned as is when deferred, else resolved at once."""
         if self.defer_metric:
             return [pending]
@@ -481,12 +503,3 @@ class Calibrator:
             return []
         self._diag_second = second
         return self._metric(self.pending_status(stamp_ns))
-
-
-def _base_from_camera(base_to_camera: list[float]) -> tuple[np.ndarray, np.ndarray]:
-    """The base's pose in the camera frame (R, t) from the camera's pose in the base frame."""
-    from scipy.spatial.transform import Rotation
-
-    t_bc = np.asarray(base_to_camera[:3], dtype=float)
-    R_bc = Rotation.from_quat(base_to_camera[3:]).as_matrix()
-    return R_bc.T, -R_bc.T @ t_bc

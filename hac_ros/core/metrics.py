@@ -8,6 +8,8 @@ unit each function names.
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from hac_ros.core.errors import InputError
@@ -76,6 +78,33 @@ def ate(est_positions: np.ndarray, gt_positions: np.ndarray, with_scale: bool = 
 def ate_s(est_positions: np.ndarray, gt_positions: np.ndarray) -> float:
     """ATE after an SE(3) alignment (no scale): a wrong scale shows."""
     return ate(est_positions, gt_positions, with_scale=False)
+
+
+def rpe(est_positions: np.ndarray, est_rotations: np.ndarray, gt_positions: np.ndarray,
+        gt_rotations: np.ndarray, stamps_ns: np.ndarray, delta_s: float = 1.0) -> tuple[float, float]:
+    """Relative pose error of the translation (evo's RPE, delta in time): for every pose i and the
+    first pose j at least ``delta_s`` later, the step R_iᵀ (p_j − p_i) of the estimate against the
+    truth's, both in the camera frame of pose i (no alignment needed: it is frame-invariant).
+
+    est/gt positions (N, 3) metres, rotations (N, 3, 3) camera to their world frames, matched
+    pose for pose; stamps_ns (N,). Returns (mean error, metres; 100 × the sum of errors over the
+    sum of true step lengths, %); NaN without a pair.
+    """
+    stamps = np.asarray(stamps_ns, dtype=np.int64)
+    i = np.arange(len(stamps))
+    j = np.searchsorted(stamps, stamps + int(delta_s * 1e9), side='left')
+    keep = j < len(stamps)
+    i, j = i[keep], j[keep]
+    if not len(i):
+        return math.nan, math.nan
+
+    def steps(p: np.ndarray, R: np.ndarray) -> np.ndarray:
+        return np.einsum('nji,nj->ni', R[i], p[j] - p[i])
+
+    true = steps(np.asarray(gt_positions), np.asarray(gt_rotations))
+    err = np.linalg.norm(steps(np.asarray(est_positions), np.asarray(est_rotations)) - true, axis=1)
+    length = float(np.linalg.norm(true, axis=1).sum())
+    return float(err.mean()), (100.0 * float(err.sum()) / length if length > 0 else math.nan)
 
 
 def _align_chunk(pred: np.ndarray, gt: np.ndarray, frames: slice) -> np.ndarray:

@@ -16,12 +16,14 @@ if TYPE_CHECKING:
 
 @dataclass(slots=True)
 class OdometryOut:
-    """The metric pose of the camera (or of ``base_frame``) at one SLAM pose stamp.
+    """/hac/odometry: the continuous metric odometry of the camera (or of ``base_frame``) at one SLAM
+    pose stamp (hac_ros.core.odometry).
 
-    rotation_metric: (3, 3) float64, child frame to ``metric_frame``.
-    position_metric: (3,) float64, metres, ``metric_frame``.
+    rotation_metric: (3, 3) float64, child frame to ``odom_frame``.
+    position_metric: (3,) float64, metres, ``odom_frame``.
     covariance: (6, 6) float64, ROS order (x, y, z, rot x, rot y, rot z), metres² and rad².
-    linear_velocity: (3,) float64, m/s, child frame; angular_velocity: (3,) rad/s, child frame.
+    linear_velocity: (3,) float64, m/s, child frame; angular_velocity: (3,) rad/s, child frame;
+    twist_covariance: (6, 6) float64, (m/s)² and (rad/s)².
     """
 
     stamp_ns: int
@@ -31,6 +33,28 @@ class OdometryOut:
     covariance: np.ndarray
     linear_velocity: np.ndarray
     angular_velocity: np.ndarray
+    twist_covariance: np.ndarray
+
+
+@dataclass(slots=True)
+class PoseOut:
+    """/hac/pose: the globally consistent metric pose of the camera (or of ``base_frame``) at one
+    SLAM pose stamp: rotation_metric (3, 3) child frame to ``metric_frame``, position_metric (3,)
+    metres, covariance (6, 6) metres² and rad² (ROS order)."""
+
+    stamp_ns: int
+    child_frame_id: str
+    rotation_metric: np.ndarray
+    position_metric: np.ndarray
+    covariance: np.ndarray
+
+
+@dataclass(slots=True)
+class CloudOut:
+    """/hac/cloud: the map in ``metric_frame``: points_metric (N, 3) float32, metres."""
+
+    stamp_ns: int
+    points_metric: np.ndarray
 
 
 @dataclass(slots=True)
@@ -84,6 +108,10 @@ class Status:
     ground_offset_slam: float = float('nan')  # plane n·p = b, SLAM units
     ground_normal_metric: np.ndarray | None = None  # (3,) unit, metric frame, points down
     ground_point_metric: np.ndarray | None = None  # (3,) metres, metric frame: the plane below the camera
+    drifting: bool = False  # the estimate follows a drift trend (hac_ros.core.estimator)
+    frozen: bool = False  # the scale is held (~/freeze)
+    alignment: str = ''  # the metric frame of the current segment: 'gravity' or 'slam'
+    services: dict[str, int] = field(default_factory=dict)  # service requests taken, by name
 
     @property
     def fallback_rate(self) -> float:
@@ -153,44 +181,66 @@ class NoticeOut:
 # metric stage resolves them once the scale of every stamp is known (hac_ros.core.metric).
 
 @dataclass(slots=True)
+class PendingSegment:
+    """A segment (one SLAM map, between re-initialisations) starts at this pose: R_wc (3, 3), c_map
+    (3,) SLAM units, its map frame; ``index`` counts segments from 0; ``keeps_map``: the map in use
+    stays valid (a service reset); ``cause``: '' for the first segment, else the reset's cause."""
+
+    stamp_ns: int
+    index: int
+    R_wc: np.ndarray
+    c_map: np.ndarray
+    keeps_map: bool = False
+    cause: str = ''
+
+
+@dataclass(slots=True)
+class PendingMap:
+    """A new map used by the frames from ``stamp_ns`` on (handed over at most once per
+    ``cloud_min_period_s``): points_slam (N, 3) float32, SLAM units, segment ``segment``'s map frame,
+    already thinned to ``cloud_out_max_points``."""
+
+    stamp_ns: int
+    segment: int
+    points_slam: np.ndarray
+
+
+@dataclass(slots=True)
 class PendingOdometry:
-    """The odometry of one SLAM pose before a scale is applied.
+    """The odometry and pose of one SLAM pose before a scale is applied.
 
     R_wc: (3, 3) camera to SLAM map; c_map: (3,) camera centre, SLAM units, map frame;
     sigma_scale: the online estimate's standard error then, metres per SLAM unit (NaN before any
-    sample), for the covariance.
+    sample), for the covariance; plane: the ground plane then (SLAM map frame) or None;
+    ground_share: the fraction of the window's recent samples the ground plane gave.
     """
 
     stamp_ns: int
     child_frame_id: str
+    segment: int
     R_wc: np.ndarray
     c_map: np.ndarray
     sigma_scale: float
+    plane: Plane | None = None
+    ground_share: float = 0.0
 
 
 @dataclass(slots=True)
 class PendingFrame:
     """A processed frame's world joints and scale before a scale is applied.
 
-    R_wc, c_map: the frame's camera pose (SLAM map frame, SLAM units); joints_cam: (P, 24, 3)
-    metres, camera optical frame; spread: the estimator's spread after the frame.
+    R_wc, c_map: the frame's camera pose (SLAM map frame, SLAM units); joints_cam: (P, K, 3)
+    metres, camera optical frame; spread: the estimator's spread after the frame; plane: the
+    ground plane then (SLAM map frame) or None.
     """
 
     stamp_ns: int
+    segment: int
     R_wc: np.ndarray
     c_map: np.ndarray
     joints_cam: np.ndarray
     spread: float
-
-
-@dataclass(slots=True)
-class PendingReset:
-    """A SLAM re-initialisation: the new map is anchored at its first pose (R_wc (3, 3), c_map (3,)
-    SLAM units, new map frame) so that the metric camera continues from the last metric pose."""
-
-    stamp_ns: int
-    R_wc: np.ndarray
-    c_map: np.ndarray
+    plane: Plane | None = None
 
 
 @dataclass(slots=True)
@@ -198,15 +248,18 @@ class PendingStatus:
     """A /diagnostics status whose metric ground plane is still to be placed.
 
     status: every SLAM-unit field filled, the metric ones None; plane: the ground plane (SLAM map
-    frame) or None; c_map: (3,) the last camera centre, SLAM units (the plane point below it).
+    frame) or None; c_map: (3,) the last camera centre, SLAM units (the plane point below it);
+    segment: the segment then.
     """
 
     status: Status
     plane: Plane | None
     c_map: np.ndarray | None
+    segment: int = 0
 
 
-PENDING = (PendingOdometry, PendingFrame, PendingReset, PendingStatus)
+PENDING = (PendingSegment, PendingMap, PendingOdometry, PendingFrame, PendingStatus)
 
-Output = Union[OdometryOut, HumanJointsOut, ScaleOut, SampleOut, DiagnosticsOut, ResetOut, NoticeOut,
-               PendingOdometry, PendingFrame, PendingReset, PendingStatus]
+Output = Union[OdometryOut, PoseOut, CloudOut, HumanJointsOut, ScaleOut, SampleOut, DiagnosticsOut,
+               ResetOut, NoticeOut, PendingSegment, PendingMap, PendingOdometry, PendingFrame,
+               PendingStatus]

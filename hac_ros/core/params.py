@@ -21,6 +21,7 @@ CONTACT_MODES = ('lowest', 'max_ratio', 'lowest_gravity', 'feet', 'pelvis', 'hea
 REFERENCE_MODES = ('cone_median', 'nearest_to_ray', 'cone_plane')
 GROUND_MODES = ('hmr', 'slam_y', 'largest_plane', 'none')
 POSE_TYPES = ('PoseStamped', 'Odometry')
+ALIGNMENTS = ('gravity', 'slam')
 # pose_type -> the ROS message type of pose_topic
 POSE_MSGTYPES = {'PoseStamped': 'geometry_msgs/msg/PoseStamped', 'Odometry': 'nav_msgs/msg/Odometry'}
 CLOUD_MODES = ('replace', 'accumulate')
@@ -44,14 +45,18 @@ class HacParams:
     """Every parameter of the node and the replay, with SPEC's names and defaults."""
 
     # --- topics and types (SPEC: ROS 2 interface)
-    pose_topic: str = _p('/slam/pose', 'SLAM camera pose input (map frame, unknown scale)')
-    cloud_topic: str = _p('/slam/cloud', 'SLAM map points input (PointCloud2, map frame)')
-    joints_topic: str = _p('/hmr/joints', 'HMR joints input (PoseArray, camera optical frame, metres)')
-    camera_info_topic: str = _p('/camera/camera_info',
+    pose_topic: str = _p('slam/pose', 'SLAM camera pose input (map frame, unknown scale)')
+    cloud_topic: str = _p('slam/cloud', 'SLAM map points input (PointCloud2, map frame)')
+    joints_topic: str = _p('hmr/joints', 'HMR joints input (PoseArray, camera optical frame, metres)')
+    camera_info_topic: str = _p('camera/camera_info',
                                 'CameraInfo of the camera; "" turns it off')
     pose_type: str = _p('PoseStamped', 'message type of pose_topic', choices=POSE_TYPES)
-    metric_frame: str = _p('map_metric', 'frame_id of the metric outputs')
+    metric_frame: str = _p('map_metric', 'frame_id of /hac/pose, /hac/human_joints, /hac/cloud')
     camera_frame: str = _p('', 'camera optical frame; "" = from the inputs')
+    odom_frame: str = _p('hac_odom', 'frame_id of /hac/odometry (continuous)')
+    metric_frame_alignment: str = _p('gravity', 'metric_frame: gravity (z up, floor at z = 0, x the '
+                                     'first view) or slam (the SLAM map\'s axes, scaled)',
+                                     choices=ALIGNMENTS)
 
     # --- method (SPEC: the method)
     contact_mode: str = _p('lowest_gravity', 'how the contact joint is chosen', choices=CONTACT_MODES)
@@ -85,6 +90,13 @@ class HacParams:
     cloud_qos: str = _p('transient_local', 'QoS durability of the map subscription',
                         choices=CLOUD_QOS)
     publish_markers: bool = _p(True, 'publish /hac/markers for RViz')
+    publish_cloud: bool = _p(True, 'publish /hac/cloud: the map in metric_frame, metres')
+    cloud_republish_rel: float = _p(0.01, '/hac/cloud is republished when the estimate moved by '
+                                    'more than this fraction', low=0.0, high=10.0)
+    cloud_min_period_s: float = _p(5.0, '/hac/cloud at most once per this much stamp time, '
+                                   'seconds', low=0.0, high=1e6)
+    cloud_out_max_points: int = _p(200_000, 'points of /hac/cloud at most (the map thinned evenly)',
+                                   low=1, high=100_000_000)
     human_filter: str = _p('smooth', 'world humans: none (the joints as they come) or smooth (each '
                            "person's world root filtered: causally online, zero-phase offline)",
                            choices=HUMAN_FILTERS)
@@ -118,12 +130,15 @@ class HacParams:
                                'before indexing (bounds the per-frame cost)', low=1000,
                                high=1_000_000_000)
     seed: int = _p(0, 'seed of the RANSAC sampling (reproducible output)', low=0, high=2**31 - 1)
-    base_frame: str = _p('', 'if set, /hac/odometry describes this frame instead of the camera')
+    base_frame: str = _p('', 'if set, /hac/odometry and /hac/pose describe this frame instead of the camera')
     base_to_camera: list = _p([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0],
                               'camera pose in base_frame: x y z qx qy qz qw (metres)', length=7)
     orientation_variance: float = _p(1e-4, 'variance reported for each orientation axis, rad^2',
                                      low=0.0, high=1e6)
-    publish_tf: bool = _p(False, 'broadcast metric_frame -> camera/base on TF (needs tf2_ros)')
+    publish_tf: bool = _p(False, 'broadcast metric_frame -> odom_frame on TF, the correction that '
+                          'composes /hac/odometry into /hac/pose (needs tf2_ros)')
+    publish_odom_tf: bool = _p(False, 'broadcast odom_frame -> the child frame of /hac/odometry on '
+                               'TF (needs tf2_ros)')
 
     def __post_init__(self) -> None:
         self.validate()

@@ -104,6 +104,11 @@ class MapIndex:
     def __len__(self) -> int:
         return self.size
 
+    def thinned(self, max_points: int) -> np.ndarray:
+        """At most ``max_points`` of the map, evenly strided, (M, 3) float32, SLAM units, map frame
+        (for /hac/cloud)."""
+        return self.points_map[::max(1, -(-self.size // max(1, max_points)))].astype(np.float32)
+
     # ------------------------------------------------------------------ whole-map statistics
     def overlap_fraction(self, old: MapIndex) -> float:
         """The fraction of this map's points near ``old``'s: 1.0 when either map is empty.

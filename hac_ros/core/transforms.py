@@ -1,64 +1,10 @@
-"""SE(3)/Sim(3) helpers, the metric camera and the world-frame humans (SPEC, method step 6).
-
-Without a reset the metric frame is the SLAM map frame scaled: camera centre ``s·c_t`` and world
-joints ``R_wc J + s·c_t``. After a SLAM re-initialisation the new map is *anchored*: an SE(3)
-``(R_anchor, p_anchor)`` and a reference centre ``c_ref`` (in the new map's SLAM units) chosen so
-that the camera's metric pose is continuous at the reset whatever the new scale turns out to be:
-``p_metric = p_anchor + R_anchor · s · (c − c_ref)``.
-"""
+"""Rotation and pose helpers: interpolation, rotation vectors, checks, the base's offset."""
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
-
-
-@dataclass
-class Anchor:
-    """Places one SLAM map (one segment between re-initialisations) in the metric frame.
-
-    rotation: (3, 3), SLAM map frame to metric frame; position_metric: (3,) metres, metric frame,
-    where ``centre_slam`` lands; centre_slam: (3,) SLAM units, SLAM map frame.
-    """
-
-    rotation: np.ndarray = field(default_factory=lambda: np.eye(3))
-    position_metric: np.ndarray = field(default_factory=lambda: np.zeros(3))
-    centre_slam: np.ndarray = field(default_factory=lambda: np.zeros(3))
-
-    def __post_init__(self) -> None:
-        # the anchor of the first map is the identity: the metric frame is the map frame scaled
-        self._identity = bool(np.array_equal(self.rotation, np.eye(3))
-                              and not np.any(self.position_metric) and not np.any(self.centre_slam))
-
-    def camera(self, R_wc: np.ndarray, c_map: np.ndarray, scale: float) -> tuple[np.ndarray, np.ndarray]:
-        """Metric camera pose: (R camera→metric (3,3), centre (3,) metres, metric frame).
-
-        R_wc: (3, 3) camera to SLAM map; c_map: (3,) camera centre, SLAM units, map frame.
-        """
-        if self._identity:
-            return R_wc, scale * c_map
-        R_metric = self.rotation @ R_wc
-        p_metric = self.position_metric + self.rotation @ (scale * (np.asarray(c_map) - self.centre_slam))
-        return R_metric, p_metric
-
-    def joints(self, R_wc: np.ndarray, c_map: np.ndarray, scale: float,
-               joints_cam: np.ndarray) -> np.ndarray:
-        """World joints ``R J + p`` (SPEC: J^w = R_tᵀ J + s·o_t), every person.
-
-        joints_cam: (P, 24, 3) metres, camera optical frame. Returns (P, 24, 3) metres, metric frame.
-        """
-        R_metric, p_metric = self.camera(R_wc, c_map, scale)
-        return np.asarray(joints_cam) @ R_metric.T + p_metric
-
-    @classmethod
-    def continuing(cls, R_metric_prev: np.ndarray, p_metric_prev: np.ndarray,
-                   R_wc_new: np.ndarray, c_new: np.ndarray) -> 'Anchor':
-        """The anchor of a new map whose first pose (R_wc_new, c_new) continues the last metric pose."""
-        rotation = np.asarray(R_metric_prev) @ np.asarray(R_wc_new).T
-        return cls(rotation, np.asarray(p_metric_prev, dtype=float).copy(),
-                   np.asarray(c_new, dtype=float).copy())
 
 
 def interpolate_pose(stamp_ns: int, t0_ns: int, R0: np.ndarray, c0: np.ndarray,
@@ -118,3 +64,11 @@ def is_rotation(R: np.ndarray, tol: float = 1e-6) -> bool:
         return False
     defects = rotation_defects(R)
     return defects is not None and defects[0] <= tol and defects[1] > 0.0
+
+
+def base_from_camera(base_to_camera: list[float]) -> tuple[np.ndarray, np.ndarray]:
+    """The base's pose in the camera frame (R (3, 3), t (3,) metres) from the camera's pose in the
+    base frame (``base_to_camera``: x y z metres, qx qy qz qw)."""
+    t_bc = np.asarray(base_to_camera[:3], dtype=float)
+    R_bc = Rotation.from_quat(base_to_camera[3:]).as_matrix()
+    return R_bc.T, -R_bc.T @ t_bc
