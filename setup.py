@@ -49,6 +49,7 @@ setup(
     entry_points={
         'console_scripts': [
             'hac_node = hac_ros.node:main',
+            'hac_lifecycle_node = hac_ros.lifecycle_node:main',
             'hac = hac_ros.cli:main',
         ],
     },

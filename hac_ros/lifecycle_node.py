@@ -1,0 +1,113 @@
+"""``hac_lifecycle_node``: hac_node as a managed node (rclpy.lifecycle), for nav2-style bring-up.
+
+The same shell as :class:`hac_ros.node.HacNode` (:class:`hac_ros.node.HacShell`), with SPEC's
+transitions:
+
+- configure: reads the parameters (an invalid one fails the transition with the reason logged);
+- activate: subscribes, publishes, offers ``~/reset`` and ``~/freeze`` and TF;
+- deactivate: stops all of those and keeps the state (the estimate, the map, the segments):
+  activated again, it continues where it stopped;
+- cleanup: drops the state (the next configure starts afresh); shutdown: cleans up from any state.
+
+Parameters are declared at construction, so ``ros2 param set`` works in every state; a change
+before configure is simply read by configure. nav2's ``lifecycle_manager`` expects a bond
+(bondcpp) from the nodes it manages, which rclpy lacks: give the manager ``bond_timeout: 0.0``
+(docs/node.md).
+
+Run: ``ros2 run hac_ros hac_lifecycle_node --ros-args --params-file config/hac.yaml``, then
+``ros2 lifecycle set /hac_node configure`` and ``... activate``.
+"""
+from __future__ import annotations
+
+import sys
+from typing import Any
+
+import rclpy
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
+
+from hac_ros.core.errors import ParameterError
+from hac_ros.core.params import NODE_NAME
+from hac_ros.node import SHUTDOWN_POLL_S, HacShell
+
+SUCCESS = TransitionCallbackReturn.SUCCESS
+FAILURE = TransitionCallbackReturn.FAILURE
+
+
+class HacLifecycleNode(HacShell, LifecycleNode):
+    """The managed hac_node (module docstring). Its name is ``hac_node`` unless given another, so
+    the same parameters file serves both."""
+
+    def __init__(self, node_name: str = NODE_NAME, **kwargs: Any) -> None:
+        super().__init__(node_name, **kwargs)
+        self._declare()
+
+    def on_configure(self, state: LifecycleState) -> TransitionCallbackReturn:
+        try:
+            self._configure()
+        except ParameterError as exc:
+            self.get_logger().error(f'configure failed: invalid parameter: {exc}')
+            self.calibrator = None
+            return FAILURE
+        self.get_logger().info('configured')
+        return SUCCESS
+
+    def on_activate(self, state: LifecycleState) -> TransitionCallbackReturn:
+        self._activate()
+        return SUCCESS
+
+    def on_deactivate(self, state: LifecycleState) -> TransitionCallbackReturn:
+        self._deactivate()
+        self.get_logger().info('deactivated: inputs and outputs stopped, the state is kept')
+        return SUCCESS
+
+    def on_cleanup(self, state: LifecycleState) -> TransitionCallbackReturn:
+        self._cleanup()
+        self.get_logger().info('cleaned up: the state is dropped')
+        return SUCCESS
+
+    def on_shutdown(self, state: LifecycleState) -> TransitionCallbackReturn:
+        if self.active:
+            self._deactivate()
+        self._cleanup()
+        return SUCCESS
+
+    def on_error(self, state: LifecycleState) -> TransitionCallbackReturn:
+        if self.active:
+            self._deactivate()
+        self._cleanup()
+        return SUCCESS
+
+    def destroy_node(self) -> None:
+        if self.active:
+            self._deactivate()
+        self._cleanup()
+        super().destroy_node()
+
+
+def main(args: list[str] | None = None) -> int:
+    """init → spin (unconfigured until a manager or ``ros2 lifecycle set`` moves it) → clean
+    shutdown on SIGINT/SIGTERM (exit code 0)."""
+    rclpy.init(args=args)
+    executor = SingleThreadedExecutor()
+    node = None
+    try:
+        node = HacLifecycleNode()
+        executor.add_node(node)
+        while rclpy.ok():
+            executor.spin_once(timeout_sec=SHUTDOWN_POLL_S)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except Exception:
+        if rclpy.ok():
+            raise
+    finally:
+        executor.shutdown()
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,288 @@
+"""hac_node's planner-facing interface over real DDS: ~/reset and ~/freeze, the latched metric map
+(/hac/cloud) for a late subscriber, namespaces, the managed (lifecycle) variant, and TF through a
+stand-in tf2_ros (test/standins: tf2_ros is not installable here)."""
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import yaml
+
+rclpy = pytest.importorskip('rclpy')
+pytestmark = pytest.mark.ros
+
+from rclpy.context import Context  # noqa: E402
+from rclpy.executors import SingleThreadedExecutor  # noqa: E402
+from rclpy.parameter import Parameter  # noqa: E402
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
+
+from hac_ros.lifecycle_node import HacLifecycleNode  # noqa: E402
+from hac_ros.node import HacNode  # noqa: E402
+from hac_ros.spin_thread import SpinThread  # noqa: E402
+from msg_adapters import cloud_to_xyz, pose_msg_to_rt, stamp_to_ns  # noqa: E402
+
+from test_node import (INPUTS, LATCHED, RELIABLE, TEST_PARAMS, TYPES, frames_after,  # noqa: E402
+                       scenario_recording, wait_for)
+
+REPO = Path(__file__).resolve().parents[1]
+CLOUD_LATE = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                        durability=DurabilityPolicy.TRANSIENT_LOCAL)
+OUT = {'odometry': ('hac/odometry', 'nav_msgs/msg/Odometry'),
+       'pose': ('hac/pose', 'geometry_msgs/msg/PoseWithCovarianceStamped'),
+       'scale': ('hac/scale', 'std_msgs/msg/Float64'),
+       'diagnostics': ('/diagnostics', 'diagnostic_msgs/msg/DiagnosticArray')}
+
+
+class Rig:
+    """A node under test (any class, any namespace) and a client node in one fresh Context."""
+
+    def __init__(self, node_class: type = HacNode, namespace: str = '',
+                 **overrides: Any) -> None:
+        self.context = Context()
+        rclpy.init(context=self.context)
+        params = {**TEST_PARAMS, 'min_samples': 10, **overrides}
+        self.node = node_class(context=self.context, namespace=namespace, parameter_overrides=[
+            Parameter(k, value=v) for k, v in params.items()])
+        self.io = rclpy.create_node('hac_services_test', namespace=namespace, context=self.context)
+        self.publishers = {kind: self.io.create_publisher(
+            TYPES.get(msgtype), topic.lstrip('/'), LATCHED if kind == 'cloud' else RELIABLE)
+            for kind, (topic, msgtype) in INPUTS.items()}
+        self.received: dict[str, list[Any]] = {k: [] for k in OUT}
+        for kind, (topic, msgtype) in OUT.items():
+            self.io.create_subscription(TYPES.get(msgtype), topic,
+                                        lambda m, k=kind: self.received[k].append(m), RELIABLE)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self.executor.add_node(self.io)
+        self.spinner = SpinThread(self.executor)
+
+    def connected(self) -> bool:
+        return all(p.get_subscription_count() > 0 for p in self.publishers.values())
+
+    def play(self, events: list[Any]) -> None:
+        for event in events:
+            self.publishers[event.kind].publish(event.msg)
+            if event.kind == 'cloud':
+                done = self.node.clouds_done + 1
+                assert wait_for(lambda: self.node.clouds_done >= done, 10.0)
+            elif event.kind == 'joints':
+                time.sleep(0.004)
+
+    def settle(self, last_stamp_ns: int) -> None:
+        assert wait_for(lambda: self.received['pose'] and
+                        stamp_to_ns(self.received['pose'][-1].header.stamp) >= last_stamp_ns
+                        - 100_000_000, 10.0), 'the node did not catch up'
+        time.sleep(0.2)
+
+    def call(self, srv: str, name: str, **fields: Any) -> Any:
+        client = self.io.create_client(TYPES.get(srv), name)
+        assert client.wait_for_service(timeout_sec=10.0), f'{name} is not offered'
+        request = TYPES.get(srv).Request()
+        for key, value in fields.items():
+            setattr(request, key, value)
+        future = client.call_async(request)
+        self.executor.wake()  # the spinning executor waits on entities it had before the client
+        assert wait_for(future.done, 10.0), f'{name} did not answer'
+        self.io.destroy_client(client)
+        return future.result()
+
+    def diagnostics(self) -> dict[str, str]:
+        status = self.received['diagnostics'][-1].status[0]
+        return {kv.key: kv.value for kv in status.values}
+
+    def close(self) -> None:
+        self.spinner.close()
+        self.node.destroy_node()
+        self.io.destroy_node()
+        rclpy.shutdown(context=self.context)
+
+
+@pytest.fixture
+def rig():
+    made: list[Rig] = []
+
+    def make(*args: Any, **kwargs: Any) -> Rig:
+        made.append(Rig(*args, **kwargs))
+        return made[-1]
+    yield make
+    for r in made:
+        r.close()
+
+
+@pytest.fixture(scope='module')
+def walk():
+    return scenario_recording('walk', duration=12.0)
+
+
+def test_freeze_and_reset_services_over_dds(rig, walk):
+    r = rig()
+    assert wait_for(r.connected, 10.0)
+    a, b = frames_after(walk, 0.4), frames_after(walk, 0.7)
+    r.play(walk.events[:a])
+    r.settle(walk.events[a - 1].stamp_ns)
+    answer = r.call('std_srvs/srv/SetBool', '/hac_node/freeze', data=True)
+    assert answer.success and 'held' in answer.message
+    held_from = len(r.received['scale']) + 1  # taken at the next SLAM pose
+    r.play(walk.events[a:b])
+    r.settle(walk.events[b - 1].stamp_ns)
+    held = [m.data for m in r.received['scale'][held_from:]]
+    assert len(held) > 20 and len(set(held)) == 1
+    assert r.diagnostics()['frozen'] == 'true'
+    assert r.call('std_srvs/srv/SetBool', '/hac_node/freeze', data=False).success
+    assert r.call('std_srvs/srv/Trigger', '/hac_node/reset').success
+    r.play(walk.events[b:])
+    r.settle(walk.events[-1].stamp_ns)
+    diag = r.diagnostics()
+    assert diag['frozen'] == 'false' and diag['resets'] == '1'
+    assert diag['service.reset'] == '1' and diag['service.freeze_true'] == '1'
+    # the odometry never jumps: neither at the freeze, the release nor the reset
+    odom = r.received['odometry']
+    positions = np.array([pose_msg_to_rt(m)[1] for m in odom])
+    moving = [m.twist.twist.linear.x != 0 or m.twist.twist.linear.z != 0 for m in odom[1:]]
+    steps = np.linalg.norm(np.diff(positions, axis=0), axis=1)[np.array(moving)]
+    assert steps.max() < 0.3  # a walk at 30 Hz: centimetres per pose
+
+
+def test_a_late_subscriber_receives_the_metric_map(rig, walk):
+    r = rig()
+    assert wait_for(r.connected, 10.0)
+    r.play(walk.events)
+    r.settle(walk.events[-1].stamp_ns)
+    late: list[Any] = []
+    r.io.create_subscription(TYPES.get('sensor_msgs/msg/PointCloud2'), 'hac/cloud',
+                             late.append, CLOUD_LATE)
+    assert wait_for(lambda: late, 10.0), 'a late subscriber got no /hac/cloud'
+    cloud = late[-1]
+    assert cloud.header.frame_id == 'map_metric' and cloud.width > 1000
+    points = cloud_to_xyz(cloud)
+    assert np.isfinite(points).all()
+    # gravity frame, metres: the floor of the simulated room near z = 0, the room metres wide
+    assert abs(np.percentile(points[:, 2], 2)) < 0.1 and np.ptp(points[:, 0]) > 3.0
+
+
+def test_a_namespace_moves_every_topic_and_service(rig, walk):
+    r = rig(namespace='robot1')
+    assert wait_for(r.connected, 10.0)
+    assert r.node.resolve_topic_name(r.node.params.pose_topic) == '/robot1/slam/pose'
+    r.play(walk.events[:frames_after(walk, 0.5)])
+    assert wait_for(lambda: r.received['odometry'] and r.received['pose'], 10.0)
+    topics = dict(r.io.get_topic_names_and_types())
+    for name in ('/robot1/hac/odometry', '/robot1/hac/pose', '/robot1/hac/cloud',
+                 '/robot1/hac/scale', '/diagnostics'):
+        assert name in topics, name
+    assert '/hac/odometry' not in topics
+    assert r.call('std_srvs/srv/Trigger', '/robot1/hac_node/reset').success
+
+
+def lifecycle(r: Rig, transition: str) -> bool:
+    ids = {'configure': 1, 'cleanup': 2, 'activate': 3, 'deactivate': 4}
+    transition_msg = TYPES.get('lifecycle_msgs/msg/Transition')(id=ids[transition])
+    return r.call('lifecycle_msgs/srv/ChangeState', '/hac_node/change_state',
+                  transition=transition_msg).success
+
+
+def state(r: Rig) -> str:
+    return r.call('lifecycle_msgs/srv/GetState', '/hac_node/get_state').current_state.label
+
+
+def test_the_lifecycle_node_publishes_only_while_active_and_keeps_its_state(rig, walk):
+    r = rig(HacLifecycleNode)
+    assert state(r) == 'unconfigured'
+    r.play(walk.events[:5])  # nobody listens yet
+    assert lifecycle(r, 'configure') and state(r) == 'inactive'
+    assert lifecycle(r, 'activate') and state(r) == 'active'
+    assert wait_for(r.connected, 10.0)
+    half = frames_after(walk, 0.5)
+    r.play(walk.events[:half])
+    r.settle(walk.events[half - 1].stamp_ns)
+    converged = len(r.received['scale'])
+    assert converged > 0
+    assert lifecycle(r, 'deactivate') and state(r) == 'inactive'
+    count = len(r.received['odometry'])
+    for event in walk.events[half:half + 60]:
+        r.publishers[event.kind].publish(event.msg)
+    time.sleep(0.5)
+    assert len(r.received['odometry']) == count  # inactive: nothing in, nothing out
+    assert lifecycle(r, 'activate')
+    assert wait_for(r.connected, 10.0)
+    before = len(r.received['scale'])
+    r.play(walk.events[half + 60:])
+    r.settle(walk.events[-1].stamp_ns)
+    assert len(r.received['scale']) > before  # continued at once: the estimate was kept
+    assert lifecycle(r, 'deactivate') and lifecycle(r, 'cleanup')
+    assert state(r) == 'unconfigured' and r.node.calibrator is None
+
+
+def test_tf_through_a_stand_in_broadcaster(tmp_path, walk):
+    """publish_tf and publish_odom_tf in a node process whose tf2_ros is test/standins' (it
+    publishes each TransformStamped on /tf_standin): odom -> camera is the odometry, and
+    metric -> odom composes the odometry of a stamp into its /hac/pose."""
+    params = {**TEST_PARAMS, 'min_samples': 10, 'publish_tf': True, 'publish_odom_tf': True}
+    path = tmp_path / 'hac.yaml'
+    path.write_text(yaml.safe_dump({'hac_node': {'ros__parameters': params}}))
+    env = {**os.environ, 'PYTHONPATH': os.pathsep.join([str(REPO / 'test' / 'standins'),
+                                                        os.environ.get('PYTHONPATH', '')])}
+    node = subprocess.Popen([sys.executable, '-m', 'hac_ros.node', '--ros-args', '--params-file',
+                             str(path)], cwd=REPO, env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True)
+    context = Context()
+    rclpy.init(context=context)
+    io = rclpy.create_node('hac_tf_test', context=context)
+    got: dict[str, list[Any]] = {'tf': [], 'odometry': [], 'pose': []}
+    io.create_subscription(TYPES.get('geometry_msgs/msg/TransformStamped'), '/tf_standin',
+                           got['tf'].append, RELIABLE)
+    for kind in ('odometry', 'pose'):
+        topic, msgtype = OUT[kind]
+        io.create_subscription(TYPES.get(msgtype), topic, got[kind].append, RELIABLE)
+    publishers = {kind: io.create_publisher(TYPES.get(msgtype), topic,
+                                            LATCHED if kind == 'cloud' else RELIABLE)
+                  for kind, (topic, msgtype) in INPUTS.items()}
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(io)
+    spinner = SpinThread(executor)
+    try:
+        assert wait_for(lambda: all(p.get_subscription_count() for p in publishers.values())
+                        and io.count_publishers('/tf_standin') > 0, 30.0), 'no node, no TF'
+        for event in walk.events[:frames_after(walk, 0.6)]:
+            publishers[event.kind].publish(event.msg)
+            time.sleep(0.5 if event.kind == 'cloud' else 0.004 if event.kind == 'joints' else 0)
+        assert wait_for(lambda: len(got['pose']) > 50 and len(got['tf']) > 100, 15.0)
+    finally:
+        spinner.close()
+        io.destroy_node()
+        rclpy.shutdown(context=context)
+        node.send_signal(signal.SIGINT)
+        log = node.communicate(timeout=10)[0]
+    assert 'tf2_ros is not available' not in log, log
+    odom = {stamp_to_ns(m.header.stamp): pose_msg_to_rt(m) for m in got['odometry']}
+    pose = {stamp_to_ns(m.header.stamp): pose_msg_to_rt(m) for m in got['pose']}
+    checked = 0
+    for tf in got['tf']:
+        stamp, t, q = stamp_to_ns(tf.header.stamp), tf.transform.translation, tf.transform.rotation
+        if stamp not in odom or stamp not in pose:
+            continue  # the last few: received before the outputs of their stamp
+        R_tf, p_tf = pose_msg_to_rt_parts(t, q)
+        if (tf.header.frame_id, tf.child_frame_id) == ('hac_odom', walk.camera_frame):
+            np.testing.assert_allclose(R_tf, odom[stamp][0], atol=1e-9)
+            np.testing.assert_allclose(p_tf, odom[stamp][1], atol=1e-9)
+            checked += 1
+        else:
+            assert (tf.header.frame_id, tf.child_frame_id) == ('map_metric', 'hac_odom')
+            R_o, p_o = odom[stamp]
+            np.testing.assert_allclose(R_tf @ R_o, pose[stamp][0], atol=1e-9)
+            np.testing.assert_allclose(R_tf @ p_o + p_tf, pose[stamp][1], atol=1e-9)
+            checked += 1
+    assert checked > 100
+
+
+def pose_msg_to_rt_parts(t: Any, q: Any) -> tuple[np.ndarray, np.ndarray]:
+    from scipy.spatial.transform import Rotation
+
+    return (Rotation.from_quat([q.x, q.y, q.z, q.w]).as_matrix(), np.array([t.x, t.y, t.z]))
