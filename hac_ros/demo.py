@@ -19,7 +19,7 @@ REPO = Path(__file__).resolve().parents[1]
 DEMO_RECORDING = Path('bags') / 'demo_walk'
 SIMULATED = {'scenario': 'walk', 'seed': 0, 'duration_s': 20.0}  # when the recording is absent
 RESULTS = ('replay', 'tum', 'eval.md', 'eval.json', 'trajectories.png', 'scale.png',
-           'fallback.png')
+           'fallback.png', 'heights.png')
 
 
 def find_recording(explicit: str | None) -> Path | None:

@@ -6,6 +6,8 @@
   ground-plane fallbacks, gated samples), the published scale (``/hac/scale``) with the estimator's
   spread band (``/diagnostics``), the true scale (``/gt/scale``) and the resets.
 - ``fallback.png``: ground-plane fallback use and rejected inputs per second of stamp time, resets.
+- ``heights.png``: the metric frame as published: the camera's z (``/hac/pose``) and people's
+  lowest joint over time; gravity-aligned, z is the height above the floor (z = 0).
 
 "Top-down" needs an up direction that no frame here states: it is the mean body up axis (pelvis to
 neck) of the reference joints (the ground truth's, else the replay's), the same cue the core uses for
@@ -28,7 +30,8 @@ from hac_ros.recording import (CameraTrack, JointsTrack, Recording, Replayed, Tr
                                read_output, read_truth)
 
 DPI = 100
-FIGSIZE = {'trajectories': (8.0, 8.0), 'scale': (11.0, 6.0), 'fallback': (11.0, 6.0)}  # inches
+FIGSIZE = {'trajectories': (8.0, 8.0), 'scale': (11.0, 6.0), 'fallback': (11.0, 6.0),
+           'heights': (11.0, 5.0)}  # inches
 PELVIS, NECK = 0, 12  # SMPL-24
 SLAM_POSE_TOPIC = '/slam/pose'
 COLOURS = {'gt': 'black', 'hac': 'tab:blue', 'slam': 'tab:gray', 'map': 'tab:blue',
@@ -298,6 +301,40 @@ def plot_fallback(path: Path, run: Replayed, truth: Truth | None) -> None:
     plt.close(fig)
 
 
+def plot_heights(path: Path, run: Replayed, truth: Truth | None) -> None:
+    """Heights in the metric frame over time: with ``metric_frame_alignment: gravity`` z is up and
+    the floor is z = 0, so the camera's z is its height above the floor and people's lowest joints
+    stay just above 0. No alignment to the truth: the frame is shown as published."""
+    import matplotlib.pyplot as plt
+
+    t0 = _t0(run, truth)
+    fig, ax = plt.subplots(figsize=FIGSIZE['heights'], dpi=DPI)
+    ax.axhline(0.0, color='black', lw=0.8, label='floor (z = 0)')
+    if len(run.camera):
+        ax.plot((run.camera.stamps_ns - t0) / NS, run.camera.positions[:, 2], color=COLOURS['hac'],
+                lw=1.5, label='camera height, /hac/pose z')
+    if truth is not None and truth.camera is not None and len(truth.camera):
+        ax.plot((truth.camera.stamps_ns - t0) / NS, truth.camera.positions[:, 2],
+                color=COLOURS['gt'], lw=1.0, ls='--', label='camera height, ground truth z')
+    lowest = [(s, float(np.nanmin(j[..., 2]))) for s, j in zip(run.joints.stamps_ns,
+                                                               run.joints.joints)
+              if len(j) and np.isfinite(j[..., 2]).any()]
+    if lowest:
+        stamps, z = np.array(lowest).T
+        ax.plot((stamps - t0) / NS, z, '.', ms=2, color='tab:green',
+                label='people: lowest joint z (/hac/human_joints)')
+    alignment = next((v.get('alignment') for _, v in reversed(run.diagnostics)
+                      if v.get('alignment')), None)
+    ax.set_title('Metric frame heights' + (f' (alignment {alignment})' if alignment else '')
+                 + ': z up, floor at 0 when gravity-aligned')
+    ax.set_xlabel('s')
+    ax.set_ylabel('z (m)')
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc='best', fontsize=8)
+    fig.savefig(path, dpi=DPI)
+    plt.close(fig)
+
+
 # ============================================================================ entry points
 def read_slam(path: str | Path) -> CameraTrack | None:
     """The raw SLAM camera track of a recording (/slam/pose, PoseStamped or Odometry), if any."""
@@ -309,7 +346,7 @@ def read_slam(path: str | Path) -> CameraTrack | None:
 
 def make_plots(output_path: str | Path, directory: str | Path,
                gt_path: str | Path | None = None) -> dict[str, Path]:
-    """Write the three figures into ``directory`` (created); returns name -> path."""
+    """Write the figures (FIGSIZE) into ``directory`` (created); returns name -> path."""
     import matplotlib
 
     matplotlib.use('Agg')
@@ -324,4 +361,5 @@ def make_plots(output_path: str | Path, directory: str | Path,
     plot_trajectories(paths['trajectories'], run, truth, slam)
     plot_scale(paths['scale'], run, truth)
     plot_fallback(paths['fallback'], run, truth)
+    plot_heights(paths['heights'], run, truth)
     return paths
