@@ -27,9 +27,11 @@ POSE = ('hac/pose', 'geometry_msgs/msg/PoseWithCovarianceStamped')
 HUMAN_JOINTS = ('hac/human_joints', 'geometry_msgs/msg/PoseArray')
 SCALE = ('hac/scale', 'std_msgs/msg/Float64')
 CLOUD = ('hac/cloud', 'sensor_msgs/msg/PointCloud2')
+OBSTACLES = ('hac/obstacles', 'sensor_msgs/msg/PointCloud2')  # publish_obstacles
 MARKERS = ('hac/markers', 'visualization_msgs/msg/MarkerArray')
 DIAGNOSTICS = ('/diagnostics', 'diagnostic_msgs/msg/DiagnosticArray')
-OUTPUT_TOPICS = (ODOMETRY, POSE, HUMAN_JOINTS, SCALE, CLOUD, MARKERS, DIAGNOSTICS)
+OUTPUT_TOPICS = (ODOMETRY, POSE, HUMAN_JOINTS, SCALE, CLOUD, OBSTACLES, MARKERS, DIAGNOSTICS)
+LATCHED_TOPICS = (CLOUD[0], OBSTACLES[0])  # reliable + transient local: late subscribers get them
 # Replay-only topic (not published by the node): one message per processed frame, at its stamp.
 # data = [person, scale, source, accepted] per person, scale in metres per SLAM unit (NaN when
 # rejected), source 0 = map hit, 1 = ground-plane fallback, 2 = rejected.
@@ -108,8 +110,14 @@ class OutputMessages:
                                       output.angular_velocity, output.twist_covariance)
             return [Message(*ODOMETRY, data, stamp)]
         if isinstance(output, CloudOut):
-            return [Message(*CLOUD, cdr_write.point_cloud_xyz32(stamp, frame, output.points_metric),
+            msgs = [Message(*CLOUD, cdr_write.point_cloud_xyz32(stamp, frame, output.points_metric),
                             stamp)]
+            if self.params.publish_obstacles and output.levelled:
+                z = output.points_metric[:, 2]
+                band = (z >= self.params.obstacle_min_height) & (z <= self.params.obstacle_max_height)
+                msgs.append(Message(*OBSTACLES, cdr_write.point_cloud_xyz32(
+                    stamp, frame, output.points_metric[band]), stamp))
+            return msgs
         if isinstance(output, HumanJointsOut):
             msgs = [Message(*HUMAN_JOINTS, cdr_write.pose_array(stamp, frame, output.joints_metric),
                             stamp)]

@@ -50,7 +50,7 @@ from hac_ros.core.outputs import NoticeOut, OdometryOut, Output, PoseOut, ResetO
 from hac_ros.core.params import NODE_NAME, POSE_MSGTYPES, HacParams, describe, names
 from hac_ros.core.reference import MapIndex
 from hac_ros.inputs import MapBuilder, add_camera_info_msg, add_joints_msg, add_pose_msg
-from hac_ros.messages import CLOUD, DIAGNOSTICS, OUTPUT_TOPICS, OutputMessages
+from hac_ros.messages import DIAGNOSTICS, LATCHED_TOPICS, OUTPUT_TOPICS, OutputMessages
 from hac_ros.node_parameters import (RESUBSCRIBE, ROS_OWN_PARAMETERS, SHELL_ONLY, TF_PARAMETERS,
                                      parameter_descriptor)
 from hac_ros.tf_broadcast import TfSender
@@ -87,8 +87,9 @@ def cloud_qos(params: HacParams) -> QoSProfile:
 
 
 def output_qos(topic: str) -> QoSProfile:
-    """Outputs: reliable; /hac/cloud also transient local (a late subscriber gets the map)."""
-    if topic == CLOUD[0]:
+    """Outputs: reliable; /hac/cloud and /hac/obstacles also transient local (a late subscriber
+    gets the map)."""
+    if topic in LATCHED_TOPICS:
         return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
                           reliability=ReliabilityPolicy.RELIABLE,
                           durability=DurabilityPolicy.TRANSIENT_LOCAL)

@@ -40,8 +40,8 @@ from hac_ros.core.outputs import (NoticeOut, Output, PendingFrame, PendingOdomet
                                   PoseOut, ResetOut, SampleOut, Status)
 from hac_ros.core.params import HacParams
 from hac_ros.feeder import CoreFeeder, InputTopics
-from hac_ros.messages import (CLOUD, MARKERS, OUTPUT_TOPICS, SAMPLES, Message, OutputMessages,
-                              in_root, samples_message)
+from hac_ros.messages import (CLOUD, LATCHED_TOPICS, MARKERS, OBSTACLES, OUTPUT_TOPICS, SAMPLES,
+                              Message, OutputMessages, in_root, samples_message)
 from hac_ros.recording import (STORAGES, OutputWriter, Recording, check_output_path,
                                staged_output)
 
@@ -207,10 +207,12 @@ def replay(input_path: str | Path, output_path: str | Path, params: HacParams | 
             writer = OutputWriter(staged, storage)
             try:
                 handler = OutputHandler(params, writer, printer, keep_poses=export_tum is not None)
+                off = {MARKERS[0]: not params.publish_markers, CLOUD[0]: not params.publish_cloud,
+                       OBSTACLES[0]: not (params.publish_cloud and params.publish_obstacles)}
                 for topic, msgtype in (*OUTPUT_TOPICS, SAMPLES):
-                    if ((topic != MARKERS[0] or params.publish_markers)
-                            and (topic != CLOUD[0] or params.publish_cloud)):
-                        writer.connection(in_root(topic), msgtype, latched=topic == CLOUD[0])
+                    if not off.get(topic, False):
+                        writer.connection(in_root(topic), msgtype,
+                                          latched=topic in LATCHED_TOPICS)
                 feeder = CoreFeeder(recording, topics,
                                     Calibrator(params, defer_metric=mode == 'offline'),
                                     keep_poses=export_tum is not None)

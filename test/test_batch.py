@@ -29,7 +29,6 @@ import pytest
 from hac_ros.batch import COLUMNS, batch, recording_name
 from hac_ros.batch_ray import RAY_MAX_RETRIES, probe_ray_address
 from hac_ros.core.errors import HacError
-from hac_ros.core.params import HacParams
 from hac_ros.recording import OutputWriter, Recording, recording_differences
 from hac_ros.replay import replay
 from hac_ros.simulate import make_scenario, write_recording

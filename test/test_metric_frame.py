@@ -221,3 +221,30 @@ def test_freeze_holds_the_scale_and_reset_starts_a_segment_without_an_odometry_j
             i, j = index[a.stamp_ns], index[b.stamp_ns]
             assert step == pytest.approx(true_steps[i + 1:j].sum(), rel=0.1)
     assert gaps == 1
+
+
+def test_the_obstacle_cloud_is_the_metric_maps_band_above_the_floor():
+    """publish_obstacles: /hac/obstacles with each /hac/cloud, its points between the two heights
+    (gravity alignment: z is the height above the floor)."""
+    from rosbags.typesys import Stores, get_typestore
+
+    from hac_ros.messages import CLOUD, OBSTACLES, OutputMessages
+    from msg_adapters import cloud_to_xyz
+
+    params = HacParams(publish_obstacles=True, obstacle_min_height=0.3, obstacle_max_height=1.5)
+    _, out = simulated_run('walk', 0, publish_obstacles=True, obstacle_min_height=0.3,
+                           obstacle_max_height=1.5)
+    messages = OutputMessages(params)
+    store = get_typestore(Stores.ROS2_JAZZY)
+    clouds = [o for o in out if isinstance(o, CloudOut)]
+    assert clouds and all(c.levelled for c in clouds)
+    for cloud in clouds:
+        msgs = {m.topic: store.deserialize_cdr(m.msg, m.msgtype) for m in messages.convert(cloud)}
+        assert set(msgs) == {CLOUD[0], OBSTACLES[0]}
+        obstacles = cloud_to_xyz(msgs[OBSTACLES[0]])
+        z = cloud.points_metric[:, 2]
+        assert len(obstacles) == np.count_nonzero((z >= 0.3) & (z <= 1.5)) > 0
+        assert obstacles[:, 2].min() >= 0.3 and obstacles[:, 2].max() <= 1.5
+        assert len(obstacles) < len(cloud.points_metric)  # the floor and the ceiling are out
+    with pytest.raises(Exception, match='obstacle_min_height'):
+        HacParams(obstacle_min_height=2.0, obstacle_max_height=1.0)

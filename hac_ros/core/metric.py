@@ -261,7 +261,8 @@ class MetricStage:
             return []
         cloud.due = False
         cloud.last = (stamp_ns, scale, placed)
-        return [CloudOut(stamp_ns, placed.point(cloud.points, scale).astype(np.float32))]
+        return [CloudOut(stamp_ns, placed.point(cloud.points, scale).astype(np.float32),
+                         placed.levelled)]
 
     # ------------------------------------------------------------------ diagnostics
     def status(self, pending: PendingStatus, scale: float | None) -> Status:

@@ -51,10 +51,12 @@ class PoseOut:
 
 @dataclass(slots=True)
 class CloudOut:
-    """/hac/cloud: the map in ``metric_frame``: points_metric (N, 3) float32, metres."""
+    """/hac/cloud: the map in ``metric_frame``: points_metric (N, 3) float32, metres;
+    ``levelled``: the frame is gravity-aligned (z up, the floor at z = 0)."""
 
     stamp_ns: int
     points_metric: np.ndarray
+    levelled: bool = False
 
 
 @dataclass(slots=True)

@@ -97,6 +97,13 @@ class HacParams:
                                    'seconds', low=0.0, high=1e6)
     cloud_out_max_points: int = _p(200_000, 'points of /hac/cloud at most (the map thinned evenly)',
                                    low=1, high=100_000_000)
+    publish_obstacles: bool = _p(False, 'publish /hac/obstacles with /hac/cloud: its points between '
+                                 'obstacle_min_height and obstacle_max_height above the floor '
+                                 '(gravity alignment only), for costmaps')
+    obstacle_min_height: float = _p(0.1, 'lowest obstacle point above the floor, metres',
+                                    low=-10.0, high=100.0)
+    obstacle_max_height: float = _p(2.0, 'highest obstacle point above the floor, metres',
+                                    low=-10.0, high=100.0)
     human_filter: str = _p('smooth', 'world humans: none (the joints as they come) or smooth (each '
                            "person's world root filtered: causally online, zero-phase offline)",
                            choices=HUMAN_FILTERS)
@@ -151,6 +158,8 @@ class HacParams:
             _check(f, value)
         if self.reference_mode == 'cone_median' and self.cone_min_points < 1:
             raise ParameterError('cone_min_points: must be >= 1')
+        if self.obstacle_min_height >= self.obstacle_max_height:
+            raise ParameterError('obstacle_min_height: must be below obstacle_max_height')
         q = self.base_to_camera[3:]
         if abs(math.sqrt(sum(x * x for x in q)) - 1.0) > 1e-3:
             raise ParameterError('base_to_camera: the quaternion (last 4 values) must be unit')
