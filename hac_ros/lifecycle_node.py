@@ -22,13 +22,11 @@ from __future__ import annotations
 import sys
 from typing import Any
 
-import rclpy
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 
 from hac_ros.core.errors import ParameterError
 from hac_ros.core.params import NODE_NAME
-from hac_ros.node import SHUTDOWN_POLL_S, HacShell
+from hac_ros.node import HacShell, run
 
 SUCCESS = TransitionCallbackReturn.SUCCESS
 FAILURE = TransitionCallbackReturn.FAILURE
@@ -86,27 +84,10 @@ class HacLifecycleNode(HacShell, LifecycleNode):
 
 
 def main(args: list[str] | None = None) -> int:
-    """init → spin (unconfigured until a manager or ``ros2 lifecycle set`` moves it) → clean
-    shutdown on SIGINT/SIGTERM (exit code 0)."""
-    rclpy.init(args=args)
-    executor = SingleThreadedExecutor()
-    node = None
-    try:
-        node = HacLifecycleNode()
-        executor.add_node(node)
-        while rclpy.ok():
-            executor.spin_once(timeout_sec=SHUTDOWN_POLL_S)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except Exception:
-        if rclpy.ok():
-            raise
-    finally:
-        executor.shutdown()
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    """``hac_lifecycle_node``: unconfigured until a manager or ``ros2 lifecycle set`` moves it;
+    clean shutdown on SIGINT/SIGTERM (exit code 0), 2 on an invalid parameter value at start-up
+    (hac_ros.node.run)."""
+    return run(HacLifecycleNode, args)
 
 
 if __name__ == '__main__':

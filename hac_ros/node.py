@@ -470,7 +470,13 @@ def _deserialize(data: bytes, msg_type: type) -> Any:
 SHUTDOWN_POLL_S = 0.5
 
 def main(args: list[str] | None = None) -> int:
-    """init → spin → clean shutdown on SIGINT/SIGTERM (exit code 0); 2 on invalid parameters.
+    """``hac_node``: :func:`run` of :class:`HacNode`."""
+    return run(HacNode, args)
+
+
+def run(node_class: type, args: list[str] | None = None) -> int:
+    """init → spin ``node_class()`` → clean shutdown on SIGINT/SIGTERM (exit code 0); 2 on
+    invalid parameters.
 
     The executor is made before the node so that a signal during start-up finds it complete.
     """
@@ -478,7 +484,7 @@ def main(args: list[str] | None = None) -> int:
     executor = SingleThreadedExecutor()
     node = None
     try:
-        node = HacNode()
+        node = node_class()
         executor.add_node(node)
         while rclpy.ok():  # not executor.spin(): see SHUTDOWN_POLL_S
             executor.spin_once(timeout_sec=SHUTDOWN_POLL_S)

@@ -146,11 +146,18 @@ def plot_trajectories(path: Path, run: Replayed, truth: Truth | None,
             ax.plot(xy[:, 0], xy[:, 1], color=COLOURS['gt'], lw=1.0, ls=':',
                     label='people, ground truth' if k == 0 else None)
     ax.set_aspect('equal', adjustable='datalim')
-    ax.set_xlabel('m')
-    ax.set_ylabel('m')
     frame = 'ground-truth world' if reference_camera is not None else 'metric frame'
-    ax.set_title(f'Top-down view ({frame}; replay SE(3)-aligned to it)' if fit is not None
-                 else f'Top-down view ({frame})')
+    _finish(fig, ax, path, f'Top-down view ({frame}; replay SE(3)-aligned to it)'
+            if fit is not None else f'Top-down view ({frame})', 'm', 'm')
+
+
+def _finish(fig: Any, ax: Any, path: Path, title: str, xlabel: str, ylabel: str) -> None:
+    """Title, axis labels, grid and legend of a one-axes figure; saved to ``path`` and closed."""
+    import matplotlib.pyplot as plt
+
+    ax.set_title(title)
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
     ax.grid(True, alpha=0.3)
     ax.legend(loc='best', fontsize=8)
     fig.savefig(path, dpi=DPI)
@@ -227,13 +234,8 @@ def plot_scale(path: Path, run: Replayed, truth: Truth | None) -> None:
         ax.axvline((stamp - t0) / NS, color=COLOURS['reset'], ls=':', lw=1.5,
                    label='reset (SLAM re-initialised)' if k == 0 else None)
     _focus_scale_axis(ax, run, truth)
-    ax.set_xlabel('stamp time (s)')
-    ax.set_ylabel('scale (m per SLAM unit)')
-    ax.set_title('Scale: per-frame samples, estimate and truth')
-    ax.grid(True, alpha=0.3)
-    ax.legend(loc='best', fontsize=8)
-    fig.savefig(path, dpi=DPI)
-    plt.close(fig)
+    _finish(fig, ax, path, 'Scale: per-frame samples, estimate and truth', 'stamp time (s)',
+            'scale (m per SLAM unit)')
 
 
 def _focus_scale_axis(ax: Any, run: Replayed, truth: Truth | None) -> None:
@@ -325,14 +327,9 @@ def plot_heights(path: Path, run: Replayed, truth: Truth | None) -> None:
                 label='people: lowest joint z (/hac/human_joints)')
     alignment = next((v.get('alignment') for _, v in reversed(run.diagnostics)
                       if v.get('alignment')), None)
-    ax.set_title('Metric frame heights' + (f' (alignment {alignment})' if alignment else '')
-                 + ': z up, floor at 0 when gravity-aligned')
-    ax.set_xlabel('s')
-    ax.set_ylabel('z (m)')
-    ax.grid(True, alpha=0.3)
-    ax.legend(loc='best', fontsize=8)
-    fig.savefig(path, dpi=DPI)
-    plt.close(fig)
+    _finish(fig, ax, path, 'Metric frame heights' + (f' (alignment {alignment})' if alignment
+                                                      else '') + ': z up, floor at 0 when gravity-aligned',
+            'stamp time (s)', 'z (m)')
 
 
 # ============================================================================ entry points
