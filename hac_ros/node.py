@@ -344,9 +344,13 @@ class HacShell:
         for output in outputs:
             if isinstance(output, NoticeOut):
                 self.notices[output.cause] += 1
-                log = {'info': self.get_logger().info, 'error': self.get_logger().error}.get(
-                    output.level, self.get_logger().warning)
-                log(output.text)
+                # one call site per severity: rclpy refuses a call site whose severity changes
+                if output.level == 'info':
+                    self.get_logger().info(output.text)
+                elif output.level == 'error':
+                    self.get_logger().error(output.text)
+                else:
+                    self.get_logger().warning(output.text)
                 continue
             if isinstance(output, ResetOut):
                 continue  # announced by the NoticeOut that comes with it; counted in diagnostics

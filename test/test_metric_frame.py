@@ -248,3 +248,67 @@ def test_the_obstacle_cloud_is_the_metric_maps_band_above_the_floor():
         assert len(obstacles) < len(cloud.points_metric)  # the floor and the ceiling are out
     with pytest.raises(Exception, match='obstacle_min_height'):
         HacParams(obstacle_min_height=2.0, obstacle_max_height=1.0)
+
+
+# ============================================================================ input conventions
+BODY_TO_OPTICAL = [-0.5, 0.5, -0.5, 0.5]  # x-forward, z-up camera body frame (SPEC)
+
+
+def _run(sc, params: HacParams, pose_rotation=None, joints_fn=None, camera_info: bool = True):
+    cal = Calibrator(params)
+    out: list = cal.add_camera_info(sc.K, sc.width, sc.height, sc.camera_frame) if camera_info else []
+    for t, kind, payload in scenario_events(sc):
+        if kind == 'pose' and pose_rotation is not None:
+            payload = (payload[0] @ pose_rotation, *payload[1:])
+        if kind == 'joints' and joints_fn is not None:
+            payload = (joints_fn(np.asarray(payload[0])), *payload[1:])
+        out += {'map': cal.add_map, 'pose': cal.add_pose, 'joints': cal.add_joints}[kind](t, *payload)
+    return out
+
+
+def test_body_frame_poses_with_pose_to_optical_calibrate_like_optical_ones():
+    from scipy.spatial.transform import Rotation
+
+    sc = make_scenario('walk', seed=4, hmr_bias=0.0, duration=15.0)
+    R_child_optical = Rotation.from_quat(BODY_TO_OPTICAL).as_matrix()
+    optical = _run(sc, HacParams())
+    body = _run(sc, HacParams(pose_to_optical=BODY_TO_OPTICAL), pose_rotation=R_child_optical.T)
+    a = [o.scale for o in optical if isinstance(o, ScaleOut)]
+    b = [o.scale for o in body if isinstance(o, ScaleOut)]
+    assert len(a) == len(b) > 100
+    np.testing.assert_allclose(b, a, rtol=1e-9)
+    # the same body-frame poses read as optical: the rays miss, the scale is far off or absent
+    wrong = [o.scale for o in _run(sc, HacParams(), pose_rotation=R_child_optical.T)
+             if isinstance(o, ScaleOut)]
+    assert not wrong or abs(np.median(wrong) / sc.true_scale[0] - 1) > 0.1
+
+
+def test_hmr_focal_px_undoes_a_focal_length_mismatch():
+    """An HMR model that assumed f_a = 800 px on a camera of fx puts each person at f_a/fx times
+    the true depth (x, y right); hmr_focal_px: 800 moves them back."""
+    sc = make_scenario('walk', seed=5, hmr_bias=0.0, duration=15.0)
+    fx, f_a = float(sc.K[0, 0]), 800.0
+
+    def assumed(joints: np.ndarray) -> np.ndarray:
+        out = joints.copy()
+        out[:, :, 2] += joints[:, :1, 2] * (f_a / fx - 1.0)
+        return out
+
+    def final(outputs: list) -> float:
+        return [o.scale for o in outputs if isinstance(o, ScaleOut)][-1] / float(sc.true_scale[-1])
+
+    baseline = final(_run(sc, HacParams()))
+    wrong = final(_run(sc, HacParams(), joints_fn=assumed))
+    fixed_out = _run(sc, HacParams(hmr_focal_px=f_a), joints_fn=assumed)
+    assert abs(wrong - 1.0) > 0.5 * abs(f_a / fx - 1.0)  # the mismatch shows in the scale
+    assert abs(final(fixed_out) - baseline) < 0.005
+    notes = [o.text for o in fixed_out if isinstance(o, NoticeOut) and o.cause == 'hmr_focal']
+    assert len(notes) == 1 and '800.0 px' in notes[0]
+    plain = [o.text for o in _run(sc, HacParams()) if isinstance(o, NoticeOut)
+             and o.cause == 'hmr_focal']
+    assert len(plain) == 1 and 'hmr_focal_px 0' in plain[0]
+    # without CameraInfo: one clear warning, depths uncorrected
+    blind = _run(sc, HacParams(hmr_focal_px=f_a), joints_fn=assumed, camera_info=False)
+    assert [o.cause for o in blind if isinstance(o, NoticeOut)].count('hmr_focal_no_camera_info') == 1
+    with pytest.raises(Exception, match='pose_to_optical'):
+        HacParams(pose_to_optical=[0.0, 0.0, 0.0, 2.0])

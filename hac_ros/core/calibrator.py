@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hac_ros.core.conventions import Conventions
 from hac_ros.core.estimator import RollingScale
 from hac_ros.core.ground import GroundModel, Plane
 from hac_ros.core.humans import RootFilter
@@ -96,6 +97,7 @@ class Calibrator:
         self._frozen: float | None = None
         self._frozen_hold = False
         self.frozen_samples = 0  # samples taken while frozen: counted, not used
+        self.conventions = Conventions(p.pose_to_optical, p.hmr_focal_px)
         # what depends on the published scale: the segments' placements, the continuous
         # odometry, the cloud (hac_ros.core.metric)
         self.metric = MetricStage(StageConfig.from_params(p),
@@ -108,21 +110,22 @@ class Calibrator:
         if K.shape != (3, 3) or not np.all(np.isfinite(K)) or K[0, 0] <= 0 or K[1, 1] <= 0 \
                 or width <= 0 or height <= 0:
             return self.reject('camera_info_invalid', self._last_frame_ns)
+        first = self._K is None
         self._K, self._image_size = K, (int(width), int(height))
-        return []
+        return self.conventions.camera_info_notes(self._last_frame_ns, K) if first else []
 
     def add_pose(self, stamp_ns: int, R_wc: np.ndarray, c_map: np.ndarray, frame_id: str = '',
                  child_frame_id: str = '') -> list[Output]:
         """A SLAM pose: camera-to-map rotation (3, 3) and camera centre (3,), SLAM units, map frame."""
         out: list[Output] = []
-        R_wc = np.asarray(R_wc, dtype=float)
+        R_wc = self.conventions.pose(np.asarray(R_wc, dtype=float))
         c_map = np.asarray(c_map, dtype=float)
         if not (is_rotation(R_wc, 1e-3) and c_map.shape == (3,) and np.all(np.isfinite(c_map))):
             return self.reject('pose_nonfinite', stamp_ns)
         newest = self.track.newest_stamp_ns
         if newest is not None and stamp_ns <= newest:
             return self.reject('pose_out_of_order', stamp_ns)
-        if child_frame_id and not self.params.camera_frame:
+        if child_frame_id and not self.params.camera_frame and self.conventions.optical_poses:
             self._child_frame = child_frame_id
         pose = Pose(int(stamp_ns), R_wc, c_map)
 
@@ -197,16 +200,16 @@ class Calibrator:
                 return self.reject('joints_wrong_frame', stamp_ns)
         if stamp_ns <= self._last_frame_ns:
             return self.reject('late_frame', stamp_ns)
+        joints_cam, out = self.conventions.joints(stamp_ns, joints_cam, self._K)
         frame = _Frame(int(stamp_ns), joints_cam)
         last = self.track.last
         if last is not None and last.stamp_ns >= stamp_ns and not self.track.suspects:
-            return self._process(frame)
+            return out + self._process(frame)
         stamps = [f.stamp_ns for f in self._pending]
         pos = bisect.bisect_right(stamps, frame.stamp_ns)
         if pos and stamps[pos - 1] == frame.stamp_ns:
             return self.reject('late_frame', stamp_ns)  # a repeated stamp
         self._pending.insert(pos, frame)
-        out: list[Output] = []
         while len(self._pending) > self.params.pose_buffer:
             dropped = self._pending.pop(0)
             out += self.reject('pending_overflow', dropped.stamp_ns)

@@ -140,6 +140,12 @@ class HacParams:
     base_frame: str = _p('', 'if set, /hac/odometry and /hac/pose describe this frame instead of the camera')
     base_to_camera: list = _p([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0],
                               'camera pose in base_frame: x y z qx qy qz qw (metres)', length=7)
+    pose_to_optical: list = _p([0.0, 0.0, 0.0, 1.0], 'rotation (x y z w) of the camera optical '
+                               'frame in the SLAM pose\'s child frame; [-0.5, 0.5, -0.5, 0.5] for an '
+                               'x-forward, z-up camera body frame', length=4)
+    hmr_focal_px: float = _p(0.0, 'focal length (pixels, CameraInfo\'s resolution) the HMR model '
+                             'assumed when placing people in depth; 0 = the camera\'s own '
+                             '(needs CameraInfo)', low=0.0, high=1e6)
     orientation_variance: float = _p(1e-4, 'variance reported for each orientation axis, rad^2',
                                      low=0.0, high=1e6)
     publish_tf: bool = _p(False, 'broadcast metric_frame -> odom_frame on TF, the correction that '
@@ -160,6 +166,8 @@ class HacParams:
             raise ParameterError('cone_min_points: must be >= 1')
         if self.obstacle_min_height >= self.obstacle_max_height:
             raise ParameterError('obstacle_min_height: must be below obstacle_max_height')
+        if abs(math.sqrt(sum(x * x for x in self.pose_to_optical)) - 1.0) > 1e-3:
+            raise ParameterError('pose_to_optical: the quaternion (x y z w) must be unit')
         q = self.base_to_camera[3:]
         if abs(math.sqrt(sum(x * x for x in q)) - 1.0) > 1e-3:
             raise ParameterError('base_to_camera: the quaternion (last 4 values) must be unit')

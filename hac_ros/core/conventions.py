@@ -1,0 +1,91 @@
+"""Input conventions other than SPEC's defaults (SPEC, Parameters): body-frame SLAM poses
+(``pose_to_optical``) and an HMR model that assumed another focal length (``hmr_focal_px``).
+
+Both are applied where the inputs enter the :class:`~hac_ros.core.calibrator.Calibrator`, so
+everything after sees optical-frame poses and depths at the camera's own focal length. Pure numpy.
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from hac_ros.core.outputs import NoticeOut
+
+ROOT_JOINT = 0  # SMPL-24's pelvis: the person's depth (the layouts' roots: issue 21, joint_layout)
+
+
+def optical_rotation(pose_to_optical: list[float]) -> np.ndarray | None:
+    """R(q) (3, 3), the camera optical frame in the SLAM pose's child frame (q = x, y, z, w); None
+    for the identity (the SLAM publishes optical-frame poses)."""
+    q = np.asarray(pose_to_optical, dtype=float)
+    q = q / np.linalg.norm(q)
+    if abs(abs(q[3]) - 1.0) < 1e-12:
+        return None
+    return Rotation.from_quat(q).as_matrix()
+
+
+def to_optical(R_map_child: np.ndarray, R_child_optical: np.ndarray | None) -> np.ndarray:
+    """R_map_optical = R_map_child · R(q) (3, 3); the position is unchanged."""
+    return R_map_child if R_child_optical is None else R_map_child @ R_child_optical
+
+
+def refocus_depth(joints_cam: np.ndarray, fx: float, hmr_focal_px: float) -> np.ndarray:
+    """Joints (P, J, 3) metres, camera optical frame, as an HMR model with focal length
+    ``hmr_focal_px`` placed them, moved to the depth the camera's ``fx`` (pixels, CameraInfo's
+    resolution) gives: each person at f/f_a times its root's depth, x and y unchanged, so every
+    joint's z moves by z_root · (f/f_a − 1)."""
+    shift = joints_cam[:, ROOT_JOINT:ROOT_JOINT + 1, 2] * (fx / hmr_focal_px - 1.0)  # (P, 1)
+    out = joints_cam.copy()
+    out[:, :, 2] += shift
+    return out
+
+
+NO_CAMERA_INFO = ('hmr_focal_px is set but no CameraInfo has arrived: HMR depths are used '
+                  'uncorrected until it does')
+
+
+def focal_note(fx: float, hmr_focal_px: float) -> str:
+    """The start-up line saying which focal length the HMR depths are taken at."""
+    if not hmr_focal_px:
+        return (f'HMR depth taken at the camera\'s focal length fx = {fx:.1f} px (hmr_focal_px 0): '
+                'if the HMR model assumed another (e.g. one derived from the image size), set '
+                'hmr_focal_px')
+    return (f'HMR depth corrected from the focal length it assumed, {hmr_focal_px:.1f} px '
+            f'(hmr_focal_px), to the camera\'s fx = {fx:.1f} px')
+
+
+class Conventions:
+    """The calibrator's door for poses and joints: ``pose_to_optical`` and ``hmr_focal_px``
+    applied, with the notices they call for."""
+
+    def __init__(self, pose_to_optical: list[float], hmr_focal_px: float) -> None:
+        self.R_child_optical = optical_rotation(pose_to_optical)
+        self.hmr_focal_px = float(hmr_focal_px)
+        self._warned = False
+
+    @property
+    def optical_poses(self) -> bool:
+        """The SLAM poses are the optical frame's (their child frame names the camera)."""
+        return self.R_child_optical is None
+
+    def pose(self, R_map_child: np.ndarray) -> np.ndarray:
+        """The SLAM pose's rotation (3, 3) -> the optical frame's in the map."""
+        return to_optical(R_map_child, self.R_child_optical)
+
+    def camera_info_notes(self, stamp_ns: int, K: np.ndarray) -> list[NoticeOut]:
+        """The first CameraInfo: one line saying which focal length the HMR depth is taken at."""
+        return [NoticeOut(stamp_ns, 'hmr_focal', focal_note(float(K[0, 0]), self.hmr_focal_px),
+                          'info')]
+
+    def joints(self, stamp_ns: int, joints_cam: np.ndarray, K: np.ndarray | None
+               ) -> tuple[np.ndarray, list[NoticeOut]]:
+        """(P, J, 3) metres, optical frame -> at the camera's focal length (with a warning, once,
+        while hmr_focal_px is set and no CameraInfo has come)."""
+        if not self.hmr_focal_px:
+            return joints_cam, []
+        if K is not None:
+            return refocus_depth(joints_cam, float(K[0, 0]), self.hmr_focal_px), []
+        if self._warned:
+            return joints_cam, []
+        self._warned = True
+        return joints_cam, [NoticeOut(stamp_ns, 'hmr_focal_no_camera_info', NO_CAMERA_INFO, 'warn')]
