@@ -1,0 +1,231 @@
+"""One scene through the core (our configurations) and through the literal authors' method.
+
+A scene is a simulated scenario (``hac_ros.simulate``) or a real-data composite (bench/composite.py)
+turned into the calibrator's inputs in SPEC's order plus the truth. Per run:
+
+- offline (the replay's default): the deferred outputs resolved with the offline schedule
+  (hac_ros.core.offline) exactly as ``hac replay`` does; the scale error is taken frame by frame
+  against the truth of that moment (median over the frames), so drifting and reset recordings are
+  judged like constant ones;
+- online (causal, what hac_node publishes): the median error over the published scales, the error
+  at the end, and the time from the first joints frame to the moment after which every published
+  scale is within 5 % of the truth;
+- W-MPJPE (mm) of the world joints, each person a track (SPEC, Metrics): unfiltered (what the
+  targets compare with the literal method) and with the offline human filter (``smooth``). Each
+  configuration's figures are taken on the joints frames both it and the literal method publish,
+  and the literal method's W-MPJPE on those same frames is reported beside them
+  (``w_mpjpe_literal``): W-MPJPE aligns each 100-frame chunk on its first two frames, so one frame
+  more or less at the start shifts every chunk and moves the figure by tens of millimetres.
+
+The literal authors' method (their code, as issue 19 states it): per frame every joint's ray
+against every map point (cone cos > 0.999, the median distance of the points in the cone), the
+largest ratio over the joints is the frame's scale, one median over the frames; world joints
+``R_wc J + s c`` in the SLAM frame.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from hac_ros.core import metrics
+from hac_ros.core.calibrator import Calibrator
+from hac_ros.core.humans import smooth_outputs
+from hac_ros.core.offline import offline_scale
+from hac_ros.core.outputs import HumanJointsOut, ResetOut, SampleOut, ScaleOut
+from hac_ros.core.params import HacParams
+
+AUTHORS_COS = 0.999
+CONVERGED_REL = 0.05
+
+
+@dataclass
+class Scene:
+    """Inputs and truth of one recording (frames and units in the names).
+
+    events: (stamp ns, 'map' | 'pose' | 'joints', payload) in processing order (maps: (points
+    (N, 3) SLAM units, frame id); poses: (R_wc, c SLAM units, frame id); joints: (joints (P, 24, 3)
+    metres camera frame, frame id)); K, width, height: the camera; true_scale_at(stamps) ->
+    metres per SLAM unit; joints_world[k] (P, 24, 3) metres and person_ids[k] (P,) at the joints
+    frames, in the order of the joints events.
+    """
+
+    name: str
+    seed: int
+    events: list[tuple[int, str, tuple]]
+    K: np.ndarray
+    width: int
+    height: int
+    pose_stamps_ns: np.ndarray
+    true_scale: np.ndarray  # (T,) at the pose stamps
+    joints_world: list[np.ndarray]
+    person_ids: list[np.ndarray]
+
+    def true_scale_at(self, stamps_ns: np.ndarray) -> np.ndarray:
+        i = np.searchsorted(self.pose_stamps_ns, np.asarray(stamps_ns), side='right') - 1
+        return self.true_scale[np.clip(i, 0, len(self.true_scale) - 1)]
+
+
+def scene_from_scenario(sc: Any) -> Scene:
+    from hac_ros.simulate.feed import scenario_events
+
+    return Scene(sc.name, sc.seed, list(scenario_events(sc)), sc.K, sc.width, sc.height,
+                 np.asarray(sc.pose_stamps_ns), np.broadcast_to(sc.true_scale,
+                                                                (len(sc.pose_stamps_ns),)).copy(),
+                 list(sc.gt_joints_world), list(sc.person_ids))
+
+
+def scene_from_composite(data: Any, seed: int) -> Scene:
+    from composite import events
+
+    return Scene(f'composite:{data.name}', seed, events(data), data.K, 640, 480,
+                 np.asarray(data.stamps_ns), np.full(len(data.stamps_ns), data.scale_fit),
+                 [j[None] for j in data.joints_world], [np.array([0])] * len(data.joints_world))
+
+
+def feed(cal: Calibrator, scene: Scene) -> list[Any]:
+    out = list(cal.add_camera_info(scene.K, scene.width, scene.height, 'camera'))
+    for stamp, kind, payload in scene.events:
+        if kind == 'map':
+            out += cal.add_map(stamp, *payload)
+        elif kind == 'pose':
+            out += cal.add_pose(stamp, *payload)
+        else:
+            out += cal.add_joints(stamp, *payload)
+    return out + cal.flush()
+
+
+def w_mpjpe(scene: Scene, stamps_ns: list[int], joints: list[np.ndarray]) -> float:
+    """W-MPJPE (mm) of world joints at joints-frame stamps against the truth, per person track,
+    weighted by each track's frames."""
+    frame_of = {int(s): k for k, s in enumerate(_joint_stamps(scene))}
+    tracks: dict[int, tuple[list, list]] = {}
+    for stamp, people in zip(stamps_ns, joints):
+        k = frame_of.get(int(stamp))
+        if k is None:
+            continue
+        for p, pid in enumerate(scene.person_ids[k]):
+            if p < len(people) and np.isfinite(people[p]).all():
+                pred, gt = tracks.setdefault(int(pid), ([], []))
+                pred.append(people[p])
+                gt.append(scene.joints_world[k][p])
+    values = [(metrics.w_mpjpe(np.array(p), np.array(g)), len(p)) for p, g in tracks.values()
+              if len(p) >= 2]
+    total = sum(n for _, n in values)
+    return sum(v * n for v, n in values) / total if total else math.nan
+
+
+def _joint_stamps(scene: Scene) -> list[int]:
+    return [s for s, kind, _ in scene.events if kind == 'joints']
+
+
+World = dict[int, np.ndarray]  # joints stamp ns -> world joints (P, 24, 3) metres
+
+
+def run_ours(scene: Scene, params: HacParams, literal: World, online: bool = False
+             ) -> dict[str, float]:
+    """Our offline figures (and the online ones when asked) for one configuration; ``literal``:
+    the literal method's world joints, for W-MPJPE on the frames both publish."""
+    cal = Calibrator(params, defer_metric=True)
+    deferred = feed(cal, scene)
+    samples = [o for o in deferred if isinstance(o, SampleOut) and o.accepted]
+    resets = [o.stamp_ns for o in deferred if isinstance(o, ResetOut)]
+    out: dict[str, float] = {'samples': len(samples)}
+    if len(samples) < params.min_samples:
+        return {**out, 'scale_err': math.nan, 'scale_bias': math.nan, 'w_mpjpe': math.nan}
+    schedule = offline_scale(np.array([s.stamp_ns for s in samples], dtype=np.int64),
+                             np.array([s.scale for s in samples]), resets, params.window_s,
+                             params.min_samples)
+    resolved = cal.metric.fresh().resolve(deferred, schedule, schedule.error)
+    frames = [o for o in resolved if isinstance(o, ScaleOut)]
+    signed = _signed_errors(scene, frames)
+    humans = [o for o in resolved if isinstance(o, HumanJointsOut)]
+    raw = w_mpjpe(scene, *_common(humans, literal))
+    smooth_outputs(humans)  # the replay's offline human_filter: smooth
+    common = _common(humans, literal)
+    out.update(scale_bias=float(np.median(signed)), scale_err=float(np.median(np.abs(signed))),
+               w_mpjpe=raw, w_mpjpe_filtered=w_mpjpe(scene, *common),
+               w_mpjpe_literal=w_mpjpe(scene, common[0], [literal[t] for t in common[0]]),
+               fallback_pct=100.0 * cal.status().fallback_rate)
+    out['w_mpjpe_vs_literal'] = out['w_mpjpe'] - out['w_mpjpe_literal']
+    if online:
+        out.update(_online(scene, params))
+    return out
+
+
+def _common(humans: list[HumanJointsOut], literal: World) -> tuple[list[int], list[np.ndarray]]:
+    """Stamps and joints of ``humans`` at the frames the literal method also published."""
+    kept = [o for o in humans if o.stamp_ns in literal]
+    return [o.stamp_ns for o in kept], [o.joints_metric for o in kept]
+
+
+def _signed_errors(scene: Scene, scales: list[ScaleOut]) -> np.ndarray:
+    """Per published scale, its signed relative error against the truth of that moment, %."""
+    stamps = np.array([o.stamp_ns for o in scales], dtype=np.int64)
+    values = np.array([o.scale for o in scales])
+    return 100.0 * (values / scene.true_scale_at(stamps) - 1.0) if len(values) else np.full(1, np.nan)
+
+
+def _online(scene: Scene, params: HacParams) -> dict[str, float]:
+    outputs = feed(Calibrator(params), scene)
+    scales = [o for o in outputs if isinstance(o, ScaleOut)]
+    signed = _signed_errors(scene, scales)
+    joint_stamps = _joint_stamps(scene)
+    converged = math.nan
+    if len(scales) and joint_stamps:
+        bad = np.flatnonzero(np.abs(signed) > 100.0 * CONVERGED_REL)
+        first_good = 0 if not bad.size else int(bad[-1]) + 1
+        if first_good < len(scales):
+            converged = (scales[first_good].stamp_ns - joint_stamps[0]) / 1e9
+    return {'online_err': float(np.median(np.abs(signed))),
+            'online_final_err': float(abs(signed[-1])), 'converged_s': converged}
+
+
+def run_literal(scene: Scene) -> tuple[dict[str, float], World]:
+    """The literal authors' method on ``scene`` (module docstring): its figures and its world
+    joints per frame."""
+    maps: list[tuple[int, np.ndarray]] = []
+    poses: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+    frames: list[tuple[int, np.ndarray, float]] = []  # stamp, joints, sample
+    for stamp, kind, payload in scene.events:
+        if kind == 'map':
+            maps.append((stamp, np.asarray(payload[0], dtype=float)))
+        elif kind == 'pose':
+            poses[stamp] = (payload[0], payload[1])
+        elif maps and stamp in poses:
+            R, c = poses[stamp]
+            for person in payload[0]:
+                frames.append((stamp, person, _max_ratio(maps[-1][1], R, c, person)))
+    samples = np.array([s for _, _, s in frames])
+    samples = samples[np.isfinite(samples)]
+    if not samples.size:
+        return {'scale_err': math.nan, 'scale_bias': math.nan, 'w_mpjpe': math.nan}, {}
+    s = float(np.median(samples))
+    signed = 100.0 * (s / scene.true_scale_at(np.array(sorted(poses))) - 1.0)
+    world: dict[int, list[np.ndarray]] = {}
+    for stamp, person, _ in frames:
+        R, c = poses[stamp]
+        world.setdefault(stamp, []).append(person @ R.T + s * c)
+    stamps = sorted(world)
+    joints = {t: np.array(world[t]) for t in stamps}
+    return {'scale_bias': float(np.median(signed)), 'scale_err': float(np.median(np.abs(signed))),
+            'w_mpjpe': w_mpjpe(scene, stamps, [joints[t] for t in stamps]),
+            'samples': int(samples.size)}, joints
+
+
+def _max_ratio(points: np.ndarray, R_wc: np.ndarray, c: np.ndarray, joints: np.ndarray) -> float:
+    """The authors' per-frame scale: every joint's cone median over every map point, the largest
+    ratio ||J|| / d_S; NaN when no joint's cone holds a point."""
+    v = points - c
+    dist = np.linalg.norm(v, axis=1)
+    depth = np.linalg.norm(joints, axis=1)
+    rays = (joints / depth[:, None]) @ R_wc.T  # (24, 3) unit, map frame
+    inside = (v @ rays.T) > AUTHORS_COS * dist[:, None]  # (N, 24)
+    best = math.nan
+    for j in range(len(joints)):
+        if joints[j, 2] > 0.0 and inside[:, j].any():
+            ratio = depth[j] / float(np.median(dist[inside[:, j]]))
+            best = ratio if not ratio <= best else best
+    return best
