@@ -26,6 +26,7 @@ Run: ``ros2 run hac_ros hac_node --ros-args --params-file config/hac.yaml`` or
 """
 from __future__ import annotations
 
+import signal
 import sys
 import traceback
 from collections import Counter, deque
@@ -43,6 +44,7 @@ from rclpy.parameter import Parameter
 from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy,
                        qos_policy_name_from_kind)
 from rclpy.serialization import deserialize_message
+from rclpy.signals import SignalHandlerOptions
 
 from hac_ros.core.calibrator import Calibrator
 from hac_ros.core.errors import ParameterError
@@ -133,9 +135,6 @@ class HacShell:
         self._warn_unknown_overrides()
         self.add_on_set_parameters_callback(self._validate_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
-        # a finished map wakes the executor, which hands it to the calibrator on its own thread
-        # (made once: a guard condition made inside a callback is not waited on, rclpy Jazzy)
-        self._maps_ready = self.create_guard_condition(self._on_maps_ready)
 
     def _configure(self) -> None:
         """Reads the parameters (ParameterError with the reason) and makes the state."""
@@ -156,6 +155,8 @@ class HacShell:
         self._failed_callbacks: set[str] = set()
         self._builder = MapBuilder(self._build_index, workers=1)
         self._maps_building: deque[Future] = deque()  # in arrival order
+        # a finished map wakes the executor, which hands it to the calibrator on its own thread
+        self._maps_ready = self.create_guard_condition(self._on_maps_ready)
         self._output_publishers: dict[str, Any] = {}
         self._subscriptions_by_kind: dict[str, Any] = {}
         self._hac_services: list[Any] = []
@@ -197,6 +198,7 @@ class HacShell:
         if self.calibrator is None:
             return
         self._builder.close()
+        self.destroy_guard_condition(self._maps_ready)
         self.calibrator = None
 
     def _warn_unknown_overrides(self) -> None:
@@ -468,9 +470,11 @@ def _deserialize(data: bytes, msg_type: type) -> Any:
 
 
 # ---------------------------------------------------------------------------------------- main
-# rclpy (Jazzy) wakes the executor on SIGINT/SIGTERM and shuts the context down; when the wake-up is
-# seen before the shutdown, executor.spin() goes back to waiting forever (seen about once in 25
-# SIGTERMs shortly after start-up). Waiting at most this long lets the loop see the shutdown.
+# SIGINT and SIGTERM are Python's here, not rclpy's: rclpy's (Jazzy) signal thread triggers the
+# executor's guard condition while the main thread may already be destroying it (a segfault at
+# shutdown, about once in 30 SIGINTs, core dump in rcl_trigger_guard_condition), and its wake-up
+# could be seen before the context's shutdown, leaving executor.spin() waiting forever. A Python
+# handler only sets a flag; the loop sees it within this long.
 SHUTDOWN_POLL_S = 0.5
 
 def main(args: list[str] | None = None) -> int:
@@ -482,15 +486,19 @@ def run(node_class: type, args: list[str] | None = None) -> int:
     """init → spin ``node_class()`` → clean shutdown on SIGINT/SIGTERM (exit code 0); 2 on
     invalid parameters.
 
-    The executor is made before the node so that a signal during start-up finds it complete.
+    SIGINT/SIGTERM set a flag (see SHUTDOWN_POLL_S): one during start-up ends the loop before it
+    spins, and everything made so far is destroyed in order.
     """
-    rclpy.init(args=args)
+    stop: list[int] = []
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, lambda number, _frame: stop.append(number))
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     executor = SingleThreadedExecutor()
     node = None
     try:
         node = node_class()
         executor.add_node(node)
-        while rclpy.ok():  # not executor.spin(): see SHUTDOWN_POLL_S
+        while rclpy.ok() and not stop:  # not executor.spin(): see SHUTDOWN_POLL_S
             executor.spin_once(timeout_sec=SHUTDOWN_POLL_S)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
@@ -498,11 +506,6 @@ def run(node_class: type, args: list[str] | None = None) -> int:
             ParameterException) as exc:
         print(f'hac_node: invalid parameter: {exc}', file=sys.stderr)
         return 2
-    except Exception:
-        if rclpy.ok():
-            raise
-        # SIGINT/SIGTERM arrived while the node was being created (the context is shut down and
-        # rcl refuses the next entity): a requested shutdown, not an error
     finally:
         executor.shutdown()
         if node is not None:
