@@ -41,8 +41,7 @@ from rclpy.exceptions import (InvalidParameterTypeException, InvalidParameterVal
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy,
-                       qos_policy_name_from_kind)
+from rclpy.qos import qos_policy_name_from_kind
 from rclpy.serialization import deserialize_message
 from rclpy.signals import SignalHandlerOptions
 
@@ -52,9 +51,10 @@ from hac_ros.core.outputs import NoticeOut, OdometryOut, Output, PoseOut, ResetO
 from hac_ros.core.params import NODE_NAME, POSE_MSGTYPES, HacParams, describe, names
 from hac_ros.core.reference import MapIndex
 from hac_ros.inputs import MapBuilder, add_camera_info_msg, add_joints_msg, add_pose_msg
-from hac_ros.messages import DIAGNOSTICS, LATCHED_TOPICS, OUTPUT_TOPICS, OutputMessages
+from hac_ros.messages import OUTPUT_TOPICS, OutputMessages
 from hac_ros.node_parameters import (RESUBSCRIBE, ROS_OWN_PARAMETERS, SHELL_ONLY, TF_PARAMETERS,
                                      parameter_descriptor)
+from hac_ros.qos import cloud_qos, input_qos, output_qos, qos_hint
 from hac_ros.tf_broadcast import TfSender
 from msg_adapters import MessageError, RawCloud, parse_cloud_cdr, rclpy_types
 
@@ -63,53 +63,8 @@ TYPES = rclpy_types()  # rclpy's message classes by ROS name
 # 2.x reads the first, 3.x the second; read once per process, when rclpy starts
 DDS_PROFILE_VARIABLES = ('FASTRTPS_DEFAULT_PROFILES_FILE', 'FASTDDS_DEFAULT_PROFILES_FILE')
 
-# ---------------------------------------------------------------------------------------- QoS
-INPUT_DEPTH = 100  # pose/joints/camera_info kept per subscription: > 3 s at 30 Hz, absorbs bursts
-CLOUD_DEPTH = 2  # only the newest map matters; 2 lets one arrive while the previous is read
-OUTPUT_DEPTH = 100  # odometry/pose/joints/scale/markers: 3 s at 30 Hz for slow subscribers
-DIAGNOSTICS_DEPTH = 10
-
 # ---------------------------------------------------------------------------------------- maps
 MAPS_WAITING_MAX = 8  # accumulate mode: clouds waiting for the builder (older ones are dropped)
-
-def input_qos(params: HacParams) -> QoSProfile:
-    """Pose, joints and CameraInfo: best effort (matches every publisher) or reliable."""
-    reliability = (ReliabilityPolicy.RELIABLE if params.input_qos == 'reliable'
-                   else ReliabilityPolicy.BEST_EFFORT)
-    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=INPUT_DEPTH, reliability=reliability,
-                      durability=DurabilityPolicy.VOLATILE)
-
-
-def cloud_qos(params: HacParams) -> QoSProfile:
-    """The map: reliable; transient_local receives a map latched before the node started."""
-    durability = (DurabilityPolicy.TRANSIENT_LOCAL if params.cloud_qos == 'transient_local'
-                  else DurabilityPolicy.VOLATILE)
-    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=CLOUD_DEPTH,
-                      reliability=ReliabilityPolicy.RELIABLE, durability=durability)
-
-
-def output_qos(topic: str) -> QoSProfile:
-    """Outputs: reliable; /hac/cloud and /hac/obstacles also transient local (a late subscriber
-    gets the map)."""
-    if topic in LATCHED_TOPICS:
-        return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
-                          reliability=ReliabilityPolicy.RELIABLE,
-                          durability=DurabilityPolicy.TRANSIENT_LOCAL)
-    return QoSProfile(history=HistoryPolicy.KEEP_LAST,
-                      depth=DIAGNOSTICS_DEPTH if topic == DIAGNOSTICS[0] else OUTPUT_DEPTH,
-                      reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
-
-
-def qos_hint(kind: str, policy: str) -> str:
-    """What the user can change when a publisher's QoS does not match subscription ``kind``."""
-    if kind == 'cloud' and policy == 'DURABILITY':
-        return ("the map publisher is volatile: set parameter cloud_qos to 'volatile' "
-                '(or latch the map with transient_local on the publisher)')
-    if kind == 'cloud' and policy == 'RELIABILITY':
-        return 'the map publisher is best effort: hac_node needs a reliable map publisher'
-    if policy == 'RELIABILITY':
-        return "the publisher is best effort: set parameter input_qos to 'best_effort'"
-    return f'change the publisher\'s {policy} policy (input_qos/cloud_qos cannot match it)'
 
 
 # ---------------------------------------------------------------------------------------- the shell
