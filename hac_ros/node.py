@@ -65,6 +65,13 @@ DDS_PROFILE_VARIABLES = ('FASTRTPS_DEFAULT_PROFILES_FILE', 'FASTDDS_DEFAULT_PROF
 
 # ---------------------------------------------------------------------------------------- maps
 MAPS_WAITING_MAX = 8  # accumulate mode: clouds waiting for the builder (older ones are dropped)
+GRAPH_CHECK_S = 2.0  # wall seconds between checks of the input topics' publisher types
+INPUT_TYPES: dict[str, Callable[[HacParams], str]] = {  # kind -> the type the node subscribes
+    'pose': lambda p: POSE_MSGTYPES[p.pose_type],
+    'joints': lambda p: 'geometry_msgs/msg/PoseArray',
+    'camera_info': lambda p: 'sensor_msgs/msg/CameraInfo',
+    'cloud': lambda p: 'sensor_msgs/msg/PointCloud2',
+}
 
 
 # ---------------------------------------------------------------------------------------- the shell
@@ -115,6 +122,7 @@ class HacShell:
         self._output_publishers: dict[str, Any] = {}
         self._subscriptions_by_kind: dict[str, Any] = {}
         self._hac_services: list[Any] = []
+        self._wrong_types: set[tuple[str, str, str, str]] = set()  # publishers reported
         self.tf: TfSender | None = None
 
     def _activate(self) -> None:
@@ -128,6 +136,7 @@ class HacShell:
                           self.create_service(TYPES.get('std_srvs/srv/SetBool'), '~/freeze',
                                               self._on_freeze)]
         self._update_tf()
+        self._type_check = self.create_timer(GRAPH_CHECK_S, self._check_input_types)
         self.active = True
         p = self.params
         self.get_logger().info(
@@ -144,6 +153,7 @@ class HacShell:
         for service in self._hac_services:
             self.destroy_service(service)
         self._hac_services = []
+        self.destroy_timer(self._type_check)
         for publisher in self._output_publishers.values():
             self.destroy_publisher(publisher)
         self._output_publishers = {}
@@ -172,16 +182,11 @@ class HacShell:
         if old is not None:
             self.destroy_subscription(old)
         p = self.params
-        topic, msg_type, qos, raw = {
-            'pose': (p.pose_topic, TYPES.get(POSE_MSGTYPES[p.pose_type]),
-                     input_qos(p), True),
-            'joints': (p.joints_topic, TYPES.get('geometry_msgs/msg/PoseArray'), input_qos(p),
-                       True),
-            'camera_info': (p.camera_info_topic, TYPES.get('sensor_msgs/msg/CameraInfo'),
-                            input_qos(p), False),
-            'cloud': (p.cloud_topic, TYPES.get('sensor_msgs/msg/PointCloud2'), cloud_qos(p),
-                      True),
-        }[kind]
+        topic = {'pose': p.pose_topic, 'joints': p.joints_topic,
+                 'camera_info': p.camera_info_topic, 'cloud': p.cloud_topic}[kind]
+        msg_type = TYPES.get(INPUT_TYPES[kind](p))
+        qos = cloud_qos(p) if kind == 'cloud' else input_qos(p)
+        raw = kind != 'camera_info'  # deserialized by rclpy only for CameraInfo
         if not topic:
             return  # camera_info_topic "" turns it off
         callback = {'pose': self._on_pose, 'joints': self._on_joints,
@@ -205,6 +210,28 @@ class HacShell:
         self.get_logger().warning(
             f'QoS mismatch on {topic}: a publisher offers an incompatible {policy} policy, so no '
             f'messages from it will arrive; {qos_hint(kind, policy)}')
+
+    def _check_input_types(self) -> None:
+        """A publisher of another message type on an input topic gets no message through and
+        DDS says nothing (this rmw does not report the incompatible-type event): the graph is
+        checked every GRAPH_CHECK_S; each such publisher is counted as ``<kind>_wrong_type`` in
+        /diagnostics, logged once naming the parameter to change."""
+        for kind, subscription in self._subscriptions_by_kind.items():
+            topic, expected = subscription.topic_name, INPUT_TYPES[kind](self.params)
+            for info in self.get_publishers_info_by_topic(topic):
+                key = (topic, info.node_namespace, info.node_name, info.topic_type)
+                if info.topic_type == expected or key in self._wrong_types:
+                    continue
+                self._wrong_types.add(key)
+                hint = (f'set pose_type to {info.topic_type.rsplit("/", 1)[-1]!r}'
+                        if kind == 'pose' and info.topic_type in POSE_MSGTYPES.values() else
+                        f'{kind}_topic may name the wrong topic')
+                outputs = self.calibrator.reject(f'{kind}_wrong_type', -1)
+                for notice in outputs:  # the first time: say what to change
+                    notice.text = (f'type mismatch on {topic}: {info.node_name} publishes '
+                                   f'{info.topic_type}, the node subscribes {expected}, so none of '
+                                   f'its messages arrive; {hint}')
+                self._emit(outputs)
 
     def _on_message_lost(self, kind: str, info: Any) -> None:
         """The middleware saw messages that never reached this subscription (best-effort input

@@ -286,3 +286,23 @@ def pose_msg_to_rt_parts(t: Any, q: Any) -> tuple[np.ndarray, np.ndarray]:
     from scipy.spatial.transform import Rotation
 
     return (Rotation.from_quat([q.x, q.y, q.z, q.w]).as_matrix(), np.array([t.x, t.y, t.z]))
+
+
+def test_a_publisher_of_another_type_on_the_pose_topic_is_counted_and_named(rig):
+    """Odometry on slam/pose while pose_type is PoseStamped: DDS delivers nothing and says nothing
+    (this rmw reports no incompatible-type event); the node's graph check names it."""
+    r = rig()
+    assert wait_for(r.connected, 10.0)
+    context = Context()  # another participant: one participant refuses two types on one topic
+    rclpy.init(context=context)
+    other = rclpy.create_node('hac_wrong_type', context=context)
+    try:
+        other.create_publisher(TYPES.get('nav_msgs/msg/Odometry'), 'slam/pose', RELIABLE)
+        assert wait_for(lambda: r.node.calibrator.rejected['pose_wrong_type'] > 0, 10.0), \
+            'a publisher of nav_msgs/Odometry on slam/pose went unnoticed'
+        time.sleep(2.5)  # another graph check: the same publisher is not counted twice
+        assert r.node.calibrator.rejected['pose_wrong_type'] == 1
+        assert r.node.notices['pose_wrong_type'] == 1
+    finally:
+        other.destroy_node()
+        rclpy.shutdown(context=context)

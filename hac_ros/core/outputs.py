@@ -161,6 +161,11 @@ REASONS = {
     'joints_lost': 'joints message lost in transport (best-effort input_qos)',
     'camera_info_lost': 'CameraInfo lost in transport (best-effort input_qos)',
     'cloud_lost': 'map cloud lost in transport',
+    # counted by hac_node from the middleware's incompatible-type events (a publisher of another type)
+    'pose_wrong_type': 'a publisher on the pose topic has another type than pose_type',
+    'joints_wrong_type': 'a publisher on the joints topic is not PoseArray',
+    'camera_info_wrong_type': 'a publisher on the CameraInfo topic is not CameraInfo',
+    'cloud_wrong_type': 'a publisher on the map topic is not PointCloud2',
 }
 
 
