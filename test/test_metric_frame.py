@@ -200,14 +200,14 @@ def test_freeze_holds_the_scale_and_reset_starts_a_segment_without_an_odometry_j
     cal.request_freeze(True)
     feed(events[third:2 * third])
     frozen = [o.scale for o in out if isinstance(o, ScaleOut)][-(third // 4):]
-    assert len(set(frozen)) == 1 and cal.frozen_samples > 0
+    assert len(set(frozen)) == 1 and cal.services.samples > 0
     cal.request_freeze(False)
     cal.request_reset()
     before = len(out)
     feed(events[2 * third:])
     notices = {o.cause for o in out[before:] if isinstance(o, NoticeOut)}
     assert {'service_freeze', 'service_reset'} <= notices
-    assert cal.services['reset'] == 1 and cal.services['freeze_false'] == 1
+    assert cal.services.counts['reset'] == 1 and cal.services.counts['freeze_false'] == 1
     odom = [o for o in out if isinstance(o, OdometryOut)]
     index = {int(s): i for i, s in enumerate(sc.pose_stamps_ns)}
     true_steps = np.linalg.norm(np.diff(sc.gt_c, axis=0), axis=1)

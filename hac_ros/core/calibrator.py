@@ -38,6 +38,7 @@ from hac_ros.core.params import HacParams
 from hac_ros.core.poses import Pose, PoseTrack
 from hac_ros.core.reference import MapIndex
 from hac_ros.core.sample import Scene, person_sample
+from hac_ros.core.services import ServiceRequests
 from hac_ros.core.transforms import is_rotation
 
 JOINTS_PER_PERSON = 24
@@ -90,13 +91,7 @@ class Calibrator:
         self._map_handed_ns: int | None = None  # stamp of the last map handed to the metric stage
         self._map_unhanded = False  # a map in use has not been handed to the metric stage yet
         self._sources: deque[bool] = deque(maxlen=GROUND_SHARE_SAMPLES)  # True: a ground sample
-        self._requests: list[tuple[str, bool]] = []  # service requests for the next pose
-        self.services: Counter[str] = Counter()  # service requests taken
-        # ~/freeze: the held scale (published while frozen, and after the release until a fresh
-        # window converges) and whether it is held now
-        self._frozen: float | None = None
-        self._frozen_hold = False
-        self.frozen_samples = 0  # samples taken while frozen: counted, not used
+        self.services = ServiceRequests()  # ~/reset, ~/freeze
         self.conventions = Conventions(p.pose_to_optical, p.hmr_focal_px)
         # what depends on the published scale: the segments' placements, the continuous
         # odometry, the cloud (hac_ros.core.metric)
@@ -264,41 +259,29 @@ class Calibrator:
     def _working_scale(self) -> float | None:
         """The online scale the samples use (the map distance bound, the contacts' ground): the
         same as ``published_scale`` unless a subclass publishes another schedule."""
-        if self._frozen_hold or not self.converged:
-            return self._frozen  # None unless frozen (or released, the fresh window converging)
-        return self.scale
+        return self.services.scale(self.scale if self.converged else None)
 
     # ================================================================== services
     def request_reset(self) -> None:
         """``~/reset``: start a new segment at the next SLAM pose, as a detected re-initialisation
         does, keeping the map and the ground normal (the odometry stays continuous)."""
-        self._requests.append(('reset', True))
+        self.services.request('reset')
 
     def request_freeze(self, frozen: bool) -> None:
         """``~/freeze``: from the next SLAM pose, ``True`` holds the current scale (samples are
         counted, not used, and nothing expires) until ``False``, which resumes with a fresh
         window (the held scale stays published until it converges)."""
-        self._requests.append(('freeze', bool(frozen)))
+        self.services.request('freeze', frozen)
 
     def _take_requests(self, pose: Pose) -> list[Output]:
         out: list[Output] = []
-        for name, value in self._requests:
-            self.services[f'{name}_{str(value).lower()}' if name == 'freeze' else name] += 1
-            if name == 'reset':
+        for action, notice in self.services.take(pose.stamp_ns,
+                                                 lambda: self.published_scale(pose.stamp_ns)):
+            if action == 'reset':
                 out += self._reset(pose, 'service', 'requested (~/reset)')
-                out.append(NoticeOut(pose.stamp_ns, 'service_reset', 'new segment requested '
-                                     '(~/reset): map and ground normal kept', 'info'))
-            elif value and not self._frozen_hold:
-                self._frozen = self.published_scale(pose.stamp_ns)
-                self._frozen_hold = self._frozen is not None
-                out.append(NoticeOut(pose.stamp_ns, 'service_freeze', 'scale frozen (~/freeze): '
-                                     f'held at {self._frozen}', 'info'))
-            elif not value and self._frozen_hold:
-                self._frozen_hold = False
+            elif action == 'release':
                 self.estimator.reset()  # a fresh window; the held scale serves until it converges
-                out.append(NoticeOut(pose.stamp_ns, 'service_freeze', 'scale released '
-                                     '(~/freeze false): a fresh window converges', 'info'))
-        self._requests.clear()
+            out.append(notice)
         return out
 
     def status(self, stamp_ns: int | None = None) -> Status:
@@ -317,8 +300,8 @@ class Calibrator:
             rejected=dict(self.rejected), map_points=len(self.map) if self.map is not None else 0,
             ground_normal_map=None if plane is None else plane.normal,
             ground_offset_slam=float('nan') if plane is None else plane.offset,
-            drifting=self.estimator.drifting, frozen=self._frozen_hold,
-            services=dict(self.services))
+            drifting=self.estimator.drifting, frozen=self.services.holding,
+            services=dict(self.services.counts))
         last = self.track.last
         return PendingStatus(status, plane, None if last is None else last.c_map, self.segment)
 
@@ -329,7 +312,7 @@ class Calibrator:
     # ================================================================== poses
     def _accept_pose(self, pose: Pose, move: tuple[float, float] | None = None) -> list[Output]:
         """Take ``pose`` as the camera's next one; ``move``: its step, if computed."""
-        out: list[Output] = self._take_requests(pose) if self._requests else []
+        out: list[Output] = self._take_requests(pose) if self.services.queue else []
         if self.segment < 0:  # the very first pose starts the first segment
             out += self._new_segment(pose, '')
         self.track.append(pose, self.track.step(pose) if move is None else move)
@@ -360,7 +343,7 @@ class Calibrator:
             self.ground.reset()
         self.resets += 1
         self._sources.clear()
-        self._frozen, self._frozen_hold = None, False  # a held scale belongs to the old segment
+        self.services.clear()  # a held scale belongs to the old segment
         out: list[Output] = self._new_segment(first_pose, cause)
         self.track.clear()
         if cause not in ('map_overlap', 'service'):
@@ -436,7 +419,7 @@ class Calibrator:
         R_wc, c_map = pose
         self._last_frame_ns = stamp
         self.frames += 1
-        if not self._frozen_hold:  # frozen: nothing expires
+        if not self.services.holding:  # frozen: nothing expires
             self.estimator.advance(stamp)
         for person, joints in enumerate(frame.joints_cam):
             out += self._person(stamp, person, R_wc, c_map, joints)
@@ -465,8 +448,8 @@ class Calibrator:
             self.map_hits += 1
         else:
             self.ground_fallbacks += 1
-        if self._frozen_hold:  # counted, not used
-            self.frozen_samples += 1
+        if self.services.holding:  # counted, not used
+            self.services.samples += 1
             return [SampleOut(stamp, person, sample.scale, sample.source, False)]
         accepted = self.estimator.add(stamp, sample.scale)
         out: list[Output] = [SampleOut(stamp, person, sample.scale, sample.source, accepted)]
