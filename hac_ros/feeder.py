@@ -20,12 +20,10 @@ from hac_ros.core.outputs import Output
 from hac_ros.core.params import POSE_MSGTYPES, HacParams
 from hac_ros.inputs import (MapBuilder, MapBuilt, add_camera_info_msg, add_joints_msg,
                             add_pose_msg)
-from hac_ros.messages import in_root
+from hac_ros.messages import INPUT_MSGTYPES, in_root
 from hac_ros.recording import Recording
 from msg_adapters import MessageError, parse_cloud_cdr
 
-INPUT_TYPES = {'joints': 'geometry_msgs/msg/PoseArray', 'cloud': 'sensor_msgs/msg/PointCloud2',
-               'camera_info': 'sensor_msgs/msg/CameraInfo'}
 # Messages of the same log time are fed in this order (then any other topic): the camera's
 # intrinsics and the map before the frame they serve, the pose (the clock) before its joints.
 TIE_ORDER = {'camera_info': 0, 'cloud': 1, 'pose': 2, 'joints': 3}
@@ -69,13 +67,13 @@ class InputTopics:
         if recorded == POSE_MSGTYPES[other]:
             hint = f' (use --pose-type {other}, or no --pose-type: it is read from the recording)'
         recording.check_topic(pose_topic, [POSE_MSGTYPES[pose_type]], 'SLAM pose', hint)
-        recording.check_topic(joints_topic, [INPUT_TYPES['joints']], 'HMR joints',
+        recording.check_topic(joints_topic, [INPUT_MSGTYPES['joints']], 'HMR joints',
                               ' (use --joints-topic)')
-        recording.check_topic(cloud_topic, [INPUT_TYPES['cloud']], 'map cloud',
+        recording.check_topic(cloud_topic, [INPUT_MSGTYPES['cloud']], 'map cloud',
                               ' (use --cloud-topic)')
         camera_info = in_root(params.camera_info_topic) if params.camera_info_topic else ''
         if camera_info and camera_info in recording.topics:
-            recording.check_topic(camera_info, [INPUT_TYPES['camera_info']], 'CameraInfo')
+            recording.check_topic(camera_info, [INPUT_MSGTYPES['camera_info']], 'CameraInfo')
         elif camera_info:
             camera_info = ''
         return cls(pose_topic, POSE_MSGTYPES[pose_type], joints_topic, cloud_topic, camera_info)

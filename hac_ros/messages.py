@@ -18,7 +18,7 @@ import numpy as np
 
 from hac_ros.core.outputs import (CloudOut, DiagnosticsOut, HumanJointsOut, OdometryOut, Output,
                                   PoseOut, SampleOut, ScaleOut, Status)
-from hac_ros.core.params import HacParams
+from hac_ros.core.params import POSE_MSGTYPES, HacParams
 from msg_adapters import cdr_write
 from msg_adapters.poses import matrix_to_quat
 
@@ -36,6 +36,14 @@ LATCHED_TOPICS = (CLOUD[0], OBSTACLES[0])  # reliable + transient local: late su
 # data = [person, scale, source, accepted] per person, scale in metres per SLAM unit (NaN when
 # rejected), source 0 = map hit, 1 = ground-plane fallback, 2 = rejected.
 SAMPLES = ('hac/samples', 'std_msgs/msg/Float64MultiArray')
+# Inputs (SPEC, ROS 2 interface): kind -> message type; the pose's is the pose_type parameter's
+INPUT_MSGTYPES = {'joints': 'geometry_msgs/msg/PoseArray', 'cloud': 'sensor_msgs/msg/PointCloud2',
+                  'camera_info': 'sensor_msgs/msg/CameraInfo'}
+
+
+def input_msgtype(kind: str, pose_type: str) -> str:
+    """The message type of input ``kind`` ('pose', 'joints', 'cloud', 'camera_info')."""
+    return POSE_MSGTYPES[pose_type] if kind == 'pose' else INPUT_MSGTYPES[kind]
 SAMPLE_FIELDS = 4
 SAMPLE_LABEL = 'person,scale,source(0 map 1 ground 2 rejected),accepted'
 SOURCE_CODES = {'map': 0.0, 'ground': 1.0}

@@ -51,7 +51,7 @@ from hac_ros.core.outputs import NoticeOut, OdometryOut, Output, PoseOut, ResetO
 from hac_ros.core.params import NODE_NAME, POSE_MSGTYPES, HacParams, describe, names
 from hac_ros.core.reference import MapIndex
 from hac_ros.inputs import MapBuilder, add_camera_info_msg, add_joints_msg, add_pose_msg
-from hac_ros.messages import OUTPUT_TOPICS, OutputMessages
+from hac_ros.messages import OUTPUT_TOPICS, OutputMessages, input_msgtype
 from hac_ros.node_parameters import (RESUBSCRIBE, ROS_OWN_PARAMETERS, SHELL_ONLY, TF_PARAMETERS,
                                      parameter_descriptor)
 from hac_ros.qos import cloud_qos, input_qos, output_qos, qos_hint
@@ -66,12 +66,6 @@ DDS_PROFILE_VARIABLES = ('FASTRTPS_DEFAULT_PROFILES_FILE', 'FASTDDS_DEFAULT_PROF
 # ---------------------------------------------------------------------------------------- maps
 MAPS_WAITING_MAX = 8  # accumulate mode: clouds waiting for the builder (older ones are dropped)
 GRAPH_CHECK_S = 2.0  # wall seconds between checks of the input topics' publisher types
-INPUT_TYPES: dict[str, Callable[[HacParams], str]] = {  # kind -> the type the node subscribes
-    'pose': lambda p: POSE_MSGTYPES[p.pose_type],
-    'joints': lambda p: 'geometry_msgs/msg/PoseArray',
-    'camera_info': lambda p: 'sensor_msgs/msg/CameraInfo',
-    'cloud': lambda p: 'sensor_msgs/msg/PointCloud2',
-}
 
 
 # ---------------------------------------------------------------------------------------- the shell
@@ -184,7 +178,7 @@ class HacShell:
         p = self.params
         topic = {'pose': p.pose_topic, 'joints': p.joints_topic,
                  'camera_info': p.camera_info_topic, 'cloud': p.cloud_topic}[kind]
-        msg_type = TYPES.get(INPUT_TYPES[kind](p))
+        msg_type = TYPES.get(input_msgtype(kind, p.pose_type))
         qos = cloud_qos(p) if kind == 'cloud' else input_qos(p)
         raw = kind != 'camera_info'  # deserialized by rclpy only for CameraInfo
         if not topic:
@@ -217,7 +211,7 @@ class HacShell:
         checked every GRAPH_CHECK_S; each such publisher is counted as ``<kind>_wrong_type`` in
         /diagnostics, logged once naming the parameter to change."""
         for kind, subscription in self._subscriptions_by_kind.items():
-            topic, expected = subscription.topic_name, INPUT_TYPES[kind](self.params)
+            topic, expected = subscription.topic_name, input_msgtype(kind, self.params.pose_type)
             for info in self.get_publishers_info_by_topic(topic):
                 key = (topic, info.node_namespace, info.node_name, info.topic_type)
                 if info.topic_type == expected or key in self._wrong_types:
