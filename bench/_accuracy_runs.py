@@ -143,7 +143,7 @@ def run_ours(scene: Scene, params: HacParams, literal: World, online: bool = Fal
     signed = _signed_errors(scene, frames)
     humans = [o for o in resolved if isinstance(o, HumanJointsOut)]
     raw = w_mpjpe(scene, *_common(humans, literal))
-    smooth_outputs(humans)  # the replay's offline human_filter: smooth
+    smooth_outputs(humans, cal.layout)  # the replay's offline human_filter: smooth
     common = _common(humans, literal)
     out.update(scale_bias=float(np.median(signed)), scale_err=float(np.median(np.abs(signed))),
                w_mpjpe=raw, w_mpjpe_filtered=w_mpjpe(scene, *common),

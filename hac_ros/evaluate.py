@@ -27,6 +27,7 @@ import numpy as np
 
 from hac_ros.core import metrics
 from hac_ros.core.humans import smooth_outputs
+from hac_ros.core.layouts import BUILT_IN
 from hac_ros.core.outputs import HumanJointsOut, OdometryOut, Output, PoseOut, ScaleOut
 from hac_ros.core.params import HacParams
 from hac_ros.recording import (CameraTrack, JointsTrack, Recording, Replayed, ScaleTrack, Truth,
@@ -104,7 +105,7 @@ def reference_runs(gt_path: str | Path, params: HacParams, truth: Truth) -> dict
         collect = _Collector()
         resolved = calibrator.metric.fresh().resolve(deferred, output_scale)
         if params.human_filter == 'smooth':  # as the replay does offline
-            smooth_outputs(resolved)
+            smooth_outputs(resolved, calibrator.layout)
         collect(resolved)
         runs[name] = collect.as_replayed()
     return runs
@@ -222,7 +223,10 @@ def _json_number(value: Any) -> Any:
 def evaluate(output_path: str | Path, gt_path: str | Path, params: HacParams | None = None,
              references: bool = True) -> Evaluation:
     """The metrics of OUT against IN's ground truth, beside the two reference rows."""
-    params = params or HacParams()
+    if params is None:  # the defaults, in the input recording's joint layout
+        with Recording(gt_path) as rec:
+            layout = rec.layout.name
+        params = HacParams().replace(joint_layout=layout) if layout in BUILT_IN else HacParams()
     replayed = read_output(output_path)
     truth = read_truth(gt_path)
     rows = {'hac': row_metrics(replayed, truth)}

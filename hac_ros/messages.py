@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hac_ros.core.layouts import layout_from_params
 from hac_ros.core.outputs import (CloudOut, DiagnosticsOut, HumanJointsOut, OdometryOut, Output,
                                   PoseOut, SampleOut, ScaleOut, Status)
 from hac_ros.core.params import POSE_MSGTYPES, HacParams
@@ -56,11 +57,6 @@ PATH_LENGTH = 600  # camera positions kept for the path marker
 SLOW_MARKERS_PERIOD_NS = 1_000_000_000
 PLANE_SIZE_M = 8.0  # side of the ground-plane marker, metres
 PLANE_THICKNESS_M = 0.01
-# SMPL-24 bones (parent, child) for the skeleton marker
-BONES = ((0, 1), (0, 2), (0, 3), (1, 4), (2, 5), (3, 6), (4, 7), (5, 8), (6, 9), (7, 10), (8, 11),
-         (9, 12), (9, 13), (9, 14), (12, 15), (13, 16), (14, 17), (16, 18), (17, 19), (18, 20),
-         (19, 21), (20, 22), (21, 23))
-BONE_JOINTS = np.array(BONES).ravel()  # the LINE_LIST's point order
 LINE_STRIP, LINE_LIST, CUBE = 4, 5, 1
 ADD = 0
 DIAG_OK, DIAG_WARN = 0, 1
@@ -94,6 +90,8 @@ class OutputMessages:
 
     def __init__(self, params: HacParams) -> None:
         self.params = params
+        # the skeleton marker's LINE_LIST point order: the layout's bones (parent, child)
+        self._bone_joints = np.array(layout_from_params(params).edges, dtype=int).reshape(-1)
         self._path = np.empty((PATH_LENGTH, 3))  # ring buffer of camera positions, metres
         self._path_count = 0
         self._status: Status | None = None
@@ -167,6 +165,10 @@ class OutputMessages:
                    else f'not converged: {status.samples} samples')
         if status.frozen:
             message += ' (frozen)'
+        values += [(f'suspect.{key}', text) for key, text in sorted(status.suspects.items())]
+        if status.suspects:
+            level = DIAG_WARN
+            message += '; inputs suspect: ' + ', '.join(sorted(status.suspects))
         if status.alignment == 'slam' and self.params.metric_frame_alignment == 'gravity':
             level = DIAG_WARN
             message += '; metric frame: SLAM axes (no usable ground normal)'
@@ -192,7 +194,7 @@ class OutputMessages:
         for person, joints in people:
             cdr_write.marker(w, stamp, frame, 'skeleton', person, LINE_LIST, ADD,
                              cdr_write.IDENTITY_POSE, (SKELETON_WIDTH_M, 0.0, 0.0), SKELETON_RGBA,
-                             joints[BONE_JOINTS])
+                             joints[self._bone_joints])
         if len(path) >= 2:
             cdr_write.marker(w, stamp, frame, 'camera_path', 0, LINE_STRIP, ADD,
                              cdr_write.IDENTITY_POSE, (PATH_WIDTH_M, 0.0, 0.0), PATH_RGBA, path)

@@ -87,7 +87,15 @@ class HacShell:
     # ------------------------------------------------------------------ life
     def _declare(self) -> None:
         for name in names():
-            self.declare_parameter(name, describe(name)['default'], parameter_descriptor(name))
+            default = describe(name)['default']
+            if default == [] and describe(name)['kind'] == 'indices':
+                # an empty list would declare a byte array: declare the type, then set [] typed
+                declared = self.declare_parameter(name, Parameter.Type.INTEGER_ARRAY,
+                                                  parameter_descriptor(name))
+                if declared.value is None:
+                    self.set_parameters([Parameter(name, Parameter.Type.INTEGER_ARRAY, [])])
+                continue
+            self.declare_parameter(name, default, parameter_descriptor(name))
         self._warn_unknown_overrides()
         self.add_on_set_parameters_callback(self._validate_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)

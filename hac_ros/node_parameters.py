@@ -65,6 +65,9 @@ def parameter_descriptor(name: str) -> Any:
         if info['low'] is not None and info['high'] is not None:
             descriptor.floating_point_range = [FloatingPointRange(
                 from_value=float(info['low']), to_value=float(info['high']), step=0.0)]
+    elif info['kind'] == 'indices':
+        descriptor.type = ParameterType.PARAMETER_INTEGER_ARRAY
+        descriptor.additional_constraints = 'joint indices (integers >= 0)'
     elif isinstance(default, list):
         descriptor.type = ParameterType.PARAMETER_DOUBLE_ARRAY
         descriptor.dynamic_typing = INTEGERS_FOR_DOUBLES
@@ -82,7 +85,7 @@ def parameter_table() -> str:
         if isinstance(value, bool):
             return '`true`' if value else '`false`'
         if isinstance(value, list):
-            return '`[' + ', '.join(f'{v:g}' for v in value) + ']`'
+            return '`[' + ', '.join(f'{v:g}' for v in value) + ']`'  # [] for the index lists
         return '`""`' if value == '' else f'`{value}`'
 
     rows = ['| name | default | allowed | at runtime | meaning |', '|---|---|---|---|---|']
@@ -92,6 +95,8 @@ def parameter_table() -> str:
             allowed = ', '.join(f'`{c}`' for c in info['choices'])
         elif info['low'] is not None:
             allowed = f"{info['low']:g} … {info['high']:g}"
+        elif info['kind'] == 'indices':
+            allowed = 'joint indices'
         elif info['length']:
             allowed = f"{info['length']} numbers"
         elif isinstance(info['default'], bool):

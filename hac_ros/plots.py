@@ -24,6 +24,7 @@ import numpy as np
 
 from hac_ros.core.errors import HacError
 from hac_ros.core.numeric import NS
+from hac_ros.core.layouts import SMPL24, JointLayout
 from hac_ros.core.params import POSE_MSGTYPES
 from hac_ros.evaluate import match, person_tracks
 from hac_ros.recording import (CameraTrack, JointsTrack, Recording, Replayed, Truth, read_camera,
@@ -32,7 +33,6 @@ from hac_ros.recording import (CameraTrack, JointsTrack, Recording, Replayed, Tr
 DPI = 100
 FIGSIZE = {'trajectories': (8.0, 8.0), 'scale': (11.0, 6.0), 'fallback': (11.0, 6.0),
            'heights': (11.0, 5.0)}  # inches
-PELVIS, NECK = 0, 12  # SMPL-24
 SLAM_POSE_TOPIC = '/slam/pose'
 COLOURS = {'gt': 'black', 'hac': 'tab:blue', 'slam': 'tab:gray', 'map': 'tab:blue',
            'ground': 'tab:orange', 'gated': 'tab:red', 'scale': 'tab:green', 'reset': 'tab:purple'}
@@ -45,11 +45,12 @@ def figure_size_px(name: str) -> tuple[int, int]:
 
 
 # ============================================================================ geometry helpers
-def up_axis(joints: JointsTrack) -> np.ndarray | None:
-    """The mean pelvis→neck direction (3,), unit, in the joints' frame; None without joints."""
+def up_axis(joints: JointsTrack, layout: JointLayout = SMPL24) -> np.ndarray | None:
+    """The mean body up direction (3,) (the layout's lower → upper joints, e.g. pelvis → neck),
+    unit, in the joints' frame; None without joints."""
     if not len(joints):
         return None
-    axes = np.concatenate([j[:, NECK] - j[:, PELVIS] for j in joints.joints if len(j)])
+    axes = np.concatenate([layout.up_axis(j) for j in joints.joints if len(j)])
     axes = axes[np.all(np.isfinite(axes), axis=1)]
     if not len(axes):
         return None
@@ -113,10 +114,10 @@ def plot_trajectories(path: Path, run: Replayed, truth: Truth | None,
 
     reference_camera = truth.camera if truth is not None and truth.camera is not None else None
     reference_joints = truth.joints if truth is not None and truth.joints is not None else None
-    up = up_axis(reference_joints) if reference_joints is not None else None
+    up = up_axis(reference_joints, run.layout) if reference_joints is not None else None
     fit = se3_fit(run, truth) if truth is not None else None
     if up is None:
-        up = up_axis(run.joints)
+        up = up_axis(run.joints, run.layout)
         if up is not None and fit is not None:
             up = fit[0] @ up
     if up is None:
@@ -136,12 +137,12 @@ def plot_trajectories(path: Path, run: Replayed, truth: Truth | None,
         xy = _apply(fit, slam.positions) @ basis.T
         ax.plot(xy[:, 0], xy[:, 1], color=COLOURS['slam'], lw=1.2, ls='--', zorder=5,
                 label='camera, raw SLAM (units as metres)')
-    for k, (stamps, roots) in enumerate(_roots(run.joints)):
+    for k, (stamps, roots) in enumerate(_roots(run.joints, run.layout)):
         xy = _apply(fit, roots) @ basis.T
         ax.plot(xy[:, 0], xy[:, 1], color='tab:green', lw=1.2, alpha=0.8,
                 label='people, calibrated' if k == 0 else None)
     if reference_joints is not None:
-        for k, (stamps, roots) in enumerate(_roots(reference_joints)):
+        for k, (stamps, roots) in enumerate(_roots(reference_joints, run.layout)):
             xy = roots @ basis.T
             ax.plot(xy[:, 0], xy[:, 1], color=COLOURS['gt'], lw=1.0, ls=':',
                     label='people, ground truth' if k == 0 else None)
@@ -164,12 +165,12 @@ def _finish(fig: Any, ax: Any, path: Path, title: str, xlabel: str, ylabel: str)
     plt.close(fig)
 
 
-def _roots(joints: JointsTrack) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Per person index: (stamps, pelvis positions (F, 3))."""
+def _roots(joints: JointsTrack, layout: JointLayout) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Per person index: (stamps, root (pelvis) positions (F, 3), the joints' frame)."""
     people = max((len(j) for j in joints.joints), default=0)
     out = []
     for k in range(people):
-        rows = [(s, j[k, PELVIS]) for s, j in zip(joints.stamps_ns, joints.joints) if len(j) > k]
+        rows = [(s, layout.root_of(j[k])) for s, j in zip(joints.stamps_ns, joints.joints) if len(j) > k]
         if rows:
             out.append((np.array([s for s, _ in rows]), np.array([p for _, p in rows])))
     return out

@@ -9,6 +9,7 @@ unit in its docstring). Errors a user can fix raise :class:`~hac_ros.core.errors
 """
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import tempfile
@@ -20,12 +21,25 @@ from typing import Any, Iterable, Iterator
 import numpy as np
 
 from hac_ros.core.errors import HacError
+from hac_ros.core.layouts import BUILT_IN, SMPL24, JointLayout
 
 GT_CAMERA = ('/gt/camera_pose', 'geometry_msgs/msg/PoseStamped')
 GT_JOINTS = ('/gt/human_joints', 'geometry_msgs/msg/PoseArray')
 GT_SCALE = ('/gt/scale', 'std_msgs/msg/Float64')
 STORAGES = ('mcap', 'sqlite3')
-JOINTS_PER_PERSON = 24
+JOINTS_PER_PERSON = 24  # SMPL-24: a recording that does not say otherwise
+# rosbag2 metadata custom_data keys: what a joints block is in the recording's PoseArrays
+LAYOUT_KEY, JOINTS_KEY, ROLES_KEY = ('hac_ros.joint_layout', 'hac_ros.joints_per_person',
+                                     'hac_ros.joint_roles')
+
+
+def layout_data(layout: JointLayout) -> dict[str, str]:
+    """The custom_data entries saying a recording's joint layout (written by the replay, the
+    simulator and ``hac import``): its name, K and the root and body axis joints (JSON)."""
+    roles = {'root': layout.root, 'axis_lower': layout.axis_lower,
+             'axis_upper': layout.axis_upper}
+    return {LAYOUT_KEY: layout.name, JOINTS_KEY: str(layout.joints_per_person),
+            ROLES_KEY: json.dumps(roles)}
 
 
 # ============================================================================ reading
@@ -55,6 +69,45 @@ class Recording:
                                               for name, info in self.reader.topics.items()}
         self.counts: dict[str, int] = {name: info.msgcount
                                        for name, info in self.reader.topics.items()}
+
+    @property
+    def custom_data(self) -> dict[str, str]:
+        """rosbag2 metadata ``custom_data`` (empty for ROS 1 bags and recordings without it)."""
+        import yaml
+
+        meta = self.path / 'metadata.yaml' if self.path.is_dir() else None
+        if meta is None or not meta.is_file():
+            return {}
+        try:
+            info = yaml.safe_load(meta.read_text(encoding='utf-8'))['rosbag2_bagfile_information']
+        except (OSError, yaml.YAMLError, KeyError, TypeError):
+            return {}
+        data = info.get('custom_data') or {}
+        return {str(k): str(v) for k, v in data.items()} if isinstance(data, dict) else {}
+
+    @property
+    def joints_per_person(self) -> int:
+        """K of the recording's PoseArray joints blocks (its custom_data; SMPL-24's 24 without)."""
+        value = self.custom_data.get(JOINTS_KEY, '')
+        return int(value) if value.isdigit() and int(value) > 0 else JOINTS_PER_PERSON
+
+    @property
+    def layout(self) -> JointLayout:
+        """The recording's joint layout (custom_data): a built-in one by name, else K with the
+        stored root and body axis; SMPL-24 when the recording does not say."""
+        data = self.custom_data
+        name = data.get(LAYOUT_KEY, SMPL24.name)
+        if name in BUILT_IN:
+            return BUILT_IN[name]
+        k = self.joints_per_person
+        try:
+            roles = {key: tuple(int(i) for i in value if 0 <= int(i) < k)
+                     for key, value in json.loads(data.get(ROLES_KEY, '{}')).items()}
+        except (ValueError, TypeError, AttributeError):
+            roles = {}
+        every = tuple(range(k))
+        return JointLayout(name, k, roles.get('root') or every, roles.get('axis_lower') or every,
+                           roles.get('axis_upper') or every, (), (), ())
 
     def close(self) -> None:
         if self.reader.stack is not None:
@@ -170,7 +223,7 @@ def _reason(exc: BaseException) -> str:
 class OutputWriter:
     """Writes serialized messages into a new rosbag2 recording."""
 
-    def __init__(self, path: Path, storage: str) -> None:
+    def __init__(self, path: Path, storage: str, custom_data: dict[str, str] | None = None) -> None:
         from rosbags.rosbag2 import StoragePlugin, Writer
         from rosbags.typesys import Stores, get_typestore
 
@@ -180,6 +233,8 @@ class OutputWriter:
         plugin = StoragePlugin.MCAP if storage == 'mcap' else StoragePlugin.SQLITE3
         self.writer = Writer(path, version=9, storage_plugin=plugin)
         self.writer.open()
+        for key, value in (custom_data or {}).items():  # rosbag2 metadata custom_data
+            self.writer.set_custom_data(key, value)
         self._connections: dict[str, Any] = {}
         self.counts: Counter[str] = Counter()
 
@@ -334,13 +389,14 @@ def read_camera(recording: Recording, topic: str) -> CameraTrack:
 
 
 def read_joints(recording: Recording, topic: str) -> JointsTrack:
-    """PoseArray messages of ``topic``: (P, 24, 3) joints per header stamp (malformed ones skipped)."""
+    """PoseArray messages of ``topic``: (P, K, 3) joints per header stamp, K the recording's
+    (:attr:`Recording.joints_per_person`); malformed ones skipped."""
     from msg_adapters import MessageError, pose_array_to_joints, stamp_to_ns
 
     stamps, joints = [], []
     for _, msg in recording.read(topic):
         try:
-            people = pose_array_to_joints(msg, JOINTS_PER_PERSON)
+            people = pose_array_to_joints(msg, recording.joints_per_person)
         except MessageError:
             continue
         stamps.append(stamp_to_ns(msg.header.stamp))
@@ -391,6 +447,7 @@ class Replayed:
     diagnostics: list[tuple[int, dict[str, str]]]
     samples: Samples | None
     odometry: CameraTrack = field(default_factory=CameraTrack)
+    layout: JointLayout = SMPL24  # of the joints (the recording's custom_data)
 
 
 def read_output(path: str | Path) -> Replayed:
@@ -413,7 +470,8 @@ def read_output(path: str | Path) -> Replayed:
                        for log_ns, msg in (rec.read(diag) if rec.has(diag) else [])
                        for status in msg.status]
         samples = _read_samples(rec, samples_topic) if rec.has(samples_topic) else None
-    return Replayed(camera, joints, scale, diagnostics, samples, odometry)
+        layout = rec.layout
+    return Replayed(camera, joints, scale, diagnostics, samples, odometry, layout)
 
 
 def _read_samples(recording: Recording, topic: str) -> Samples:

@@ -33,6 +33,7 @@ import numpy as np
 from hac_ros.core.calibrator import Calibrator
 from hac_ros.core.errors import HacError
 from hac_ros.core.humans import smooth_outputs
+from hac_ros.core.layouts import layout_from_params
 from hac_ros.core.metric import finite_scale
 from hac_ros.core.numeric import NS
 from hac_ros.core.offline import OfflineScale, offline_scale
@@ -43,7 +44,7 @@ from hac_ros.feeder import CoreFeeder, InputTopics
 from hac_ros.messages import (CLOUD, LATCHED_TOPICS, MARKERS, OBSTACLES, OUTPUT_TOPICS, SAMPLES,
                               Message, OutputMessages, in_root, samples_message)
 from hac_ros.recording import (STORAGES, OutputWriter, Recording, check_output_path,
-                               staged_output)
+                               layout_data, staged_output)
 
 MODES = ('offline', 'online')
 
@@ -204,7 +205,8 @@ def replay(input_path: str | Path, output_path: str | Path, params: HacParams | 
         n_pass = sum(recording.counts.values()) if copy_inputs else n_inputs
         schedule = None
         with staged_output(output_path) as staged:
-            writer = OutputWriter(staged, storage)
+            layout = layout_from_params(params)
+            writer = OutputWriter(staged, storage, layout_data(layout))
             try:
                 handler = OutputHandler(params, writer, printer, keep_poses=export_tum is not None)
                 off = {MARKERS[0]: not params.publish_markers, CLOUD[0]: not params.publish_cloud,
@@ -269,7 +271,7 @@ def _offline(feeder: CoreFeeder, handler: OutputHandler,
     resolved = [stage.resolve(outputs, schedule, schedule.error, planes) for outputs in recorded]
     recorded.clear()
     if p.human_filter == 'smooth':
-        smooth_outputs([o for outputs in resolved for o in outputs])
+        smooth_outputs([o for outputs in resolved for o in outputs], calibrator.layout)
     with _progress(progress, len(resolved), 'write') as bar:
         for outputs in resolved:
             handler(outputs)

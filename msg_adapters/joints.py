@@ -1,4 +1,5 @@
-"""``geometry_msgs/PoseArray`` ↔ joints (P, 24, 3): consecutive SMPL-24 blocks, one per person.
+"""``geometry_msgs/PoseArray`` ↔ joints (P, K, 3): consecutive blocks of K joints, one per person
+(K = the joint layout's joints per person; SMPL-24 by default).
 
 Positions only, metres, in the message's frame (the camera optical frame for HMR input, the metric
 world for output); orientations are ignored on input and identity on output.
@@ -21,7 +22,7 @@ _POSITION = operator.attrgetter('position.x', 'position.y', 'position.z')  # one
 def pose_array_to_joints(msg: Any, joints_per_person: int = JOINTS_PER_PERSON) -> np.ndarray:
     """PoseArray → (P, joints_per_person, 3) float64, metres, ``msg.header.frame_id``.
 
-    Zero poses → shape (0, 24, 3). Non-finite values pass through (the core counts them);
+    Zero poses → shape (0, joints_per_person, 3). Non-finite values pass through (the core counts them);
     MessageError when the number of poses is not a multiple of ``joints_per_person``.
     """
     if not isinstance(joints_per_person, int) or joints_per_person <= 0:
@@ -45,7 +46,8 @@ def pose_array_to_joints(msg: Any, joints_per_person: int = JOINTS_PER_PERSON) -
 
 def joints_to_pose_array(joints: np.ndarray, stamp_ns: int, frame_id: str,
                          types: MessageTypes) -> Any:
-    """Joints (P, 24, 3) or (24, 3), metres, ``frame_id`` → PoseArray (identity orientations).
+    """Joints (P, K, 3) or one person (K, 3), metres, ``frame_id`` → PoseArray (identity
+    orientations).
 
     Non-finite values are written as they are.
     """
@@ -55,9 +57,9 @@ def joints_to_pose_array(joints: np.ndarray, stamp_ns: int, frame_id: str,
         raise MessageError(f'joints_to_pose_array: joints must be numbers ({exc})') from exc
     if joints.ndim == 2:
         joints = joints[None]
-    if joints.ndim != 3 or joints.shape[1:] != (JOINTS_PER_PERSON, 3):
-        raise MessageError(f'joints_to_pose_array: expected (P, {JOINTS_PER_PERSON}, 3) or '
-                           f'({JOINTS_PER_PERSON}, 3), got shape {joints.shape}')
+    if joints.ndim != 3 or joints.shape[2] != 3 or (len(joints) and not joints.shape[1]):
+        raise MessageError(f'joints_to_pose_array: expected (P, K, 3) or (K, 3), got shape '
+                           f'{joints.shape}')
     Pose = types.get('geometry_msgs/msg/Pose')
     positions = joints.reshape(-1, 3).tolist()  # Python floats (rclpy refuses numpy scalars)
     if types.is_rosbags:  # dataclasses: every field given

@@ -13,7 +13,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from hac_ros.core.contact import SOLE_HEIGHT_REL, leg_length
+from hac_ros.core.contact import leg_length
+from hac_ros.core.layouts import SMPL24
 from hac_ros.core.numeric import NS
 
 # A standing SMPL-24 skeleton, world metres, pelvis above the origin, facing -y (towards the camera)
@@ -35,7 +36,7 @@ STANDING = np.array([
     [0.25, -0.05, 0.78], [-0.25, -0.05, 0.78],  # 22, 23 hands
 ])
 # the feet stand at their sole height above the floor (10, 11 are the foot joints)
-SOLE_M = SOLE_HEIGHT_REL[10] * leg_length(STANDING)
+SOLE_M = SMPL24.sole_height_rel[10] * leg_length(SMPL24, STANDING)
 STANDING = STANDING + [0.0, 0.0, SOLE_M]
 
 

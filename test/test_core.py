@@ -13,6 +13,7 @@ from hypothesis import strategies as st
 from hac_ros.core.calibrator import Calibrator
 from hac_ros.core.estimator import RollingScale, SortedWindow
 from hac_ros.core.ground import GroundModel, Plane
+from hac_ros.core.layouts import SMPL24
 from hac_ros.core.outputs import (HumanJointsOut, OdometryOut, ResetOut, SampleOut, ScaleOut)
 from hac_ros.core.numeric import median_1d, quantile_1d
 from hac_ros.core.params import HacParams
@@ -264,6 +265,7 @@ def test_bad_inputs_are_counted_never_raised_never_nan():
             outs += cal.add_joints(stamp - 1, joints[None], 'camera')  # late
             outs += cal.add_joints(stamp + 1, joints[None], 'other_frame')  # wrong frame
             outs += cal.add_joints(stamp + 2, np.zeros((5, 3)), 'camera')  # not 24 joints
+            outs += cal.add_joints(stamp + 2, np.zeros((1, 24, 2)), 'camera')  # not points
             outs += cal.add_pose(stamp, scene.R_wc_slam[t], scene.c_slam[t], 'map')  # repeated
             outs += cal.add_pose(stamp + 3, np.full((3, 3), np.nan), scene.c_slam[t], 'map')
     outs += cal.flush()
@@ -272,6 +274,7 @@ def test_bad_inputs_are_counted_never_raised_never_nan():
     assert cal.rejected['behind_camera'] == 1
     assert cal.rejected['late_frame'] == 1
     assert cal.rejected['joints_wrong_frame'] == 1
+    assert cal.rejected['joints_wrong_layout'] == 1
     assert cal.rejected['joints_malformed'] == 1
     assert cal.rejected['pose_out_of_order'] == 1
     assert cal.rejected['pose_nonfinite'] == 1
@@ -373,7 +376,7 @@ def test_hmr_normal_needs_no_scale_and_survives_a_handstand():
         for t in range(10):
             ground.add_camera(scene.R_wc_slam[t])
             joints = scene.joints_cam[t] * [1.0, flip, 1.0]
-            ground.add_body(scene.R_wc_slam[t], joints)
+            ground.add_body(scene.R_wc_slam[t], SMPL24.up_axis(joints))
         n = ground.normal()
         true_down = scene.R0.T @ np.array([0.0, 0.0, -1.0])
         assert n @ true_down == pytest.approx(1.0, abs=1e-3)

@@ -377,8 +377,10 @@ def test_bad_joints_are_message_errors():
     msg.poses = msg.poses[:47]
     with pytest.raises(MessageError, match='47 poses is not a multiple of 24'):
         ma.pose_array_to_joints(msg)
-    with pytest.raises(MessageError, match=r'expected \(P, 24, 3\)'):
-        ma.joints_to_pose_array(np.zeros((23, 3)), 0, 'camera', t)
+    with pytest.raises(MessageError, match=r'expected \(P, K, 3\)'):
+        ma.joints_to_pose_array(np.zeros((23, 2)), 0, 'camera', t)
+    coco = ma.joints_to_pose_array(np.zeros((3, 17, 3)), 0, 'camera', t)  # any layout's K
+    assert ma.pose_array_to_joints(coco, 17).shape == (3, 17, 3)
     with pytest.raises(MessageError, match='expected a poses sequence'):
         ma.pose_array_to_joints(ma.make_header(0, 'camera', t))
 

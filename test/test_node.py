@@ -372,8 +372,8 @@ def test_bad_input_is_counted_logged_once_and_the_node_recovers(harness, walk):
     h.settle()
 
     expected = {'cloud_empty': 1, 'cloud_malformed': 3, 'pose_out_of_order': 2,
-                'joints_malformed': 3, 'pose_nonfinite': 2, 'nonfinite_joints': 2,
-                'joints_wrong_frame': 1, 'late_frame': 1, 'pose_outlier': 1}
+                'joints_malformed': 2, 'joints_wrong_layout': 1, 'pose_nonfinite': 2,
+                'nonfinite_joints': 2, 'joints_wrong_frame': 1, 'late_frame': 1, 'pose_outlier': 1}
     diag = h.diagnostics()
     for reason, count in expected.items():
         assert int(diag.get(f'rejected.{reason}', 0)) == count, (reason, diag)
@@ -490,6 +490,17 @@ def test_every_parameter_is_declared_with_its_default_and_description(harness):
         assert descriptor.description.startswith(describe(name)['description'])
 
 
+def test_a_custom_joint_layout_is_given_as_integer_arrays(harness):
+    custom = dict(joint_layout='custom', joints_per_person=17, root_joints=[11, 12],
+                  body_axis_lower_joints=[11, 12], body_axis_upper_joints=[5, 6],
+                  contact_joints=[15, 16], skeleton_edges=[11, 13, 13, 15])
+    h = harness(**custom)
+    assert h.node.calibrator is not None and h.node.calibrator.layout.root == (11, 12)
+    assert list(h.node.get_parameter('contact_joints').value) == [15, 16]
+    bad = h.node.set_parameters([Parameter('root_joints', value=[40])])[0]
+    assert not bad.successful and 'outside 0..16' in bad.reason
+
+
 # ================================================================================ raw cloud
 @pytest.mark.parametrize('frame_id', ['', 'm', 'map', 'odom_ab', 'a_longer_frame_name_12'])
 @pytest.mark.parametrize('layout', ['xyz32', 'xyz64', 'padded'])
@@ -540,7 +551,10 @@ def test_docs_table_and_config_list_every_parameter_with_its_default():
     config = REPO / 'config' / 'hac.yaml'
     assert HacParams.from_yaml(config) == HacParams()
     listed = yaml.safe_load(config.read_text(encoding='utf-8'))['hac_node']['ros__parameters']
-    assert list(listed) == names()
+    # the custom layout's index lists are comments: a ROS parameters file cannot hold []
+    lists = [n for n in names() if describe(n)['kind'] == 'indices']
+    assert list(listed) == [n for n in names() if n not in lists]
+    assert all(f'# {n}: [' in config.read_text(encoding='utf-8') for n in lists)
 
 
 def test_spin_thread_delivers_then_stops_before_its_executor_is_shut_down():

@@ -16,7 +16,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--json', metavar='F', help='also write the rows as JSON to F')
     parser.add_argument('--md', metavar='F', help='also write the table as Markdown to F')
     parser.add_argument('--params', metavar='FILE',
-                        help='the parameters file the replay used (for the reference rows)')
+                        help='the parameters file the replay used (for the reference rows; '
+                        'default: the defaults in the recording\'s joint layout)')
     parser.add_argument('--no-references', action='store_true',
                         help='skip the "no calibration" and "true scale" rows (they re-run the core)')
 
@@ -24,7 +25,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from hac_ros.evaluate import evaluate
 
-    result = evaluate(args.output, args.gt, HacParams.load(args.params),
+    result = evaluate(args.output, args.gt, HacParams.load(args.params) if args.params else None,
                       references=not args.no_references)
     print(result.text(), flush=True)
     if args.json:

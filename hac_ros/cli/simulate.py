@@ -24,6 +24,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--hmr-bias', type=float, default=None,
                         help=escape_help('HMR depth bias (0.03 = 3 % too far); default: random '
                                          'few %; 0: none'))
+    parser.add_argument('--joint-layout', choices=('smpl24', 'coco17', 'h36m17'), default='smpl24',
+                        help='the HMR model\'s joints (replay with the same joint_layout)')
     parser.add_argument('--motion', type=Path, default=None,
                         help='real motion (a ../shared/data/cmu_mocap/*.npz) instead of the gait')
 
@@ -37,7 +39,8 @@ def run(args: argparse.Namespace) -> int:
         raise HacError(f'motion file {args.motion} not found')
     sc = make_scenario(args.scenario, seed=args.seed, duration=args.duration, rate=args.rate,
                        hmr_bias=args.hmr_bias,
-                       motion=str(args.motion) if args.motion is not None else None)
+                       motion=str(args.motion) if args.motion is not None else None,
+                       joint_layout=args.joint_layout)
     write_recording(sc, args.output, storage=args.storage, pose_type=args.pose_type)
     print(f'{args.output}: {args.scenario}, {sc.duration_s:.1f} s, {len(sc.pose_stamps_ns)} poses, '
           f'{len(sc.joints_stamps_ns)} joints frames, {len(sc.maps)} maps, true scale '

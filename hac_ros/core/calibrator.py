@@ -25,10 +25,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hac_ros.core.contact import in_view
+from hac_ros.core.convention_check import ConventionCheck
 from hac_ros.core.conventions import Conventions
 from hac_ros.core.estimator import RollingScale
 from hac_ros.core.ground import GroundModel, Plane
 from hac_ros.core.humans import RootFilter
+from hac_ros.core.layouts import layout_from_params
 from hac_ros.core.metric import MetricStage, StageConfig
 from hac_ros.core.numeric import MEDIAN_STD_ERROR, NS
 from hac_ros.core.outputs import (REASONS, NoticeOut, Output, PendingFrame, PendingMap,
@@ -41,7 +44,6 @@ from hac_ros.core.sample import Scene, person_sample
 from hac_ros.core.services import ServiceRequests
 from hac_ros.core.transforms import is_rotation
 
-JOINTS_PER_PERSON = 24
 PENDING_MAPS_MAX = 8  # maps waiting for a frame of their stamp
 GROUND_SHARE_SAMPLES = 30  # recent samples whose sources say whether the ground plane carries
 
@@ -92,11 +94,13 @@ class Calibrator:
         self._map_unhanded = False  # a map in use has not been handed to the metric stage yet
         self._sources: deque[bool] = deque(maxlen=GROUND_SHARE_SAMPLES)  # True: a ground sample
         self.services = ServiceRequests()  # ~/reset, ~/freeze
-        self.conventions = Conventions(p.pose_to_optical, p.hmr_focal_px)
+        self.layout = layout_from_params(p)  # which joint is which (joint_layout)
+        self.conventions = Conventions(p.pose_to_optical, p.hmr_focal_px, self.layout)
+        self.check = ConventionCheck()  # warns when the geometry says a convention is wrong
         # what depends on the published scale: the segments' placements, the continuous
         # odometry, the cloud (hac_ros.core.metric)
         self.metric = MetricStage(StageConfig.from_params(p),
-                                  RootFilter() if p.human_filter == 'smooth' else None)
+                                  RootFilter(self.layout) if p.human_filter == 'smooth' else None)
 
     # ================================================================== inputs
     def add_camera_info(self, K: np.ndarray, width: int, height: int, frame_id: str = '') -> list[Output]:
@@ -180,12 +184,15 @@ class Calibrator:
         return []
 
     def add_joints(self, stamp_ns: int, joints_cam: np.ndarray, frame_id: str = '') -> list[Output]:
-        """HMR joints of one image: (P, 24, 3) metres in the camera optical frame (or (P*24, 3))."""
+        """HMR joints of one image: (P, K, 3) metres in the camera optical frame (or (P*K, 3)),
+        K the layout's joints per person."""
         joints_cam = np.asarray(joints_cam, dtype=float)
-        if joints_cam.ndim == 2 and joints_cam.shape[1] == 3 and len(joints_cam) % JOINTS_PER_PERSON == 0:
-            joints_cam = joints_cam.reshape(-1, JOINTS_PER_PERSON, 3)
-        if joints_cam.ndim != 3 or joints_cam.shape[1:] != (JOINTS_PER_PERSON, 3):
-            return self.reject('joints_malformed', stamp_ns)
+        k = self.layout.joints_per_person
+        if joints_cam.ndim == 2 and joints_cam.shape[1] == 3 and len(joints_cam) % k == 0:
+            joints_cam = joints_cam.reshape(-1, k, 3)
+        if joints_cam.ndim != 3 or joints_cam.shape[1:] != (k, 3):
+            wrong_k = joints_cam.ndim in (2, 3) and joints_cam.shape[-1] == 3
+            return self.reject('joints_wrong_layout' if wrong_k else 'joints_malformed', stamp_ns)
         if frame_id:
             if not self._camera_frame:
                 self._camera_frame = frame_id
@@ -301,7 +308,7 @@ class Calibrator:
             ground_normal_map=None if plane is None else plane.normal,
             ground_offset_slam=float('nan') if plane is None else plane.offset,
             drifting=self.estimator.drifting, frozen=self.services.holding,
-            services=dict(self.services.counts))
+            services=dict(self.services.counts), suspects=dict(self.check.suspects))
         last = self.track.last
         return PendingStatus(status, plane, None if last is None else last.c_map, self.segment)
 
@@ -421,8 +428,11 @@ class Calibrator:
         self.frames += 1
         if not self.services.holding:  # frozen: nothing expires
             self.estimator.advance(stamp)
+        if self.map is not None and self.map.size and self.check.map_due(stamp):
+            self.check.add_map_view(stamp, self.map.sample, R_wc, c_map, self._K, self._image_size)
         for person, joints in enumerate(frame.joints_cam):
             out += self._person(stamp, person, R_wc, c_map, joints)
+        out += self.check.notices(stamp)
         if self.defer_metric or self.published_scale(stamp) is not None:
             plane = self.ground.plane(self.map) if self.map is not None else None
             out += self._metric(PendingFrame(stamp, self.segment, R_wc, c_map, frame.joints_cam,
@@ -437,11 +447,15 @@ class Calibrator:
             return self._rejected_sample(stamp, person, 'nonfinite_joints')
         if not (joints[:, 2] > 0.0).any():
             return self._rejected_sample(stamp, person, 'behind_camera')
-        self.ground.add_body(R_wc, joints)
+        up_cam = self.layout.up_axis(joints)
+        self.ground.add_body(R_wc, up_cam)
+        self.check.add_person(R_wc @ up_cam, R_wc[:, 1],
+                              in_view(joints, self._K, *self._image_size) if self._K is not None
+                              else None)
         scale_now = self._working_scale()
         scene = Scene(self.map, self.ground.plane(self.map), self.ground.normal(),
                       self.ground.refined, self._K, self._image_size, scale_now, self._cos_min)
-        sample = person_sample(self.params, scene, R_wc, c_map, joints)
+        sample = person_sample(self.params, self.layout, scene, R_wc, c_map, joints)
         if isinstance(sample, str):
             return self._rejected_sample(stamp, person, sample)
         if sample.source == 'map':

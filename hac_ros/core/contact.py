@@ -5,7 +5,8 @@ That rule breaks when the camera rolls or pitches, so ``lowest_gravity`` takes t
 the ground normal once one is known. The authors' code instead computes a scale for every joint and
 keeps the per-frame maximum ratio (``max_ratio``): a joint can never lie behind the surface its ray
 hits, so every ratio is at most the true scale and the largest is the contact. ``feet``,
-``pelvis`` and ``head`` are the paper's fixed-joint ablations (Tab. 1).
+``pelvis`` and ``head`` are the paper's fixed-joint ablations (Tab. 1). Which joint is which is the
+:class:`~hac_ros.core.layouts.JointLayout`'s (``joint_layout``).
 """
 from __future__ import annotations
 
@@ -13,63 +14,58 @@ import math
 
 import numpy as np
 
+from hac_ros.core.layouts import JointLayout
 from hac_ros.core.numeric import median_1d
 
-PELVIS, NECK, HEAD = 0, 12, 15
-LEFT_FOOT, RIGHT_FOOT = 10, 11
-FIXED_JOINTS = {'feet': (LEFT_FOOT, RIGHT_FOOT), 'pelvis': (PELVIS,), 'head': (HEAD,)}
-LEGS = ((1, 4, 7), (2, 5, 8))  # (hip, knee, ankle) of each leg
-# A joint that touches the scene is not on the surface: its height above the sole (or the palm),
-# as a fraction of the person's leg length (thigh plus shank). SMPL's regressor puts the foot
-# joints about 3 cm and the ankles about 7 cm above the sole of an 0.83 m leg, the hands about
-# 1.5 cm above the palm. Other joints: 0. docs/method.md, "The contact point".
-SOLE_HEIGHT_REL = {LEFT_FOOT: 0.036, RIGHT_FOOT: 0.036, 7: 0.085, 8: 0.085, 22: 0.018, 23: 0.018}
 
-
-def candidate_joints(mode: str, joints_cam: np.ndarray, R_wc: np.ndarray,
+def candidate_joints(mode: str, layout: JointLayout, joints_cam: np.ndarray, R_wc: np.ndarray,
                      normal_map: np.ndarray | None) -> list[int]:
     """Indices of the joints whose rays are queried for one person.
 
-    joints_cam: (24, 3) metres, camera optical frame, finite, the person in front of the camera.
+    joints_cam: (K, 3) metres, camera optical frame, finite, the person in front of the camera.
     R_wc: (3, 3) camera to map. normal_map: (3,) down-pointing ground normal in the map, or None.
-    Only joints in front of the camera (z > 0) are candidates. Plain Python over the 24 joints:
-    numpy's per-call cost dominates at this size.
+    Only joints in front of the camera (z > 0) among the layout's contact candidates are
+    candidates. Plain Python over the joints: numpy's per-call cost dominates at this size.
     """
     depth = joints_cam[:, 2].tolist()
-    if mode in FIXED_JOINTS:
-        return [j for j in FIXED_JOINTS[mode] if depth[j] > 0.0]
+    fixed = layout.fixed_joints(mode)
+    if fixed is not None:
+        return [j for j in fixed if depth[j] > 0.0]
+    allowed = layout.contact or range(len(depth))
     if mode == 'max_ratio':
-        return [j for j, z in enumerate(depth) if z > 0.0]
+        return [j for j in allowed if depth[j] > 0.0]
     if mode == 'lowest_gravity' and normal_map is not None:
         height_down = (joints_cam @ (R_wc.T @ normal_map)).tolist()  # along gravity, camera-centred
     else:  # 'lowest' (and lowest_gravity before a normal exists)
         height_down = joints_cam[:, 1].tolist()
     best, lowest = -1, -math.inf
-    for j, z in enumerate(depth):
-        if z > 0.0 and (best < 0 or height_down[j] > lowest):  # the first of equals, as argmax
+    for j in allowed:
+        if depth[j] > 0.0 and (best < 0 or height_down[j] > lowest):  # the first of equals, as argmax
             best, lowest = j, height_down[j]
     return [best] if best >= 0 else []
 
 
-def sole_points(joints_cam: np.ndarray, candidates: list[int], down_cam: np.ndarray) -> np.ndarray:
+def sole_points(layout: JointLayout, joints_cam: np.ndarray, candidates: list[int],
+                down_cam: np.ndarray) -> np.ndarray:
     """The candidates' contact points on the surface: each joint moved along ``down_cam`` by its
-    height above the sole (:data:`SOLE_HEIGHT_REL` times the person's leg length).
+    height above the sole (the layout's ``sole_height_rel`` times the person's leg length).
 
-    joints_cam: (24, 3) metres, camera optical frame; down_cam: (3,) unit, camera frame, pointing
+    joints_cam: (K, 3) metres, camera optical frame; down_cam: (3,) unit, camera frame, pointing
     down (the ground normal). Returns (len(candidates), 3) metres, camera optical frame.
     """
     points = joints_cam[candidates]
-    heights = [SOLE_HEIGHT_REL.get(j, 0.0) for j in candidates]
+    heights = [layout.sole_height_rel.get(j, 0.0) for j in candidates]
     if not any(heights):
         return points
-    return points + (leg_length(joints_cam) * np.asarray(heights))[:, None] * down_cam
+    return points + (leg_length(layout, joints_cam) * np.asarray(heights))[:, None] * down_cam
 
 
-def leg_length(joints: np.ndarray) -> float:
+def leg_length(layout: JointLayout, joints: np.ndarray) -> float:
     """The person's leg length, metres: thigh plus shank (bone lengths: whatever the pose) of the
-    longer leg. joints: (24, 3) metres, any frame."""
-    return max(math.dist(joints[h].tolist(), joints[k].tolist())
-               + math.dist(joints[k].tolist(), joints[a].tolist()) for h, k, a in LEGS)
+    longer leg (0 for a layout without legs). joints: (K, 3) metres, any frame."""
+    return max((math.dist(joints[h].tolist(), joints[k].tolist())
+                + math.dist(joints[k].tolist(), joints[a].tolist()) for h, k, a in layout.legs),
+               default=0.0)
 
 
 def combine_ratios(mode: str, ratios: list[float]) -> float:

@@ -9,9 +9,9 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from hac_ros.core.layouts import SMPL24, JointLayout
 from hac_ros.core.outputs import NoticeOut
 
-ROOT_JOINT = 0  # SMPL-24's pelvis: the person's depth (the layouts' roots: issue 21, joint_layout)
 
 
 def optical_rotation(pose_to_optical: list[float]) -> np.ndarray | None:
@@ -29,12 +29,13 @@ def to_optical(R_map_child: np.ndarray, R_child_optical: np.ndarray | None) -> n
     return R_map_child if R_child_optical is None else R_map_child @ R_child_optical
 
 
-def refocus_depth(joints_cam: np.ndarray, fx: float, hmr_focal_px: float) -> np.ndarray:
-    """Joints (P, J, 3) metres, camera optical frame, as an HMR model with focal length
+def refocus_depth(joints_cam: np.ndarray, fx: float, hmr_focal_px: float,
+                  layout: JointLayout = SMPL24) -> np.ndarray:
+    """Joints (P, K, 3) metres, camera optical frame, as an HMR model with focal length
     ``hmr_focal_px`` placed them, moved to the depth the camera's ``fx`` (pixels, CameraInfo's
     resolution) gives: each person at f/f_a times its root's depth, x and y unchanged, so every
-    joint's z moves by z_root · (f/f_a − 1)."""
-    shift = joints_cam[:, ROOT_JOINT:ROOT_JOINT + 1, 2] * (fx / hmr_focal_px - 1.0)  # (P, 1)
+    joint's z moves by z_root · (f/f_a − 1) (the root as the layout defines it)."""
+    shift = layout.root_of(joints_cam)[:, 2:3] * (fx / hmr_focal_px - 1.0)  # (P, 1)
     out = joints_cam.copy()
     out[:, :, 2] += shift
     return out
@@ -58,8 +59,10 @@ class Conventions:
     """The calibrator's door for poses and joints: ``pose_to_optical`` and ``hmr_focal_px``
     applied, with the notices they call for."""
 
-    def __init__(self, pose_to_optical: list[float], hmr_focal_px: float) -> None:
+    def __init__(self, pose_to_optical: list[float], hmr_focal_px: float,
+                 layout: JointLayout = SMPL24) -> None:
         self.R_child_optical = optical_rotation(pose_to_optical)
+        self.layout = layout
         self.hmr_focal_px = float(hmr_focal_px)
         self._warned = False
 
@@ -84,7 +87,7 @@ class Conventions:
         if not self.hmr_focal_px:
             return joints_cam, []
         if K is not None:
-            return refocus_depth(joints_cam, float(K[0, 0]), self.hmr_focal_px), []
+            return refocus_depth(joints_cam, float(K[0, 0]), self.hmr_focal_px, self.layout), []
         if self._warned:
             return joints_cam, []
         self._warned = True

@@ -134,10 +134,10 @@ class GroundModel:
         for axis, value in enumerate(R_wc[:, 1].tolist()):
             down[axis] += value
 
-    def add_body(self, R_wc: np.ndarray, joints_cam: np.ndarray) -> None:
-        """One person's up axis (pelvis → neck), joints_cam (24, 3) metres, camera optical frame."""
-        (px, py, pz), (nx, ny, nz) = joints_cam[0].tolist(), joints_cam[12].tolist()
-        x, y, z = nx - px, ny - py, nz - pz
+    def add_body(self, R_wc: np.ndarray, up_cam: np.ndarray) -> None:
+        """One person's up axis (the layout's lower → upper joints), up_cam (3,) camera optical
+        frame, any length."""
+        x, y, z = up_cam.tolist()
         norm = math.sqrt(x * x + y * y + z * z)
         if not math.isfinite(norm) or norm <= 0.0:
             return

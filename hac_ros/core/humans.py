@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from hac_ros.core.layouts import SMPL24, JointLayout
 from hac_ros.core.numeric import NS
 from hac_ros.core.outputs import HumanJointsOut, Output
 
@@ -78,14 +79,14 @@ class PersonTracker:
 class RootFilter:
     """Online: each person's world root through a constant-velocity Kalman filter (module doc)."""
 
-    def __init__(self, root_joint: int = 0) -> None:
-        self.root_joint = root_joint
+    def __init__(self, layout: JointLayout = SMPL24) -> None:
+        self.layout = layout
         self.tracker = PersonTracker()
 
     def update(self, stamp_ns: int, joints_metric: np.ndarray) -> np.ndarray:
         """joints_metric: (P, K, 3) metres, metric frame (the frame's people, input order).
         Returns the same people, each moved so that its root is the filtered one."""
-        roots = joints_metric[:, self.root_joint]
+        roots = self.layout.root_of(joints_metric)
         ids = self.tracker.assign(stamp_ns, roots)
         out = joints_metric.copy()
         for p, track_id in enumerate(ids):
@@ -117,15 +118,16 @@ def _kalman_step(track: _Track, stamp_ns: int, measured: np.ndarray) -> np.ndarr
     return state[0]
 
 
-def smooth_people(stamps_ns: list[int], joints_metric: list[np.ndarray], root_joint: int = 0,
-                  sigma_s: float = SMOOTH_SIGMA_S) -> list[np.ndarray]:
+def smooth_people(stamps_ns: list[int], joints_metric: list[np.ndarray],
+                  layout: JointLayout = SMPL24, sigma_s: float = SMOOTH_SIGMA_S
+                  ) -> list[np.ndarray]:
     """Offline: every person's root smoothed with a Gaussian of ``sigma_s`` stamp seconds over
     their track (zero-phase), each person moved with it. stamps_ns: (F,) the frames' stamps;
     joints_metric[f]: (P_f, K, 3) metres, metric frame. Returns the frames in the same order."""
     tracker = PersonTracker()
     rows: dict[int, list[tuple[int, int]]] = {}  # track id -> [(frame, person)]
     for f, (stamp, people) in enumerate(zip(stamps_ns, joints_metric)):
-        roots = people[:, root_joint]
+        roots = layout.root_of(people)
         ids = tracker.assign(stamp, roots)
         for p, track_id in enumerate(ids):
             if track_id < 0:
@@ -141,7 +143,7 @@ def smooth_people(stamps_ns: list[int], joints_metric: list[np.ndarray], root_jo
     reach = int(3.0 * sigma_s * NS)
     for members in rows.values():
         t = np.array([stamps_ns[f] for f, _ in members], dtype=np.int64)
-        roots = np.array([joints_metric[f][p, root_joint] for f, p in members])
+        roots = np.array([layout.root_of(joints_metric[f][p]) for f, p in members])
         lo = np.searchsorted(t, t - reach, side='left')
         hi = np.searchsorted(t, t + reach, side='right')
         for k, (f, p) in enumerate(members):
@@ -152,10 +154,11 @@ def smooth_people(stamps_ns: list[int], joints_metric: list[np.ndarray], root_jo
     return out
 
 
-def smooth_outputs(outputs: list[Output]) -> None:
+def smooth_outputs(outputs: list[Output], layout: JointLayout = SMPL24) -> None:
     """Offline: the world humans among ``outputs`` (HumanJointsOut, in stamp order) smoothed by
     :func:`smooth_people`, in place."""
     humans = [o for o in outputs if isinstance(o, HumanJointsOut)]
-    smoothed = smooth_people([o.stamp_ns for o in humans], [o.joints_metric for o in humans])
+    smoothed = smooth_people([o.stamp_ns for o in humans], [o.joints_metric for o in humans],
+                             layout)
     for output, joints in zip(humans, smoothed):
         output.joints_metric = joints

@@ -114,6 +114,7 @@ class Status:
     frozen: bool = False  # the scale is held (~/freeze)
     alignment: str = ''  # the metric frame of the current segment: 'gravity' or 'slam'
     services: dict[str, int] = field(default_factory=dict)  # service requests taken, by name
+    suspects: dict[str, str] = field(default_factory=dict)  # convention warnings (convention_check)
 
     @property
     def fallback_rate(self) -> float:
@@ -142,7 +143,10 @@ REASONS = {
     'pose_out_of_order': 'SLAM pose stamp not after the previous one (out of order or repeated)',
     'pose_outlier': 'isolated SLAM pose jump (jump and back): pose ignored',
     'late_frame': 'joints frame older than the last processed frame: dropped',
-    'joints_malformed': 'joints message is not P blocks of 24 joints',
+    'joints_malformed': 'joints message is not P blocks of the layout\'s joints',
+    'joints_wrong_layout': ('the number of joints is not a multiple of the joint layout\'s joints '
+                            'per person: set joint_layout (smpl24: 24, coco17 and h36m17: 17, '
+                            'custom: joints_per_person)'),
     'joints_wrong_frame': 'joints in a frame other than the camera frame',
     'nonfinite_joints': 'a person with NaN/inf joints',
     'behind_camera': 'a person entirely behind the camera',

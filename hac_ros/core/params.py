@@ -26,15 +26,18 @@ ALIGNMENTS = ('gravity', 'slam')
 POSE_MSGTYPES = {'PoseStamped': 'geometry_msgs/msg/PoseStamped', 'Odometry': 'nav_msgs/msg/Odometry'}
 CLOUD_MODES = ('replace', 'accumulate')
 HUMAN_FILTERS = ('none', 'smooth')
+JOINT_LAYOUTS = ('smpl24', 'coco17', 'h36m17', 'custom')
 INPUT_QOS = ('best_effort', 'reliable')
 CLOUD_QOS = ('transient_local', 'volatile')
 
 
 def _p(default: Any, description: str, *, choices: tuple[str, ...] | None = None,
-       low: float | None = None, high: float | None = None, length: int | None = None) -> Any:
-    """A dataclass field carrying its ROS parameter description and its allowed range."""
+       low: float | None = None, high: float | None = None, length: int | None = None,
+       kind: str = '') -> Any:
+    """A dataclass field carrying its ROS parameter description and its allowed range
+    (``kind='indices'``: a list of any length of joint indices, integers >= 0)."""
     meta = {'description': description, 'choices': choices, 'low': low, 'high': high,
-            'length': length}
+            'length': length, 'kind': kind}
     if isinstance(default, list):
         return field(default_factory=lambda: list(default), metadata=meta)
     return field(default=default, metadata=meta)
@@ -68,6 +71,22 @@ class HacParams:
                                low=0.05, high=20.0)
     cone_min_points: int = _p(3, 'map points needed in the cone for a hit', low=1, high=1000)
     ground_mode: str = _p('hmr', 'ground plane strategy', choices=GROUND_MODES)
+
+    # --- the HMR model's joints (core/layouts.py); the index lists are for joint_layout custom
+    joint_layout: str = _p('smpl24', 'joint order of each person in the joints message',
+                           choices=JOINT_LAYOUTS)
+    joints_per_person: int = _p(0, 'custom: joints per person (ignored by the built-in layouts)',
+                                low=0, high=10_000)
+    contact_joints: list = _p([], 'custom: joints that may touch the scene (empty: all); also '
+                              'the feet contact mode\'s', kind='indices')
+    root_joints: list = _p([], 'custom: the root (mean of these): depth, world track; also the '
+                           'pelvis contact mode\'s', kind='indices')
+    body_axis_lower_joints: list = _p([], 'custom: lower end of the body\'s up axis (mean)',
+                                      kind='indices')
+    body_axis_upper_joints: list = _p([], 'custom: upper end of the body\'s up axis (mean); '
+                                      'also the head contact mode\'s', kind='indices')
+    skeleton_edges: list = _p([], 'custom: bones for the markers, flat index pairs',
+                              kind='indices')
 
     # --- estimator
     window_s: float = _p(30.0, 'rolling window length, stamp seconds', low=0.1, high=1e6)
@@ -168,6 +187,9 @@ class HacParams:
             raise ParameterError('obstacle_min_height: must be below obstacle_max_height')
         if abs(math.sqrt(sum(x * x for x in self.pose_to_optical)) - 1.0) > 1e-3:
             raise ParameterError('pose_to_optical: the quaternion (x y z w) must be unit')
+        if self.joint_layout == 'custom':
+            from hac_ros.core.layouts import layout_from_params
+            layout_from_params(self)  # raises on missing roles or indices outside the person
         q = self.base_to_camera[3:]
         if abs(math.sqrt(sum(x * x for x in q)) - 1.0) > 1e-3:
             raise ParameterError('base_to_camera: the quaternion (last 4 values) must be unit')
@@ -252,6 +274,9 @@ def _coerce(name: str, value: Any) -> Any:
         return float(value)
     if isinstance(ref, list) and isinstance(value, (tuple, list)) or (
             isinstance(ref, list) and hasattr(value, 'tolist')):
+        if describe(name)['kind'] == 'indices':
+            return [int(v) if isinstance(v, (int, float)) and not isinstance(v, bool)
+                    and float(v).is_integer() else v for v in list(value)]
         return [float(v) for v in list(value)]
     return value
 
@@ -269,6 +294,12 @@ def _check(f: dataclasses.Field, value: Any) -> None:
             raise ParameterError(f'{name}: expected a string, got {value!r}')
         if meta.get('choices') and value not in meta['choices']:
             raise ParameterError(f'{name}: {value!r} is not one of {", ".join(meta["choices"])}')
+        return
+    if meta.get('kind') == 'indices':
+        if not isinstance(value, list) or not all(
+                isinstance(v, int) and not isinstance(v, bool) and v >= 0 for v in value):
+            raise ParameterError(f'{name}: expected a list of joint indices (integers >= 0), '
+                                 f'got {value!r}')
         return
     if isinstance(ref, list):
         if not isinstance(value, list) or len(value) != meta['length'] or not all(

@@ -15,6 +15,7 @@ import numpy as np
 
 from hac_ros.core.contact import candidate_joints, combine_ratios, in_view, sole_points
 from hac_ros.core.ground import Plane
+from hac_ros.core.layouts import JointLayout
 from hac_ros.core.params import HacParams
 from hac_ros.core.reference import MapIndex
 
@@ -46,11 +47,11 @@ class Scene:
     cos_min: float
 
 
-def person_sample(params: HacParams, scene: Scene, R_wc: np.ndarray, c_map: np.ndarray,
-                  joints: np.ndarray) -> Sample | str:
-    """The sample of one person (joints (24, 3) metres, finite, some in front of the camera), or
-    the reason there is none: 'behind_camera', 'no_map', 'no_reference'."""
-    candidates = candidate_joints(params.contact_mode, joints, R_wc, scene.normal)
+def person_sample(params: HacParams, layout: JointLayout, scene: Scene, R_wc: np.ndarray,
+                  c_map: np.ndarray, joints: np.ndarray) -> Sample | str:
+    """The sample of one person (joints (K, 3) metres, camera optical frame, finite, some in front
+    of the camera), or the reason there is none: 'behind_camera', 'no_map', 'no_reference'."""
+    candidates = candidate_joints(params.contact_mode, layout, joints, R_wc, scene.normal)
     if not candidates:
         return 'behind_camera'
     visible = in_view(joints[candidates], scene.K, *scene.image_size)
@@ -59,7 +60,7 @@ def person_sample(params: HacParams, scene: Scene, R_wc: np.ndarray, c_map: np.n
     points = joints[candidates]
     if params.sole_correction:
         down_cam = R_wc.T @ scene.normal if scene.normal is not None else np.array([0.0, 1.0, 0.0])
-        points = sole_points(joints, candidates, down_cam)
+        points = sole_points(layout, joints, candidates, down_cam)
     plane = scene.plane
     ratios = [math.nan] * len(candidates)  # d_A / d_S of each candidate, metres per SLAM unit
     from_map = [False] * len(candidates)

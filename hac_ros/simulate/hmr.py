@@ -18,6 +18,7 @@ import math
 
 import numpy as np
 
+from hac_ros.core.layouts import SMPL24, JointLayout
 from hac_ros.simulate.camera import project
 
 JOINT_NOISE_M = 0.02
@@ -58,26 +59,27 @@ class DepthBias:
         return float(self.values[i])
 
 
-def in_view(joints_cam: np.ndarray, K: np.ndarray, width: int, height: int) -> bool:
+def in_view(joints_cam: np.ndarray, K: np.ndarray, width: int, height: int,
+            layout: JointLayout = SMPL24) -> bool:
     """A person is detected when enough joints project into the image in front of the camera."""
     px, front = project(joints_cam, K)
     inside = front & (px[:, 0] >= 0) & (px[:, 0] < width) & (px[:, 1] >= 0) & (px[:, 1] < height)
-    return bool(inside.sum() >= MIN_JOINTS_IN_VIEW and joints_cam[0, 2] > 0.3)
+    return bool(inside.sum() >= MIN_JOINTS_IN_VIEW and layout.root_of(joints_cam)[2] > 0.3)
 
 
 def predict(joints_world: np.ndarray, R_wc: np.ndarray, c: np.ndarray, bias: float,
-            rng: np.random.Generator) -> tuple[np.ndarray, bool]:
+            rng: np.random.Generator, layout: JointLayout = SMPL24) -> tuple[np.ndarray, bool]:
     """One person's predicted joints (K, 3), metres, camera optical frame; and whether it is an outlier.
 
     joints_world: (K, 3) true joints, world frame; R_wc, c: the true camera (camera-to-world);
     bias: this frame's relative depth bias (:class:`DepthBias`). The person's root is moved along
     its viewing ray by ``bias`` of its depth plus :data:`DEPTH_NOISE_M` of noise; the body keeps
-    its size and shape.
+    its size and shape. The root is the layout's (SMPL-24's pelvis, COCO-17's mid-hips).
     """
     cam = (joints_world - c) @ R_wc
     pred = cam + rng.normal(0.0, JOINT_NOISE_M, cam.shape)
     outlier = bool(rng.random() < OUTLIER_RATE)
-    root = pred[0].copy()
+    root = layout.root_of(pred).copy()
     depth = float(np.linalg.norm(root))
     new_depth = depth * (1.0 + bias) + rng.normal(0.0, DEPTH_NOISE_M)
     if outlier:

@@ -11,8 +11,9 @@ from pathlib import Path
 from typing import Any
 
 from hac_ros.core.errors import HacError
+from hac_ros.core.layouts import BUILT_IN
 from hac_ros.core.params import POSE_MSGTYPES
-from hac_ros.recording import OutputWriter, staged_output
+from hac_ros.recording import OutputWriter, layout_data, staged_output
 from msg_adapters import (intrinsics_to_camera_info, joints_to_pose_array, rosbags_types,
                           rt_to_odometry, rt_to_pose_stamped, xyz_to_cloud)
 
@@ -75,7 +76,7 @@ def write_recording(sc: Any, out_path: str | Path, storage: str = 'mcap',
     messages.sort(key=lambda m: (m[0], m[1]))
 
     with staged_output(out) as staged:
-        writer = OutputWriter(staged, storage)
+        writer = OutputWriter(staged, storage, layout_data(BUILT_IN[sc.joint_layout]))
         try:
             for topic, msgtype in TOPICS.items():
                 writer.connection(topic, msgtype or pose_msgtype)

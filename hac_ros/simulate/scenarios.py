@@ -12,9 +12,11 @@ from typing import Callable
 import numpy as np
 
 from hac_ros.core.errors import HacError
+from hac_ros.core.layouts import BUILT_IN
 from hac_ros.simulate import camera as rigs
 from hac_ros.simulate import humans
 from hac_ros.simulate.hmr import DepthBias, draw_bias, in_view, predict
+from hac_ros.simulate.layouts import to_layout
 from hac_ros.simulate.slam import MapMessage, run_slam
 from hac_ros.simulate.world import Box, World, room
 
@@ -37,7 +39,7 @@ class Scenario:
     (what /slam/pose carries, map frame ``slam_frame_ids[i]``); ``gt_R_wc``, ``gt_c`` (metres) the
     true camera in the fixed world frame; ``true_scale`` (T,) metres per SLAM unit.
     Humans at ``joints_stamps_ns`` (F,) (the stamps with someone in view): ``joints_cam[k]``
-    (P, 24, 3) the HMR prediction, metres, camera optical frame; ``gt_joints_world[k]`` the truth,
+    (P, K, 3) the HMR prediction, metres, camera optical frame; ``gt_joints_world[k]`` the truth,
     world frame; ``person_ids[k]`` which people. ``contact_heights`` (people,): each person's
     contact joint's height above the surface it stands on, metres (NaN: real motion, its own);
     ``hmr_bias``: the mean of the HMR depth bias, ``hmr_bias_frames`` (T,) its value at each frame.
@@ -69,6 +71,7 @@ class Scenario:
     segment_starts: list[int]
     world: World = field(repr=False)
     world_frame: str = 'world'
+    joint_layout: str = 'smpl24'  # of joints_cam and gt_joints_world (K joints per person)
 
     def segment_start(self, i: int) -> int:
         return max(s for s in self.segment_starts if s <= i)
@@ -126,8 +129,10 @@ def _stairs(world: World) -> None:
 
 
 def make_scenario(name: str, seed: int = 0, duration: float | None = None, rate: float = 30.0,
-                  hmr_bias: float | None = None, motion: str | None = None) -> Scenario:
-    """Build one scenario (deterministic for ``seed``)."""
+                  hmr_bias: float | None = None, motion: str | None = None,
+                  joint_layout: str = 'smpl24') -> Scenario:
+    """Build one scenario (deterministic for ``seed``; the same people, camera and SLAM for every
+    ``joint_layout``: smpl24, coco17 or h36m17, the HMR model's joints)."""
     if name not in SCENARIOS:
         raise HacError(f'unknown scenario {name!r}; one of: {", ".join(SCENARIOS)}')
     if rate <= 0 or (duration is not None and duration <= 0):
@@ -210,16 +215,21 @@ def make_scenario(name: str, seed: int = 0, duration: float | None = None, rate:
     slam = run_slam(world, landmarks, stamps, R_world, c_world, people_per_frame, K,
                     (rigs.WIDTH, rigs.HEIGHT), scale_fn, segments, rng)
 
-    # --- HMR
+    # --- HMR: the same bodies, in the HMR model's joint layout
+    layout = BUILT_IN[joint_layout] if joint_layout in BUILT_IN else None
+    if layout is None or layout.name == 'custom':
+        raise HacError(f'joint layout must be one of {", ".join(BUILT_IN)}, not {joint_layout!r}')
+    people = [to_layout(person, joint_layout) for person in people]
     depth_bias = DepthBias(bias, t, body_rng, wander=hmr_bias is None or hmr_bias != 0.0)
     j_stamps, j_cam, j_world, ids, outliers = [], [], [], [], []
     for i in range(T):
         preds, truths, who = [], [], []
         for pid, person in enumerate(people):
             cam = (person[i] - c_world[i]) @ R_world[i]
-            if not in_view(cam, K, rigs.WIDTH, rigs.HEIGHT):
+            if not in_view(cam, K, rigs.WIDTH, rigs.HEIGHT, layout):
                 continue
-            pred, outlier = predict(person[i], R_world[i], c_world[i], depth_bias[i], body_rng)
+            pred, outlier = predict(person[i], R_world[i], c_world[i], depth_bias[i], body_rng,
+                                    layout)
             preds.append(pred)
             truths.append(person[i])
             who.append(pid)
@@ -238,7 +248,7 @@ def make_scenario(name: str, seed: int = 0, duration: float | None = None, rate:
         gt_joints_world=j_world, person_ids=ids, hmr_bias=bias,
         hmr_bias_frames=depth_bias.values, contact_heights=heights,
         outlier_frames=np.array(sorted(set(outliers)), dtype=int), segment_starts=segments,
-        world=world)
+        world=world, joint_layout=joint_layout)
 
 
 ScaleFunction = Callable[[int], float]

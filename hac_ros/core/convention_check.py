@@ -1,0 +1,117 @@
+"""Geometric checks that catch an input convention the parameters do not describe (SPEC,
+Parameters: ``pose_to_optical``, ``joint_layout``; issue 21).
+
+A wrong convention does not make inputs invalid, it makes the scale confidently wrong: SLAM poses
+of an x-forward, z-up body frame read as optical poses calibrate 60–85 % off on every simulated
+scene. Each check gathers evidence over many frames and, when it is conclusive, gives one warning
+naming the likely parameter; the warning stays in /diagnostics (:attr:`ConventionCheck.suspects`).
+
+- **The map is not in front of the camera.** A SLAM map holds what the camera saw, so a share of
+  its points lies in the current view (measured on the simulated scenes: 8–99 % at the 10th
+  percentile of poses). Read with the wrong rotation, the "view" points at the ceiling or the
+  sky: 0 % on every scene. Checked once per second of stamp time on a sample of the map.
+- **The body's up axis points down.** With the layout's lower → upper joints reversed (an H36M-17
+  model read as COCO-17, both 17 joints), nearly every person stands on their head in the
+  camera's view.
+- **The joints fall outside the image** (with CameraInfo): HMR joints that are not in the camera
+  optical frame (x right, y down, z forward).
+"""
+from __future__ import annotations
+
+import math
+from collections import deque
+
+import numpy as np
+
+from hac_ros.core.numeric import NS, median_1d
+from hac_ros.core.outputs import NoticeOut
+
+MAP_SAMPLE_POINTS = 1000  # map points checked against the view
+MAP_CHECKS = 10  # checks (one per second) before judging; the median of the last ones decides
+MAP_IN_VIEW_MIN = 0.01  # share of map points in view below which the pose convention is suspect
+PEOPLE_MIN = 100  # people before judging the body axis and the joints in the image
+INVERTED_MAX = 0.8  # share of people standing on their head above which the layout is suspect
+JOINTS_IN_IMAGE_MIN = 0.3  # share of joints in the image below which the joints' frame is suspect
+VIEW_COS = math.cos(math.radians(45.0))  # without intrinsics: in view = within 45° of the axis
+
+TEXTS = {
+    'pose_convention': ('the map is almost never in front of the camera (median {value:.1%} of '
+                        'its points in view): the SLAM pose is probably not the camera optical '
+                        'frame (x right, y down, z forward); set pose_to_optical (e.g. '
+                        '[-0.5, 0.5, -0.5, 0.5] for an x-forward, z-up camera frame)'),
+    'joint_layout': ('{value:.0%} of people have their body axis pointing down in the camera '
+                     'view: unless they stand on their hands, the joints are not in the order of '
+                     'joint_layout; check joint_layout'),
+    'joints_frame': ('only {value:.0%} of HMR joints project into the image: the joints are '
+                     'probably not in the camera optical frame (x right, y down, z forward, '
+                     'metres)'),
+}
+
+
+class ConventionCheck:
+    """Evidence about the input conventions and the warnings it gives (each once)."""
+
+    def __init__(self) -> None:
+        self._map_views: deque[float] = deque(maxlen=MAP_CHECKS)
+        self._next_map_check_ns: int | None = None
+        self._people = self._inverted = 0
+        self._joints = self._joints_in_image = 0
+        self.suspects: dict[str, str] = {}  # check -> warning text, for /diagnostics
+
+    # ------------------------------------------------------------------ evidence
+    def map_due(self, stamp_ns: int) -> bool:
+        """Whether a map check is due at this pose (one per second of stamp time)."""
+        return self._next_map_check_ns is None or stamp_ns >= self._next_map_check_ns
+
+    def add_map_view(self, stamp_ns: int, points_map: np.ndarray, R_wc: np.ndarray,
+                     c_map: np.ndarray, K: np.ndarray | None, image_size: tuple[int, int]) -> None:
+        """The share of the map's points (N, 3) SLAM units in the view of the camera R_wc (3, 3)
+        camera-to-map, c_map (3,): in the image with intrinsics K (3, 3) pixels, else within
+        45° of the optical axis."""
+        self._next_map_check_ns = stamp_ns + NS
+        if len(points_map) > MAP_SAMPLE_POINTS:
+            points_map = points_map[:: len(points_map) // MAP_SAMPLE_POINTS]
+        cam = (points_map - c_map) @ R_wc  # camera optical frame
+        z = cam[:, 2]
+        front = z > 0.0
+        if K is None:
+            inside = front & (z > VIEW_COS * np.linalg.norm(cam, axis=1))
+        else:
+            zs = np.where(front, z, 1.0)
+            u = (K[0, 0] * cam[:, 0] + K[0, 1] * cam[:, 1]) / zs + K[0, 2]
+            v = K[1, 1] * cam[:, 1] / zs + K[1, 2]
+            width, height = image_size
+            inside = front & (u >= 0) & (u < width) & (v >= 0) & (v < height)
+        self._map_views.append(float(inside.mean()) if len(inside) else 0.0)
+
+    def add_person(self, up_map: np.ndarray, camera_down_map: np.ndarray,
+                   in_image: list[bool] | None) -> None:
+        """One person: the body's up axis (3,) and the camera's y axis (3,) in the map, and which
+        of its joints project into the image (None without intrinsics)."""
+        self._people += 1
+        if float(up_map @ camera_down_map) > 0.5 * float(np.linalg.norm(up_map)):
+            self._inverted += 1
+        if in_image is not None:
+            self._joints += len(in_image)
+            self._joints_in_image += sum(in_image)
+
+    # ------------------------------------------------------------------ judgement
+    def notices(self, stamp_ns: int) -> list[NoticeOut]:
+        """A warning for each check that has become conclusive (once per check)."""
+        found: dict[str, float] = {}
+        if len(self._map_views) == MAP_CHECKS:
+            in_view = median_1d(np.array(self._map_views))
+            if in_view < MAP_IN_VIEW_MIN:
+                found['pose_convention'] = in_view
+        if self._people >= PEOPLE_MIN:
+            inverted = self._inverted / self._people
+            if inverted > INVERTED_MAX:
+                found['joint_layout'] = inverted
+            if self._joints and self._joints_in_image / self._joints < JOINTS_IN_IMAGE_MIN:
+                found['joints_frame'] = self._joints_in_image / self._joints
+        out = []
+        for key, value in found.items():
+            if key not in self.suspects:
+                self.suspects[key] = TEXTS[key].format(value=value)
+                out.append(NoticeOut(stamp_ns, f'convention_{key}', self.suspects[key], 'warn'))
+        return out
