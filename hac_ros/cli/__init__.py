@@ -25,6 +25,8 @@ COMMANDS = {
     'eval': ('evaluate', 'metrics of a replayed recording against ground truth'),
     'plot': ('plot', 'figures of a replayed recording'),
     'demo': ('demo', 'replay, evaluate and plot the bundled sample recording'),
+    'import': ('import_files', 'make a recording from SLAM and HMR files (TUM, PLY, npz)'),
+    'export': ('export', 'a replayed recording as numpy arrays (.npz)'),
 }
 
 
