@@ -15,6 +15,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from hac_ros.core.errors import InputError
+from hac_ros.tum import tum_rows
 
 NS = 1_000_000_000
 
@@ -85,26 +86,15 @@ def read_trajectory(path: str | Path, what: str = 'trajectory',
     equals the one before is dropped and its line number appended there instead (motion-capture
     files have them: TUM fr2_desk's ground truth); a stamp going back is still an error."""
     path = _existing(path, what)
-    try:
-        lines = path.read_text(encoding='utf-8').splitlines()
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f'{what} {path}: cannot read it as text ({exc})') from exc
     rows, labels = [], []
-    for number, line in enumerate(lines, 1):
-        text = line.strip()
-        if not text or text.startswith('#'):
-            continue
-        parts = text.replace(',', ' ').split()
-        if len(parts) != 8:
-            raise InputError(f'{what} {path}:{number}: expected 8 values (TUM: t tx ty tz qx qy qz '
-                             f'qw), got {len(parts)}')
+    for number, parts in tum_rows(path, what):
         try:
             row = [float(v) for v in parts]
         except ValueError as exc:
             raise InputError(f'{what} {path}:{number}: not a number ({exc})') from exc
         if not np.isfinite(row).all():
             raise InputError(f'{what} {path}:{number}: a value is not finite (NaN or inf): '
-                             f'{text}')
+                             f'{" ".join(parts)}')
         rows.append(row)
         labels.append(f'line {number}')
     if not rows:

@@ -6,35 +6,43 @@ nanoseconds in memory and seconds with 9 decimals in the file.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import Any, Iterator
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from hac_ros.core.errors import HacError
+from hac_ros.core.errors import InputError
 
 
-def read_tum(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(stamps_ns (N,) int64, positions (N, 3), quats_xyzw (N, 4)); '#' lines and blanks skipped."""
-    stamps, rows = [], []
+def tum_rows(path: str | Path, what: str = 'TUM file') -> Iterator[tuple[int, list[str]]]:
+    """(line number, the 8 fields) of every pose line; '#' lines and blanks skipped, commas allowed
+    between values. :class:`~hac_ros.core.errors.InputError` naming the file and line otherwise."""
     try:
-        lines = Path(path).read_text().splitlines()
-    except OSError as exc:
-        raise HacError(f'cannot read TUM file {path}: {exc}') from exc
+        lines = Path(path).read_text(encoding='utf-8').splitlines()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f'{what} {path}: cannot read it as text ({exc})') from exc
     for number, line in enumerate(lines, 1):
         text = line.strip()
         if not text or text.startswith('#'):
             continue
         parts = text.replace(',', ' ').split()
         if len(parts) != 8:
-            raise HacError(f'{path}:{number}: expected 8 values (t tx ty tz qx qy qz qw), '
-                           f'got {len(parts)}')
+            raise InputError(f'{what} {path}:{number}: expected 8 values (TUM: t tx ty tz qx qy qz '
+                             f'qw), got {len(parts)}')
+        yield number, parts
+
+
+def read_tum(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(stamps_ns (N,) int64, positions (N, 3), quats_xyzw (N, 4)); the stamps' decimals read
+    exactly (no float rounding)."""
+    stamps, rows = [], []
+    for number, parts in tum_rows(path):
         try:
             sec, _, frac = parts[0].partition('.')
             stamps.append(int(sec) * 1_000_000_000 + int((frac + '000000000')[:9]))
             rows.append([float(v) for v in parts[1:]])
         except ValueError as exc:
-            raise HacError(f'{path}:{number}: not a number ({exc})') from exc
+            raise InputError(f'TUM file {path}:{number}: not a number ({exc})') from exc
     data = np.array(rows, dtype=float).reshape(-1, 7)
     return np.array(stamps, dtype=np.int64), data[:, :3], data[:, 3:]
 
