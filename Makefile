@@ -29,6 +29,7 @@ demo: $(STAMP)
 
 bench: $(STAMP)
 	$(PY) bench/accuracy.py
+	$(PY) bench/variants.py
 	$(PY) bench/core_speed.py
 	$(PY) bench/replay_throughput.py
 	$(PY) bench/batch_throughput.py
