@@ -1,4 +1,4 @@
-"""The ``hac`` command: ``simulate | replay | batch | eval | plot | demo``.
+"""The ``hac`` command: ``simulate | replay | batch | eval | plot | demo | import | export``.
 
 Thin: each sub-command is a module of this package with ``add_arguments(parser)`` and
 ``run(args) -> int``, and only argument parsing in it; the work is done by the library modules
