@@ -45,6 +45,7 @@ from hac_ros.import_readers import (NS, Joints, Trajectory, parse_camera, poses_
 from hac_ros.map_files import read_map
 from hac_ros.recording import (GT_CAMERA, GT_JOINTS, GT_SCALE, JOINTS_KEY, LAYOUT_KEY, OutputWriter,
                                layout_data, staged_output)
+from hac_ros.tum import quats_to_rotations
 
 TOPICS = {  # topic -> type, in the order messages of one stamp are written
     '/slam/cloud': 'sensor_msgs/msg/PointCloud2',
@@ -192,7 +193,6 @@ def import_files(output: str | Path, trajectory: str | Path, map_file: str | Pat
 
     first = int(min(traj.stamps_ns[0], hmr.stamps_ns[0]))
     add(first, '/slam/cloud', xyz_to_cloud(points, first, map_frame, types, dtype=np.float64))
-    from hac_ros.tum import quats_to_rotations
     rotations = quats_to_rotations(traj.quats_xyzw)
     for stamp, R, c in zip(traj.stamps_ns.tolist(), rotations, traj.positions):
         add(stamp, '/slam/pose', rt_to_pose_stamped(R, c, stamp, map_frame, types))

@@ -29,7 +29,8 @@ import pytest
 from hac_ros.batch import COLUMNS, batch, recording_name
 from hac_ros.batch_ray import RAY_MAX_RETRIES, probe_ray_address
 from hac_ros.core.errors import HacError
-from hac_ros.recording import OutputWriter, Recording, recording_differences
+from hac_ros.recording import OutputWriter, Recording
+from hac_ros.recording_diff import recording_differences
 from hac_ros.replay import replay
 from hac_ros.simulate import make_scenario, write_recording
 
