@@ -490,6 +490,35 @@ def test_every_parameter_is_declared_with_its_default_and_description(harness):
         assert descriptor.description.startswith(describe(name)['description'])
 
 
+@pytest.mark.parametrize('pose_to_optical, warned', [([0.0, 0.0, 0.0, 1.0], True),
+                                                     ([-0.5, 0.5, -0.5, 0.5], False)])
+def test_body_frame_poses_are_warned_about_over_dds(harness, pose_to_optical, warned):
+    """SLAM poses of an x-forward, z-up camera frame: one warning in the log naming
+    pose_to_optical, kept in /diagnostics; with pose_to_optical set, none."""
+    from scipy.spatial.transform import Rotation
+
+    rec = scenario_recording('walk', 12.0, seed=3)
+    R_q = Rotation.from_quat([-0.5, 0.5, -0.5, 0.5]).as_matrix()
+    body = []
+    for e in rec.events:  # R_map_body = R_map_optical · R(q)^T
+        if e.kind == 'pose':
+            R, c = pose_msg_to_rt(e.msg)
+            e = Event(e.stamp_ns, 'pose', rt_to_pose_stamped(R @ R_q.T, c, e.stamp_ns,
+                                                             e.msg.header.frame_id, TYPES))
+        body.append(e)
+    h = harness(pose_to_optical=pose_to_optical)
+    h.play(body)
+    h.settle()
+    diag = h.diagnostics()
+    assert h.node.notices['convention_pose_convention'] == (1 if warned else 0)
+    assert ('suspect.pose_convention' in diag) == warned
+    if warned:
+        assert 'pose_to_optical' in diag['suspect.pose_convention']
+        status = h.received['/diagnostics'][-1][1].status[0]
+        assert status.level == TYPES.get('diagnostic_msgs/msg/DiagnosticStatus').WARN
+        assert 'inputs suspect: pose_convention' in status.message
+
+
 def test_a_custom_joint_layout_is_given_as_integer_arrays(harness):
     custom = dict(joint_layout='custom', joints_per_person=17, root_joints=[11, 12],
                   body_axis_lower_joints=[11, 12], body_axis_upper_joints=[5, 6],
