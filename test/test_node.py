@@ -47,6 +47,7 @@ INPUTS = {  # kind -> (default topic, type)
 }
 OUTPUTS = {
     '/hac/odometry': 'nav_msgs/msg/Odometry',
+    '/hac/pose': 'geometry_msgs/msg/PoseWithCovarianceStamped',
     '/hac/human_joints': 'geometry_msgs/msg/PoseArray',
     '/hac/scale': 'std_msgs/msg/Float64',
     '/hac/markers': 'visualization_msgs/msg/MarkerArray',
@@ -127,23 +128,30 @@ def core_outputs(events: list[Event], params: HacParams) -> list[Any]:
 # ================================================================================ harness
 @dataclass
 class Harness:
-    """The node under test and a player/recorder node in a fresh Context, spun by one thread."""
+    """The node under test (``node_class``, in ``namespace``) and a player/recorder node in a
+    fresh Context, spun by one thread. Inputs and outputs use relative names, so a namespace
+    moves them; ``wait``: wait until every input and output is connected (not for an
+    unconfigured lifecycle node, which offers none)."""
 
     overrides: dict[str, Any] = field(default_factory=dict)
+    node_class: type = HacNode
+    namespace: str = ''
+    wait: bool = True
 
     def __post_init__(self) -> None:
         self.context = Context()
         rclpy.init(context=self.context)
         params = {**TEST_PARAMS, **self.overrides}
-        self.node = HacNode(context=self.context, parameter_overrides=[
-            Parameter(k, value=v) for k, v in params.items()])
-        self.io = rclpy.create_node('hac_test_io', context=self.context)
+        self.node = self.node_class(context=self.context, namespace=self.namespace,
+                                    parameter_overrides=[Parameter(k, value=v)
+                                                         for k, v in params.items()])
+        self.io = rclpy.create_node('hac_test_io', namespace=self.namespace, context=self.context)
         self.publishers = {kind: self.io.create_publisher(
-            TYPES.get(msgtype), topic, LATCHED if kind == 'cloud' else RELIABLE)
+            TYPES.get(msgtype), topic.lstrip('/'), LATCHED if kind == 'cloud' else RELIABLE)
             for kind, (topic, msgtype) in INPUTS.items()}
         self.received: dict[str, list[tuple[float, Any]]] = {topic: [] for topic in OUTPUTS}
         for topic, msgtype in OUTPUTS.items():
-            self.io.create_subscription(TYPES.get(msgtype), topic,
+            self.io.create_subscription(TYPES.get(msgtype), _relative(topic),
                                         lambda msg, t=topic: self.received[t].append(
                                             (time.monotonic(), msg)), RELIABLE)
         self.executor = SingleThreadedExecutor(context=self.context)
@@ -151,13 +159,18 @@ class Harness:
         self.executor.add_node(self.io)
         self.spinner = SpinThread(self.executor)
         self.clouds_published = 0
-        assert wait_for(self._connected, 10.0), 'DDS discovery between the test and the node failed'
+        if self.wait:
+            assert wait_for(self._connected, 10.0), \
+                'DDS discovery between the test and the node failed'
+
+    def connected(self) -> bool:
+        """Every input publisher has the node as a subscriber."""
+        return all(pub.get_subscription_count() > 0 for pub in self.publishers.values())
 
     def _connected(self) -> bool:
-        inputs = all(pub.get_subscription_count() > 0 for kind, pub in self.publishers.items())
-        outputs = all(self.io.count_publishers(topic) > 0 and self.node.count_subscribers(topic) > 0
-                      for topic in OUTPUTS)
-        return inputs and outputs
+        outputs = all(self.io.count_publishers(_relative(topic)) > 0
+                      and self.node.count_subscribers(_relative(topic)) > 0 for topic in OUTPUTS)
+        return self.connected() and outputs
 
     def close(self) -> None:
         self.spinner.close()
@@ -214,6 +227,35 @@ class Harness:
         status = self.received['/diagnostics'][-1][1].status[0]
         return {kv.key: kv.value for kv in status.values}
 
+    def messages(self, topic: str) -> list[Any]:
+        """The messages received on output ``topic`` (a key of OUTPUTS), in order."""
+        return [m for _, m in self.received[topic]]
+
+    def settle_to(self, last_stamp_ns: int) -> None:
+        """Wait until /hac/pose has reached ``last_stamp_ns`` (within 0.1 s), then a little."""
+        assert wait_for(lambda: self.received['/hac/pose'] and stamp_to_ns(
+            self.received['/hac/pose'][-1][1].header.stamp) >= last_stamp_ns - 100_000_000,
+            10.0), 'the node did not catch up'
+        time.sleep(0.2)
+
+    def call(self, srv: str, name: str, **fields: Any) -> Any:
+        """Call service ``name`` of type ``srv`` with ``fields``; its response."""
+        client = self.io.create_client(TYPES.get(srv), name)
+        assert client.wait_for_service(timeout_sec=10.0), f'{name} is not offered'
+        request = TYPES.get(srv).Request()
+        for key, value in fields.items():
+            setattr(request, key, value)
+        future = client.call_async(request)
+        self.executor.wake()  # the spinning executor waits on entities it had before the client
+        assert wait_for(future.done, 10.0), f'{name} did not answer'
+        self.io.destroy_client(client)
+        return future.result()
+
+
+def _relative(topic: str) -> str:
+    """An output topic as the node names it: relative, but /diagnostics is absolute (REP)."""
+    return topic if topic == '/diagnostics' else topic.lstrip('/')
+
 
 def wait_for(predicate: Callable[[], bool], timeout: float) -> bool:
     deadline = time.monotonic() + timeout
@@ -228,8 +270,9 @@ def wait_for(predicate: Callable[[], bool], timeout: float) -> bool:
 def harness():
     made: list[Harness] = []
 
-    def make(**overrides: Any) -> Harness:
-        h = Harness(overrides)
+    def make(node_class: type = HacNode, namespace: str = '', wait: bool = True,
+             **overrides: Any) -> Harness:
+        h = Harness(overrides, node_class, namespace, wait)
         made.append(h)
         return h
     yield make

@@ -20,100 +20,19 @@ pytestmark = pytest.mark.ros
 
 from rclpy.context import Context  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
-from rclpy.parameter import Parameter  # noqa: E402
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
 
 from hac_ros.lifecycle_node import HacLifecycleNode  # noqa: E402
-from hac_ros.node import HacNode  # noqa: E402
 from hac_ros.spin_thread import SpinThread  # noqa: E402
 from msg_adapters import cloud_to_xyz, pose_msg_to_rt, stamp_to_ns  # noqa: E402
 
-from test_node import (INPUTS, LATCHED, RELIABLE, TEST_PARAMS, TYPES, frames_after,  # noqa: E402
-                       scenario_recording, wait_for)
+from test_node import (INPUTS, LATCHED, OUTPUTS, RELIABLE, TEST_PARAMS, TYPES,  # noqa: E402,F401
+                       Harness, frames_after, harness, scenario_recording, wait_for)
 
 REPO = Path(__file__).resolve().parents[1]
 CLOUD_LATE = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
-OUT = {'odometry': ('hac/odometry', 'nav_msgs/msg/Odometry'),
-       'pose': ('hac/pose', 'geometry_msgs/msg/PoseWithCovarianceStamped'),
-       'scale': ('hac/scale', 'std_msgs/msg/Float64'),
-       'diagnostics': ('/diagnostics', 'diagnostic_msgs/msg/DiagnosticArray')}
-
-
-class Rig:
-    """A node under test (any class, any namespace) and a client node in one fresh Context."""
-
-    def __init__(self, node_class: type = HacNode, namespace: str = '',
-                 **overrides: Any) -> None:
-        self.context = Context()
-        rclpy.init(context=self.context)
-        params = {**TEST_PARAMS, 'min_samples': 10, **overrides}
-        self.node = node_class(context=self.context, namespace=namespace, parameter_overrides=[
-            Parameter(k, value=v) for k, v in params.items()])
-        self.io = rclpy.create_node('hac_services_test', namespace=namespace, context=self.context)
-        self.publishers = {kind: self.io.create_publisher(
-            TYPES.get(msgtype), topic.lstrip('/'), LATCHED if kind == 'cloud' else RELIABLE)
-            for kind, (topic, msgtype) in INPUTS.items()}
-        self.received: dict[str, list[Any]] = {k: [] for k in OUT}
-        for kind, (topic, msgtype) in OUT.items():
-            self.io.create_subscription(TYPES.get(msgtype), topic,
-                                        lambda m, k=kind: self.received[k].append(m), RELIABLE)
-        self.executor = SingleThreadedExecutor(context=self.context)
-        self.executor.add_node(self.node)
-        self.executor.add_node(self.io)
-        self.spinner = SpinThread(self.executor)
-
-    def connected(self) -> bool:
-        return all(p.get_subscription_count() > 0 for p in self.publishers.values())
-
-    def play(self, events: list[Any]) -> None:
-        for event in events:
-            self.publishers[event.kind].publish(event.msg)
-            if event.kind == 'cloud':
-                done = self.node.clouds_done + 1
-                assert wait_for(lambda: self.node.clouds_done >= done, 10.0)
-            elif event.kind == 'joints':
-                time.sleep(0.004)
-
-    def settle(self, last_stamp_ns: int) -> None:
-        assert wait_for(lambda: self.received['pose'] and
-                        stamp_to_ns(self.received['pose'][-1].header.stamp) >= last_stamp_ns
-                        - 100_000_000, 10.0), 'the node did not catch up'
-        time.sleep(0.2)
-
-    def call(self, srv: str, name: str, **fields: Any) -> Any:
-        client = self.io.create_client(TYPES.get(srv), name)
-        assert client.wait_for_service(timeout_sec=10.0), f'{name} is not offered'
-        request = TYPES.get(srv).Request()
-        for key, value in fields.items():
-            setattr(request, key, value)
-        future = client.call_async(request)
-        self.executor.wake()  # the spinning executor waits on entities it had before the client
-        assert wait_for(future.done, 10.0), f'{name} did not answer'
-        self.io.destroy_client(client)
-        return future.result()
-
-    def diagnostics(self) -> dict[str, str]:
-        status = self.received['diagnostics'][-1].status[0]
-        return {kv.key: kv.value for kv in status.values}
-
-    def close(self) -> None:
-        self.spinner.close()
-        self.node.destroy_node()
-        self.io.destroy_node()
-        rclpy.shutdown(context=self.context)
-
-
-@pytest.fixture
-def rig():
-    made: list[Rig] = []
-
-    def make(*args: Any, **kwargs: Any) -> Rig:
-        made.append(Rig(*args, **kwargs))
-        return made[-1]
-    yield make
-    for r in made:
-        r.close()
+MIN_SAMPLES = {'min_samples': 10}
 
 
 @pytest.fixture(scope='module')
@@ -121,40 +40,40 @@ def walk():
     return scenario_recording('walk', duration=12.0)
 
 
-def test_freeze_and_reset_services_over_dds(rig, walk):
-    r = rig()
+def test_freeze_and_reset_services_over_dds(harness, walk):
+    r = harness(**MIN_SAMPLES)
     assert wait_for(r.connected, 10.0)
     a, b = frames_after(walk, 0.4), frames_after(walk, 0.7)
     r.play(walk.events[:a])
-    r.settle(walk.events[a - 1].stamp_ns)
+    r.settle_to(walk.events[a - 1].stamp_ns)
     answer = r.call('std_srvs/srv/SetBool', '/hac_node/freeze', data=True)
     assert answer.success and 'held' in answer.message
-    held_from = len(r.received['scale']) + 1  # taken at the next SLAM pose
+    held_from = len(r.messages('/hac/scale')) + 1  # taken at the next SLAM pose
     r.play(walk.events[a:b])
-    r.settle(walk.events[b - 1].stamp_ns)
-    held = [m.data for m in r.received['scale'][held_from:]]
+    r.settle_to(walk.events[b - 1].stamp_ns)
+    held = [m.data for m in r.messages('/hac/scale')[held_from:]]
     assert len(held) > 20 and len(set(held)) == 1
     assert r.diagnostics()['frozen'] == 'true'
     assert r.call('std_srvs/srv/SetBool', '/hac_node/freeze', data=False).success
     assert r.call('std_srvs/srv/Trigger', '/hac_node/reset').success
     r.play(walk.events[b:])
-    r.settle(walk.events[-1].stamp_ns)
+    r.settle_to(walk.events[-1].stamp_ns)
     diag = r.diagnostics()
     assert diag['frozen'] == 'false' and diag['resets'] == '1'
     assert diag['service.reset'] == '1' and diag['service.freeze_true'] == '1'
     # the odometry never jumps: neither at the freeze, the release nor the reset
-    odom = r.received['odometry']
+    odom = r.messages('/hac/odometry')
     positions = np.array([pose_msg_to_rt(m)[1] for m in odom])
     moving = [m.twist.twist.linear.x != 0 or m.twist.twist.linear.z != 0 for m in odom[1:]]
     steps = np.linalg.norm(np.diff(positions, axis=0), axis=1)[np.array(moving)]
     assert steps.max() < 0.3  # a walk at 30 Hz: centimetres per pose
 
 
-def test_a_late_subscriber_receives_the_metric_map(rig, walk):
-    r = rig()
+def test_a_late_subscriber_receives_the_metric_map(harness, walk):
+    r = harness(**MIN_SAMPLES)
     assert wait_for(r.connected, 10.0)
     r.play(walk.events)
-    r.settle(walk.events[-1].stamp_ns)
+    r.settle_to(walk.events[-1].stamp_ns)
     late: list[Any] = []
     r.io.create_subscription(TYPES.get('sensor_msgs/msg/PointCloud2'), 'hac/cloud',
                              late.append, CLOUD_LATE)
@@ -167,12 +86,12 @@ def test_a_late_subscriber_receives_the_metric_map(rig, walk):
     assert abs(np.percentile(points[:, 2], 2)) < 0.1 and np.ptp(points[:, 0]) > 3.0
 
 
-def test_a_namespace_moves_every_topic_and_service(rig, walk):
-    r = rig(namespace='robot1')
+def test_a_namespace_moves_every_topic_and_service(harness, walk):
+    r = harness(namespace='robot1', **MIN_SAMPLES)
     assert wait_for(r.connected, 10.0)
     assert r.node.resolve_topic_name(r.node.params.pose_topic) == '/robot1/slam/pose'
     r.play(walk.events[:frames_after(walk, 0.5)])
-    assert wait_for(lambda: r.received['odometry'] and r.received['pose'], 10.0)
+    assert wait_for(lambda: r.messages('/hac/odometry') and r.messages('/hac/pose'), 10.0)
     topics = dict(r.io.get_topic_names_and_types())
     for name in ('/robot1/hac/odometry', '/robot1/hac/pose', '/robot1/hac/cloud',
                  '/robot1/hac/scale', '/diagnostics'):
@@ -181,19 +100,19 @@ def test_a_namespace_moves_every_topic_and_service(rig, walk):
     assert r.call('std_srvs/srv/Trigger', '/robot1/hac_node/reset').success
 
 
-def lifecycle(r: Rig, transition: str) -> bool:
+def lifecycle(r: Harness, transition: str) -> bool:
     ids = {'configure': 1, 'cleanup': 2, 'activate': 3, 'deactivate': 4}
     transition_msg = TYPES.get('lifecycle_msgs/msg/Transition')(id=ids[transition])
     return r.call('lifecycle_msgs/srv/ChangeState', '/hac_node/change_state',
                   transition=transition_msg).success
 
 
-def state(r: Rig) -> str:
+def state(r: Harness) -> str:
     return r.call('lifecycle_msgs/srv/GetState', '/hac_node/get_state').current_state.label
 
 
-def test_the_lifecycle_node_publishes_only_while_active_and_keeps_its_state(rig, walk):
-    r = rig(HacLifecycleNode)
+def test_the_lifecycle_node_publishes_only_while_active_and_keeps_its_state(harness, walk):
+    r = harness(HacLifecycleNode, wait=False, **MIN_SAMPLES)
     assert state(r) == 'unconfigured'
     r.play(walk.events[:5])  # nobody listens yet
     assert lifecycle(r, 'configure') and state(r) == 'inactive'
@@ -201,21 +120,21 @@ def test_the_lifecycle_node_publishes_only_while_active_and_keeps_its_state(rig,
     assert wait_for(r.connected, 10.0)
     half = frames_after(walk, 0.5)
     r.play(walk.events[:half])
-    r.settle(walk.events[half - 1].stamp_ns)
-    converged = len(r.received['scale'])
+    r.settle_to(walk.events[half - 1].stamp_ns)
+    converged = len(r.messages('/hac/scale'))
     assert converged > 0
     assert lifecycle(r, 'deactivate') and state(r) == 'inactive'
-    count = len(r.received['odometry'])
+    count = len(r.messages('/hac/odometry'))
     for event in walk.events[half:half + 60]:
         r.publishers[event.kind].publish(event.msg)
     time.sleep(0.5)
-    assert len(r.received['odometry']) == count  # inactive: nothing in, nothing out
+    assert len(r.messages('/hac/odometry')) == count  # inactive: nothing in, nothing out
     assert lifecycle(r, 'activate')
     assert wait_for(r.connected, 10.0)
-    before = len(r.received['scale'])
+    before = len(r.messages('/hac/scale'))
     r.play(walk.events[half + 60:])
-    r.settle(walk.events[-1].stamp_ns)
-    assert len(r.received['scale']) > before  # continued at once: the estimate was kept
+    r.settle_to(walk.events[-1].stamp_ns)
+    assert len(r.messages('/hac/scale')) > before  # continued at once: the estimate was kept
     assert lifecycle(r, 'deactivate') and lifecycle(r, 'cleanup')
     assert state(r) == 'unconfigured' and r.node.calibrator is None
 
@@ -239,8 +158,8 @@ def test_tf_through_a_stand_in_broadcaster(tmp_path, walk):
     io.create_subscription(TYPES.get('geometry_msgs/msg/TransformStamped'), '/tf_standin',
                            got['tf'].append, RELIABLE)
     for kind in ('odometry', 'pose'):
-        topic, msgtype = OUT[kind]
-        io.create_subscription(TYPES.get(msgtype), topic, got[kind].append, RELIABLE)
+        topic = f'/hac/{kind}'
+        io.create_subscription(TYPES.get(OUTPUTS[topic]), topic, got[kind].append, RELIABLE)
     publishers = {kind: io.create_publisher(TYPES.get(msgtype), topic,
                                             LATCHED if kind == 'cloud' else RELIABLE)
                   for kind, (topic, msgtype) in INPUTS.items()}
@@ -288,10 +207,10 @@ def pose_msg_to_rt_parts(t: Any, q: Any) -> tuple[np.ndarray, np.ndarray]:
     return (Rotation.from_quat([q.x, q.y, q.z, q.w]).as_matrix(), np.array([t.x, t.y, t.z]))
 
 
-def test_a_publisher_of_another_type_on_the_pose_topic_is_counted_and_named(rig):
+def test_a_publisher_of_another_type_on_the_pose_topic_is_counted_and_named(harness):
     """Odometry on slam/pose while pose_type is PoseStamped: DDS delivers nothing and says nothing
     (this rmw reports no incompatible-type event); the node's graph check names it."""
-    r = rig()
+    r = harness(**MIN_SAMPLES)
     assert wait_for(r.connected, 10.0)
     context = Context()  # another participant: one participant refuses two types on one topic
     rclpy.init(context=context)
