@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hac_ros.core.contact import in_view
+from hac_ros.core.contact import in_view, leg_lengths
 from hac_ros.core.convention_check import ConventionCheck
 from hac_ros.core.conventions import Conventions
 from hac_ros.core.estimator import RollingScale
@@ -451,7 +451,7 @@ class Calibrator:
         self.ground.add_body(R_wc, up_cam)
         self.check.add_person(R_wc @ up_cam, R_wc[:, 1],
                               in_view(joints, self._K, *self._image_size) if self._K is not None
-                              else None)
+                              else None, leg_lengths(self.layout, joints))
         scale_now = self._working_scale()
         scene = Scene(self.map, self.ground.plane(self.map), self.ground.normal(),
                       self.ground.refined, self._K, self._image_size, scale_now, self._cos_min)

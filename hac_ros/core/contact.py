@@ -60,12 +60,16 @@ def sole_points(layout: JointLayout, joints_cam: np.ndarray, candidates: list[in
     return points + (leg_length(layout, joints_cam) * np.asarray(heights))[:, None] * down_cam
 
 
+def leg_lengths(layout: JointLayout, joints: np.ndarray) -> list[float]:
+    """Each leg's length, metres: thigh plus shank (bone lengths: whatever the pose), in the
+    layout's leg order (empty for a layout without legs). joints: (K, 3) metres, any frame."""
+    return [math.dist(joints[h].tolist(), joints[k].tolist())
+            + math.dist(joints[k].tolist(), joints[a].tolist()) for h, k, a in layout.legs]
+
+
 def leg_length(layout: JointLayout, joints: np.ndarray) -> float:
-    """The person's leg length, metres: thigh plus shank (bone lengths: whatever the pose) of the
-    longer leg (0 for a layout without legs). joints: (K, 3) metres, any frame."""
-    return max((math.dist(joints[h].tolist(), joints[k].tolist())
-                + math.dist(joints[k].tolist(), joints[a].tolist()) for h, k, a in layout.legs),
-               default=0.0)
+    """The person's leg length, metres: the longer leg's (0 for a layout without legs)."""
+    return max(leg_lengths(layout, joints), default=0.0)
 
 
 def combine_ratios(mode: str, ratios: list[float]) -> float:
