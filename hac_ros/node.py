@@ -48,12 +48,12 @@ from rclpy.signals import SignalHandlerOptions
 from hac_ros.core.calibrator import Calibrator
 from hac_ros.core.errors import ParameterError
 from hac_ros.core.outputs import NoticeOut, OdometryOut, Output, PoseOut, ResetOut
-from hac_ros.core.params import NODE_NAME, POSE_MSGTYPES, HacParams, describe, names
+from hac_ros.core.params import NODE_NAME, POSE_MSGTYPES, HacParams, names
 from hac_ros.core.reference import MapIndex
 from hac_ros.inputs import MapBuilder, add_camera_info_msg, add_joints_msg, add_pose_msg
 from hac_ros.messages import OUTPUT_TOPICS, OutputMessages, input_msgtype
-from hac_ros.node_parameters import (RESUBSCRIBE, ROS_OWN_PARAMETERS, SHELL_ONLY, TF_PARAMETERS,
-                                     parameter_descriptor)
+from hac_ros.node_parameters import (RESUBSCRIBE, SHELL_ONLY, TF_PARAMETERS, declare_parameters,
+                                     unknown_overrides)
 from hac_ros.qos import cloud_qos, input_qos, output_qos, qos_hint
 from hac_ros.tf_broadcast import TfSender
 from msg_adapters import MessageError, RawCloud, parse_cloud_cdr, rclpy_types
@@ -86,17 +86,11 @@ class HacShell:
 
     # ------------------------------------------------------------------ life
     def _declare(self) -> None:
-        for name in names():
-            default = describe(name)['default']
-            if default == [] and describe(name)['kind'] == 'indices':
-                # an empty list would declare a byte array: declare the type, then set [] typed
-                declared = self.declare_parameter(name, Parameter.Type.INTEGER_ARRAY,
-                                                  parameter_descriptor(name))
-                if declared.value is None:
-                    self.set_parameters([Parameter(name, Parameter.Type.INTEGER_ARRAY, [])])
-                continue
-            self.declare_parameter(name, default, parameter_descriptor(name))
-        self._warn_unknown_overrides()
+        declare_parameters(self)
+        unknown = unknown_overrides(self)
+        if unknown:  # a misspelt name in a parameters file would otherwise be ignored by ROS
+            self.get_logger().warning(f'unknown parameter(s) ignored: {", ".join(unknown)} '
+                                      '(see config/hac.yaml for the names)')
         self.add_on_set_parameters_callback(self._validate_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
 
@@ -167,15 +161,6 @@ class HacShell:
         self._builder.close()
         self.destroy_guard_condition(self._maps_ready)
         self.calibrator = None
-
-    def _warn_unknown_overrides(self) -> None:
-        """A parameters file with a misspelt name would otherwise be silently ignored by ROS."""
-        overrides = getattr(self, '_parameter_overrides', {})  # rclpy keeps them on the node
-        unknown = sorted(name for name in overrides if name not in names()
-                         and name not in ROS_OWN_PARAMETERS and not name.startswith('qos_overrides.'))
-        if unknown:
-            self.get_logger().warning(f'unknown parameter(s) ignored: {", ".join(unknown)} '
-                                      '(see config/hac.yaml for the names)')
 
     # ------------------------------------------------------------------ subscriptions
     def _subscribe(self, kind: str) -> None:

@@ -3,8 +3,9 @@
 The values, defaults, ranges and validation are :class:`hac_ros.core.params.HacParams`'; this
 module adds what only the ROS node needs: a ``ParameterDescriptor`` per field (type, range,
 choices, the runtime note), which parameters re-subscribe or rebuild the estimator when changed at
-runtime, and the markdown table of docs/node.md (``python -m hac_ros.node_parameters`` prints it).
-Importing it needs no ROS; :func:`parameter_descriptor` imports rcl_interfaces when called.
+runtime, how a node declares them, and the markdown table of docs/node.md
+(``python -m hac_ros.node_parameters`` prints it). Importing it needs no ROS; the functions that
+take a node import rclpy when called.
 """
 from __future__ import annotations
 
@@ -77,6 +78,31 @@ def parameter_descriptor(name: str) -> Any:
     if info['choices']:
         descriptor.additional_constraints = 'one of: ' + ', '.join(info['choices'])
     return descriptor
+
+
+def declare_parameters(node: Any) -> None:
+    """Declare every HacParams field on the rclpy ``node`` with its default and descriptor. The
+    empty joint-index lists (joint_layout custom) are declared as integer arrays: rclpy would
+    declare ``[]`` as a byte array and then refuse the integers of a parameters file."""
+    from rclpy.parameter import Parameter
+
+    for name in names():
+        info = describe(name)
+        if info['default'] == [] and info['kind'] == 'indices':
+            declared = node.declare_parameter(name, Parameter.Type.INTEGER_ARRAY,
+                                              parameter_descriptor(name))
+            if declared.value is None:  # not overridden: set [] with its type
+                node.set_parameters([Parameter(name, Parameter.Type.INTEGER_ARRAY, [])])
+            continue
+        node.declare_parameter(name, info['default'], parameter_descriptor(name))
+
+
+def unknown_overrides(node: Any) -> list[str]:
+    """The names overridden at start-up (a parameters file, --ros-args -p) that no parameter of
+    the node has: misspelt, ROS would ignore them silently."""
+    overrides = getattr(node, '_parameter_overrides', {})  # rclpy keeps them on the node
+    return sorted(name for name in overrides if name not in names()
+                  and name not in ROS_OWN_PARAMETERS and not name.startswith('qos_overrides.'))
 
 
 def parameter_table() -> str:
