@@ -613,3 +613,22 @@ def test_the_odometry_twist_in_plain_floats_matches_the_matrix_formula():
             assert np.isclose(np.linalg.norm(angular) * dt, angle, atol=1e-6)
             # and the rotation vector itself (rotation_log's closed form and scipy's beyond 3 rad)
             assert np.allclose(angular * dt, angle * axis / np.linalg.norm(axis), atol=1e-6)
+
+
+def test_the_map_in_use_follows_cloud_mode_and_its_cap():
+    """replace: the new map (its newest cloud_max_points); accumulate: the previous points then
+    the new ones, the oldest leaving first."""
+    old = MapIndex(np.arange(30.0).reshape(10, 3), 'map', 1)
+    new = MapIndex(100.0 + np.arange(24.0).reshape(8, 3), 'map', 2)
+    assert new.composed(None, 8, None) is new
+    np.testing.assert_array_equal(new.composed(None, 5, None).points_map, new.points_map[-5:])
+    both = new.composed(old, 12, None)
+    np.testing.assert_array_equal(both.points_map, np.vstack([old.points_map[-4:], new.points_map]))
+    assert (both.stamp_ns, both.frame_id) == (2, 'map')
+    params = HacParams().replace(cloud_mode='accumulate', cloud_max_points=12)
+    cal = Calibrator(params)
+    for stamp, points in ((1, old.points_map), (2, new.points_map)):  # each map used by a frame
+        cal.add_map(stamp, points, 'map')
+        cal.add_pose(stamp, np.eye(3), np.zeros(3), 'map')
+        cal.add_joints(stamp, np.zeros((0, 24, 3)), 'camera')
+    np.testing.assert_array_equal(cal.map.points_map, both.points_map)

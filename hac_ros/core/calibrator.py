@@ -25,7 +25,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hac_ros.core.contact import in_view, leg_lengths
 from hac_ros.core.convention_check import ConventionCheck
 from hac_ros.core.conventions import Conventions
 from hac_ros.core.estimator import RollingScale
@@ -380,13 +379,8 @@ class Calibrator:
             chosen = self._maps.pop(0)
         if chosen is None:
             return out
-        if self.params.cloud_mode == 'accumulate' and self.map is not None:
-            merged = np.vstack([self.map.points_map, chosen.points_map])
-            chosen = self.build_index(chosen.stamp_ns, merged[-self.params.cloud_max_points:],
-                                      chosen.frame_id)
-        elif len(chosen) > self.params.cloud_max_points:
-            chosen = self.build_index(chosen.stamp_ns, chosen.points_map[-self.params.cloud_max_points:],
-                                      chosen.frame_id)
+        chosen = chosen.composed(self.map if self.params.cloud_mode == 'accumulate' else None,
+                                 self.params.cloud_max_points, self.params.index_max_points)
         if (self.map is not None and not self._expect_new_map and self.params.cloud_mode == 'replace'
                 and self.params.map_overlap_min > 0
                 and chosen.overlap_fraction(self.map) < self.params.map_overlap_min):
@@ -428,8 +422,7 @@ class Calibrator:
         self.frames += 1
         if not self.services.holding:  # frozen: nothing expires
             self.estimator.advance(stamp)
-        if self.map is not None and self.map.size and self.check.map_due(stamp):
-            self.check.add_map_view(stamp, self.map.sample, R_wc, c_map, self._K, self._image_size)
+        self.check.view_map(stamp, self.map, R_wc, c_map, self._K, self._image_size)
         for person, joints in enumerate(frame.joints_cam):
             out += self._person(stamp, person, R_wc, c_map, joints)
         out += self.check.notices(stamp)
@@ -449,9 +442,7 @@ class Calibrator:
             return self._rejected_sample(stamp, person, 'behind_camera')
         up_cam = self.layout.up_axis(joints)
         self.ground.add_body(R_wc, up_cam)
-        self.check.add_person(R_wc @ up_cam, R_wc[:, 1],
-                              in_view(joints, self._K, *self._image_size) if self._K is not None
-                              else None, leg_lengths(self.layout, joints))
+        self.check.add_person(self.layout, R_wc, joints, up_cam, self._K, self._image_size)
         scale_now = self._working_scale()
         scene = Scene(self.map, self.ground.plane(self.map), self.ground.normal(),
                       self.ground.refined, self._K, self._image_size, scale_now, self._cos_min)

@@ -28,8 +28,11 @@ from typing import Any
 
 import numpy as np
 
+from hac_ros.core.contact import in_view, leg_lengths
+from hac_ros.core.layouts import JointLayout
 from hac_ros.core.numeric import NS, median_1d
 from hac_ros.core.outputs import NoticeOut
+from hac_ros.core.reference import MapIndex
 
 MAP_SAMPLE_POINTS = 1000  # map points checked against the view
 MAP_CHECKS = 10  # checks (one per second) before judging; the median of the last ones decides
@@ -68,16 +71,16 @@ class ConventionCheck:
         self.suspects: dict[str, str] = {}  # check -> warning text, for /diagnostics
 
     # ------------------------------------------------------------------ evidence
-    def map_due(self, stamp_ns: int) -> bool:
-        """Whether a map check is due at this pose (one per second of stamp time)."""
-        return self._next_map_check_ns is None or stamp_ns >= self._next_map_check_ns
-
-    def add_map_view(self, stamp_ns: int, points_map: np.ndarray, R_wc: np.ndarray,
-                     c_map: np.ndarray, K: np.ndarray | None, image_size: tuple[int, int]) -> None:
-        """The share of the map's points (N, 3) SLAM units in the view of the camera R_wc (3, 3)
-        camera-to-map, c_map (3,): in the image with intrinsics K (3, 3) pixels, else within
-        45° of the optical axis."""
+    def view_map(self, stamp_ns: int, map_index: MapIndex | None, R_wc: np.ndarray,
+                 c_map: np.ndarray, K: np.ndarray | None, image_size: tuple[int, int]) -> None:
+        """Once per second of stamp time: the share of the map's points (a sample, SLAM units)
+        in the view of the camera R_wc (3, 3) camera-to-map, c_map (3,) SLAM units: in the image
+        with intrinsics K (3, 3) pixels, else within 45° of the optical axis."""
+        if map_index is None or not map_index.size or (
+                self._next_map_check_ns is not None and stamp_ns < self._next_map_check_ns):
+            return
         self._next_map_check_ns = stamp_ns + NS
+        points_map = map_index.sample
         if len(points_map) > MAP_SAMPLE_POINTS:
             points_map = points_map[:: len(points_map) // MAP_SAMPLE_POINTS]
         cam = (points_map - c_map) @ R_wc  # camera optical frame
@@ -93,17 +96,20 @@ class ConventionCheck:
             inside = front & (u >= 0) & (u < width) & (v >= 0) & (v < height)
         self._map_views.append(float(inside.mean()) if len(inside) else 0.0)
 
-    def add_person(self, up_map: np.ndarray, camera_down_map: np.ndarray,
-                   in_image: list[bool] | None, legs: list[float]) -> None:
-        """One person: the body's up axis (3,) and the camera's y axis (3,) in the map, which of
-        its joints project into the image (None without intrinsics) and its layout's leg lengths
-        (metres; empty for a layout without legs)."""
+    def add_person(self, layout: JointLayout, R_wc: np.ndarray, joints_cam: np.ndarray,
+                   up_cam: np.ndarray, K: np.ndarray | None, image_size: tuple[int, int]) -> None:
+        """One person: joints_cam (K, 3) metres, camera optical frame, in ``layout``'s order;
+        up_cam (3,) its body's up axis in the camera; R_wc (3, 3) camera-to-map; the intrinsics
+        (None: the joints in the image are not judged)."""
         self._people += 1
-        if float(up_map @ camera_down_map) > 0.5 * float(np.linalg.norm(up_map)):
+        up_map = R_wc @ up_cam
+        if float(up_map @ R_wc[:, 1]) > 0.5 * float(np.linalg.norm(up_map)):  # along camera-down
             self._inverted += 1
-        if in_image is not None:
+        if K is not None:
+            in_image = in_view(joints_cam, K, *image_size)
             self._joints += len(in_image)
             self._joints_in_image += sum(in_image)
+        legs = leg_lengths(layout, joints_cam)
         if len(legs) == 2 and max(legs) > 0.0:
             self._legs.append((0.5 * (legs[0] + legs[1]), abs(legs[0] - legs[1]) / max(legs)))
 

@@ -101,6 +101,17 @@ class MapIndex:
             self.tree = None
             self.extent = 0.0
 
+
+    def composed(self, previous: 'MapIndex | None', max_points: int,
+                 max_index_points: int | None) -> 'MapIndex':
+        """The map in use once this one arrives (``cloud_mode``): with ``previous`` (accumulate),
+        its points then these; at most the newest ``max_points`` (``cloud_max_points``). This
+        index when nothing changes, else a new one (``max_index_points``: ``index_max_points``)."""
+        if previous is None and len(self) <= max_points:
+            return self
+        points = (self.points_map if previous is None
+                  else np.vstack([previous.points_map, self.points_map]))
+        return MapIndex(points[-max_points:], self.frame_id, self.stamp_ns, max_index_points)
     def __len__(self) -> int:
         return self.size
 
