@@ -20,6 +20,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from hac_ros.core import metrics
+from hac_ros.core.layouts import SMPL24
 from hac_ros.simulate.hmr import DepthBias, predict
 from hac_ros.tum import read_tum
 
@@ -124,7 +125,7 @@ def build(shared: Path, seed: int = 0, hmr_bias: float = 0.0, sequence: str | No
             u = K[0, 0] * Jc[:, 0] / z + K[0, 2]
             v = K[1, 1] * Jc[:, 1] / z + K[1, 2]
             if np.count_nonzero((u >= 0) & (u < WIDTH) & (v >= 0) & (v < HEIGHT)) >= 4:
-                prediction, _ = predict(Jw, R_gt[i], c_gt[i], bias[i], rng)
+                prediction, _ = predict(Jw, R_gt[i], c_gt[i], bias[i], rng, SMPL24)
                 joints_cam.append(prediction)
                 joints_world.append(Jw)
                 frame_stamps.append(int(t))

@@ -5,6 +5,7 @@ import numpy as np
 
 from hac_ros.core.calibrator import Calibrator
 from hac_ros.core.humans import RootFilter, smooth_people
+from hac_ros.core.layouts import SMPL24
 from hac_ros.core.numeric import NS
 from hac_ros.core.outputs import HumanJointsOut
 from hac_ros.core.params import HacParams
@@ -42,7 +43,7 @@ def root_errors(joints: list[np.ndarray], truth: list[np.ndarray]) -> np.ndarray
 
 def test_people_are_followed_when_their_blocks_swap_and_the_jitter_drops_online():
     stamps, noisy, truth, _ = two_walkers(30.0)
-    filt = RootFilter()
+    filt = RootFilter(SMPL24)
     out = [filt.update(s, j) for s, j in zip(stamps, noisy)]
     raw, filtered = root_errors(noisy, truth)[30:], root_errors(out, truth)[30:]
     assert np.median(filtered) < 0.6 * np.median(raw)  # identities kept: else errors of 1.5 m
@@ -55,7 +56,7 @@ def test_people_are_followed_when_their_blocks_swap_and_the_jitter_drops_online(
 
 def test_offline_smoothing_is_zero_phase_and_keeps_identities():
     stamps, noisy, truth, _ = two_walkers(30.0)
-    out = smooth_people(stamps, noisy)
+    out = smooth_people(stamps, noisy, SMPL24)
     raw, smoothed = root_errors(noisy, truth), root_errors(out, truth)
     assert np.median(smoothed) < 0.5 * np.median(raw)
     # no lag on a walk at constant speed: the mean signed error along x is ~0
@@ -68,14 +69,14 @@ def test_filtering_is_in_stamp_time_whatever_the_frame_rate():
     Gaussian is in seconds, not frames), and the online filter tracks both without lag."""
     s30, n30, t30, o30 = two_walkers(30.0, noise_m=0.0, seed=1)
     s15, n15, t15, o15 = two_walkers(15.0, noise_m=0.0, seed=1)
-    a, b = smooth_people(s30, n30), smooth_people(s15, n15)
+    a, b = smooth_people(s30, n30, SMPL24), smooth_people(s15, n15, SMPL24)
     common = {s: k for k, s in enumerate(s15)}
     for k, s in enumerate(s30):
         if s in common and 0.5 < s / NS < 5.5:
             order30, order15 = np.argsort(o30[k]), np.argsort(o15[common[s]])
             np.testing.assert_allclose(a[k][order30, 0], b[common[s]][order15, 0], atol=0.003)
     for stamps, noisy, truth in ((s30, n30, t30), (s15, n15, t15)):
-        filt = RootFilter()
+        filt = RootFilter(SMPL24)
         out = [filt.update(s, j) for s, j in zip(stamps, noisy)]
         assert np.median(root_errors(out, truth)[len(out) // 2:]) < 0.01
 

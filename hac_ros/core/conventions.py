@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from hac_ros.core.layouts import SMPL24, JointLayout
+from hac_ros.core.layouts import JointLayout
 from hac_ros.core.outputs import NoticeOut
 
 
@@ -30,7 +30,7 @@ def to_optical(R_map_child: np.ndarray, R_child_optical: np.ndarray | None) -> n
 
 
 def refocus_depth(joints_cam: np.ndarray, fx: float, hmr_focal_px: float,
-                  layout: JointLayout = SMPL24) -> np.ndarray:
+                  layout: JointLayout) -> np.ndarray:
     """Joints (P, K, 3) metres, camera optical frame, as an HMR model with focal length
     ``hmr_focal_px`` placed them, moved to the depth the camera's ``fx`` (pixels, CameraInfo's
     resolution) gives: each person at f/f_a times its root's depth, x and y unchanged, so every
@@ -60,7 +60,7 @@ class Conventions:
     applied, with the notices they call for."""
 
     def __init__(self, pose_to_optical: list[float], hmr_focal_px: float,
-                 layout: JointLayout = SMPL24) -> None:
+                 layout: JointLayout) -> None:
         self.R_child_optical = optical_rotation(pose_to_optical)
         self.layout = layout
         self.hmr_focal_px = float(hmr_focal_px)

@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from hac_ros.core.layouts import SMPL24, JointLayout
+from hac_ros.core.layouts import JointLayout
 from hac_ros.core.numeric import NS
 from hac_ros.core.outputs import HumanJointsOut, Output
 
@@ -79,7 +79,7 @@ class PersonTracker:
 class RootFilter:
     """Online: each person's world root through a constant-velocity Kalman filter (module doc)."""
 
-    def __init__(self, layout: JointLayout = SMPL24) -> None:
+    def __init__(self, layout: JointLayout) -> None:
         self.layout = layout
         self.tracker = PersonTracker()
 
@@ -119,7 +119,7 @@ def _kalman_step(track: _Track, stamp_ns: int, measured: np.ndarray) -> np.ndarr
 
 
 def smooth_people(stamps_ns: list[int], joints_metric: list[np.ndarray],
-                  layout: JointLayout = SMPL24, sigma_s: float = SMOOTH_SIGMA_S
+                  layout: JointLayout, sigma_s: float = SMOOTH_SIGMA_S
                   ) -> list[np.ndarray]:
     """Offline: every person's root smoothed with a Gaussian of ``sigma_s`` stamp seconds over
     their track (zero-phase), each person moved with it. stamps_ns: (F,) the frames' stamps;
@@ -154,7 +154,7 @@ def smooth_people(stamps_ns: list[int], joints_metric: list[np.ndarray],
     return out
 
 
-def smooth_outputs(outputs: list[Output], layout: JointLayout = SMPL24) -> None:
+def smooth_outputs(outputs: list[Output], layout: JointLayout) -> None:
     """Offline: the world humans among ``outputs`` (HumanJointsOut, in stamp order) smoothed by
     :func:`smooth_people`, in place."""
     humans = [o for o in outputs if isinstance(o, HumanJointsOut)]

@@ -18,7 +18,7 @@ import math
 
 import numpy as np
 
-from hac_ros.core.layouts import SMPL24, JointLayout
+from hac_ros.core.layouts import JointLayout
 from hac_ros.simulate.camera import project
 
 JOINT_NOISE_M = 0.02
@@ -60,7 +60,7 @@ class DepthBias:
 
 
 def in_view(joints_cam: np.ndarray, K: np.ndarray, width: int, height: int,
-            layout: JointLayout = SMPL24) -> bool:
+            layout: JointLayout) -> bool:
     """A person is detected when enough joints project into the image in front of the camera."""
     px, front = project(joints_cam, K)
     inside = front & (px[:, 0] >= 0) & (px[:, 0] < width) & (px[:, 1] >= 0) & (px[:, 1] < height)
@@ -68,7 +68,7 @@ def in_view(joints_cam: np.ndarray, K: np.ndarray, width: int, height: int,
 
 
 def predict(joints_world: np.ndarray, R_wc: np.ndarray, c: np.ndarray, bias: float,
-            rng: np.random.Generator, layout: JointLayout = SMPL24) -> tuple[np.ndarray, bool]:
+            rng: np.random.Generator, layout: JointLayout) -> tuple[np.ndarray, bool]:
     """One person's predicted joints (K, 3), metres, camera optical frame; and whether it is an outlier.
 
     joints_world: (K, 3) true joints, world frame; R_wc, c: the true camera (camera-to-world);
