@@ -67,7 +67,10 @@ class ConventionCheck:
         self._next_map_check_ns: int | None = None
         self._people = self._inverted = 0
         self._joints = self._joints_in_image = 0
-        self._legs: deque[tuple[float, float]] = deque(maxlen=LEG_HISTORY)  # (mean m, asymmetry)
+        # the last LEG_HISTORY people's (mean leg m, left/right asymmetry), a ring: judged every
+        # frame (median_1d), so no list-to-array conversion on the way
+        self._legs = np.empty((LEG_HISTORY, 2))
+        self._legs_seen = 0
         self.suspects: dict[str, str] = {}  # check -> warning text, for /diagnostics
 
     # ------------------------------------------------------------------ evidence
@@ -111,15 +114,17 @@ class ConventionCheck:
             self._joints_in_image += sum(in_image)
         legs = leg_lengths(layout, joints_cam)
         if len(legs) == 2 and max(legs) > 0.0:
-            self._legs.append((0.5 * (legs[0] + legs[1]), abs(legs[0] - legs[1]) / max(legs)))
+            self._legs[self._legs_seen % LEG_HISTORY] = (0.5 * (legs[0] + legs[1]),
+                                                        abs(legs[0] - legs[1]) / max(legs))
+            self._legs_seen += 1
 
     def _layout_evidence(self) -> str | None:
         """Why the joints are probably not in the layout's order, or None."""
         inverted = self._inverted / self._people
-        if not self._legs:  # a layout without legs: the body axis alone
+        if not self._legs_seen:  # a layout without legs: the body axis alone
             return f'{inverted:.0%} of people upside down' if inverted > INVERTED_MAX else None
-        table = np.array(self._legs)
-        leg, asymmetry = float(np.median(table[:, 0])), float(np.median(table[:, 1]))
+        table = self._legs[:min(self._legs_seen, LEG_HISTORY)]
+        leg, asymmetry = median_1d(table[:, 0]), median_1d(table[:, 1])
         if asymmetry > LEG_ASYMMETRY_MAX:
             return f'left and right legs differ by {asymmetry:.0%}'
         if not LEG_RANGE_M[0] <= leg <= LEG_RANGE_M[1] or (inverted > INVERTED_MAX
@@ -132,9 +137,9 @@ class ConventionCheck:
         """A warning for each check that has become conclusive (once per check)."""
         found: dict[str, Any] = {}
         if len(self._map_views) == MAP_CHECKS:
-            in_view = median_1d(np.array(self._map_views))
-            if in_view < MAP_IN_VIEW_MIN:
-                found['pose_convention'] = in_view
+            share = median_1d(np.array(self._map_views))  # of the map's points in view
+            if share < MAP_IN_VIEW_MIN:
+                found['pose_convention'] = share
         if self._people >= PEOPLE_MIN:
             evidence = self._layout_evidence()
             if evidence is not None:
