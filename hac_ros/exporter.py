@@ -30,7 +30,7 @@ import numpy as np
 
 from hac_ros.core.errors import HacError
 from hac_ros.core.layouts import joints_per_person
-from hac_ros.recording import JOINTS_KEY, Recording, read_camera, read_scale
+from hac_ros.recording import Recording, read_camera, read_scale
 from hac_ros.tum import rotations_to_quats
 
 POSE_TOPIC, JOINTS_TOPIC, SCALE_TOPIC = '/hac/pose', '/hac/human_joints', '/hac/scale'
@@ -57,10 +57,9 @@ class ExportResult:
 
 
 def _joints_per_person(rec: Recording, joint_layout: str | None) -> int:
-    said = rec.custom_data.get(JOINTS_KEY, '')
-    k_rec = int(said) if said.isdigit() and int(said) > 0 else None
+    k_rec = rec.stated_joints_per_person
     if joint_layout is None:
-        return k_rec or 24
+        return rec.joints_per_person
     k = joints_per_person(joint_layout)
     if k is None:
         if k_rec is None:

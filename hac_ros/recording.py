@@ -15,6 +15,7 @@ import shutil
 import tempfile
 from collections import Counter
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 from typing import Any, Iterable, Iterator
 
@@ -70,9 +71,10 @@ class Recording:
         self.counts: dict[str, int] = {name: info.msgcount
                                        for name, info in self.reader.topics.items()}
 
-    @property
+    @cached_property
     def custom_data(self) -> dict[str, str]:
-        """rosbag2 metadata ``custom_data`` (empty for ROS 1 bags and recordings without it)."""
+        """rosbag2 metadata ``custom_data`` (empty for ROS 1 bags and recordings without it);
+        read once (a recording is never written while it is read)."""
         import yaml
 
         meta = self.path / 'metadata.yaml' if self.path.is_dir() else None
@@ -86,10 +88,15 @@ class Recording:
         return {str(k): str(v) for k, v in data.items()} if isinstance(data, dict) else {}
 
     @property
+    def stated_joints_per_person(self) -> int | None:
+        """K as the recording's custom_data states it, or None when it does not."""
+        value = self.custom_data.get(JOINTS_KEY, '')
+        return int(value) if value.isdigit() and int(value) > 0 else None
+
+    @property
     def joints_per_person(self) -> int:
         """K of the recording's PoseArray joints blocks (its custom_data; SMPL-24's 24 without)."""
-        value = self.custom_data.get(JOINTS_KEY, '')
-        return int(value) if value.isdigit() and int(value) > 0 else JOINTS_PER_PERSON
+        return self.stated_joints_per_person or JOINTS_PER_PERSON
 
     @property
     def layout(self) -> JointLayout:
@@ -394,9 +401,10 @@ def read_joints(recording: Recording, topic: str) -> JointsTrack:
     from msg_adapters import MessageError, pose_array_to_joints, stamp_to_ns
 
     stamps, joints = [], []
+    k = recording.joints_per_person
     for _, msg in recording.read(topic):
         try:
-            people = pose_array_to_joints(msg, recording.joints_per_person)
+            people = pose_array_to_joints(msg, k)
         except MessageError:
             continue
         stamps.append(stamp_to_ns(msg.header.stamp))
