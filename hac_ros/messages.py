@@ -90,13 +90,22 @@ class OutputMessages:
 
     def __init__(self, params: HacParams) -> None:
         self.params = params
-        # the skeleton marker's LINE_LIST point order: the layout's bones (parent, child)
-        self._bone_joints = np.array(layout_from_params(params).edges, dtype=int).reshape(-1)
         self._path = np.empty((PATH_LENGTH, 3))  # ring buffer of camera positions, metres
         self._path_count = 0
         self._status: Status | None = None
         self._plane: tuple[Status, np.ndarray] | None = None  # (status, pose (7,)) of the plane
         self._slow_sent_ns: int | None = None  # stamp of the last path and plane markers sent
+
+    @property
+    def params(self) -> HacParams:
+        return self._params
+
+    @params.setter
+    def params(self, params: HacParams) -> None:
+        """The parameters; a new set (the node's runtime change) also renews what derives from
+        them: the skeleton marker's LINE_LIST point order, the layout's bones (parent, child)."""
+        self._params = params
+        self._bone_joints = np.array(layout_from_params(params).edges, dtype=int).reshape(-1)
 
     def convert(self, output: Output) -> list[Message]:
         """The messages of one calibrator output (none for samples, notices and resets)."""

@@ -197,3 +197,14 @@ def test_the_warning_stays_in_diagnostics(walk):
     messages = OutputMessages(HacParams())
     diag = messages.diagnostics(status)
     assert b'suspect.pose_convention' in diag and b'pose_to_optical' in diag
+
+
+def test_a_runtime_layout_change_renews_the_skeleton_markers():
+    """The node hands OutputMessages the new parameters (node.py, _apply_parameters): the bones
+    must follow joint_layout, or a 17-joint frame would index SMPL-24's bones."""
+    messages = OutputMessages(HacParams())
+    messages.params = HacParams().replace(joint_layout='coco17')
+    people = make_scenario('walk', seed=2, duration=2.0, hmr_bias=0.0,
+                           joint_layout='coco17').gt_joints_world[0]
+    assert messages.markers(HumanJointsOut(0, people))  # no IndexError
+    assert len(messages._bone_joints) == 2 * len(BUILT_IN['coco17'].edges)

@@ -61,7 +61,7 @@ class CloudOut:
 
 @dataclass(slots=True)
 class HumanJointsOut:
-    """The frame's joints in the metric world. joints_metric: (P, 24, 3) float64, metres, metric_frame."""
+    """The frame's joints in the metric world. joints_metric: (P, K, 3) float64, metres, metric_frame."""
 
     stamp_ns: int
     joints_metric: np.ndarray
