@@ -15,9 +15,8 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from hac_ros.core.errors import InputError
+from hac_ros.core.numeric import NS
 from hac_ros.tum import tum_rows
-
-NS = 1_000_000_000
 
 
 def seconds_to_ns(t: np.ndarray) -> np.ndarray:
@@ -60,7 +59,8 @@ class Joints:
         return frame[~np.isnan(frame).all(axis=(1, 2))]
 
 
-def _existing(path: str | Path, what: str) -> Path:
+def existing_file(path: str | Path, what: str) -> Path:
+    """``path`` as a Path; InputError naming ``what`` when it is missing or not a file."""
     path = Path(path)
     if not path.exists():
         raise InputError(f'{what} {path} does not exist')
@@ -85,7 +85,7 @@ def read_trajectory(path: str | Path, what: str = 'trajectory',
     (normalised here) and strictly increasing stamps. With a ``duplicates`` list, a pose whose stamp
     equals the one before is dropped and its line number appended there instead (motion-capture
     files have them: TUM fr2_desk's ground truth); a stamp going back is still an error."""
-    path = _existing(path, what)
+    path = existing_file(path, what)
     rows, labels = [], []
     for number, parts in tum_rows(path, what):
         try:
@@ -119,7 +119,7 @@ def read_joints(path: str | Path, what: str = 'joints',
                 joints_per_person: int | None = None) -> Joints:
     """A ``.npz`` with ``stamps`` (T,) float seconds and ``joints`` (T, P, K, 3) metres (NaN blocks
     for absent people); K checked against ``joints_per_person`` when given."""
-    path = _existing(path, what)
+    path = existing_file(path, what)
     try:
         npz = np.load(path, allow_pickle=False)
         if not isinstance(npz, np.lib.npyio.NpzFile):

@@ -39,8 +39,9 @@ import numpy as np
 from hac_ros.core.errors import HacError, InputError
 from hac_ros.core.layouts import BUILT_IN, joints_per_person
 from hac_ros.core.metrics import umeyama
+from hac_ros.core.numeric import NS
 from hac_ros.core.params import NODE_NAME, HacParams
-from hac_ros.import_readers import (NS, Joints, Trajectory, parse_camera, poses_at, read_joints,
+from hac_ros.import_readers import (Joints, Trajectory, parse_camera, poses_at, read_joints,
                                     read_trajectory, unpaired_joint_stamps)
 from hac_ros.map_files import read_map
 from hac_ros.recording import (GT_CAMERA, GT_JOINTS, GT_SCALE, JOINTS_KEY, LAYOUT_KEY, OutputWriter,
@@ -95,19 +96,6 @@ class ImportResult:
         return '\n'.join(lines)
 
 
-def _pose_array(people: np.ndarray, stamp: int, frame: str, types: Any) -> Any:
-    """People (P, K, 3) metres in ``frame`` → PoseArray (consecutive blocks, identity
-    orientations)."""
-    Pose, Point, Quaternion = (types.get('geometry_msgs/msg/Pose'),
-                               types.get('geometry_msgs/msg/Point'),
-                               types.get('geometry_msgs/msg/Quaternion'))
-    from msg_adapters import make_header
-    poses = [Pose(position=Point(x=x, y=y, z=z), orientation=Quaternion(x=0.0, y=0.0, z=0.0, w=1.0))
-             for x, y, z in people.reshape(-1, 3).tolist()]
-    return types.get('geometry_msgs/msg/PoseArray')(header=make_header(stamp, frame, types),
-                                                    poses=poses)
-
-
 def _fit_scale(traj: Trajectory, gt: Trajectory, max_gap_ns: int
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, float]:
     """(indices into T, G positions (M, 3) m, G rotations (M, 3, 3), scale, mean residual m)."""
@@ -146,8 +134,8 @@ def import_files(output: str | Path, trajectory: str | Path, map_file: str | Pat
     """Write the recording ``output`` from the files (see the module docstring). ``params``: the
     ``interp_max_gap_s`` and ``sync_slop_s`` of the sparse-trajectory warning and the ground-truth
     interpolation (defaults otherwise). Raises HacError before anything is written."""
-    from msg_adapters import (intrinsics_to_camera_info, rosbags_types, rt_to_pose_stamped,
-                              xyz_to_cloud)
+    from msg_adapters import (intrinsics_to_camera_info, joints_to_pose_array, rosbags_types,
+                              rt_to_pose_stamped, xyz_to_cloud)
 
     out = Path(output)
     if out.exists() or out.is_symlink():
@@ -203,7 +191,7 @@ def import_files(output: str | Path, trajectory: str | Path, map_file: str | Pat
     for t, stamp in enumerate(hmr.stamps_ns.tolist()):
         people = hmr.people(t)
         if len(people):
-            add(stamp, '/hmr/joints', _pose_array(people, stamp, camera_frame, types))
+            add(stamp, '/hmr/joints', joints_to_pose_array(people, stamp, camera_frame, types))
             frames, people_max = frames + 1, max(people_max, len(people))
     result = ImportResult(out, len(traj), frames, people_max, k, len(points),
                           intrinsics is not None, warnings=warnings)
@@ -218,7 +206,7 @@ def import_files(output: str | Path, trajectory: str | Path, map_file: str | Pat
         for t, stamp in enumerate(gt_hmr.stamps_ns.tolist()):
             people = gt_hmr.people(t)
             if len(people):
-                add(stamp, GT_JOINTS[0], _pose_array(people, stamp, world_frame, types))
+                add(stamp, GT_JOINTS[0], joints_to_pose_array(people, stamp, world_frame, types))
                 result.gt_joints_frames += 1
         unmatched = len(np.setdiff1d(gt_hmr.stamps_ns, hmr.stamps_ns))
         if unmatched:

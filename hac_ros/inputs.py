@@ -49,14 +49,11 @@ def add_joints_msg(calibrator: Calibrator, msg: Any) -> list[Output]:
     """A PoseArray of HMR joints (or None) → the calibrator's outputs (rejected as
     ``joints_wrong_layout`` when it is not P blocks of the layout's K joints, ``joints_malformed``
     when it does not decode or has an invalid stamp)."""
-    k = calibrator.layout.joints_per_person
     try:
         if msg is None:
             raise MessageError('the joints message did not deserialize')
         stamp = stamp_to_ns(msg.header.stamp)
-        if len(msg.poses) % k:
-            return calibrator.reject('joints_wrong_layout', stamp)
-        joints_cam = pose_array_to_joints(msg, k)
+        joints_cam = pose_array_to_joints(msg, 1)[:, 0]  # (P*K, 3): the calibrator checks K
     except MessageError:
         return calibrator.reject('joints_malformed', -1)
     return calibrator.add_joints(stamp, joints_cam, msg.header.frame_id)

@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from hac_ros.core.errors import InputError
+from hac_ros.import_readers import existing_file
 
 PLY_TYPES = {  # PLY scalar type names (both spellings) -> numpy type without byte order
     'char': 'i1', 'int8': 'i1', 'uchar': 'u1', 'uint8': 'u1', 'short': 'i2', 'int16': 'i2',
@@ -46,10 +47,7 @@ class _Element:
 def read_map(path: str | Path) -> np.ndarray:
     """The points of a map file (PLY, .npy or text, by ending) as (N, 3) float64, the file's unit
     and frame. InputError when the file is missing, unreadable, malformed or holds no point."""
-    path = Path(path)
-    if not path.is_file():
-        raise InputError(f'map file {path} does not exist' if not path.exists()
-                         else f'map file {path} is not a file')
+    path = existing_file(path, 'map file')
     suffix = path.suffix.lower()
     if suffix == '.ply':
         points = read_ply(path)

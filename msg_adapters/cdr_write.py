@@ -20,6 +20,7 @@ from typing import Iterable, Sequence
 import numpy as np
 
 from msg_adapters.errors import MessageError
+from msg_adapters.pointcloud import FLOAT32
 from msg_adapters.stamps import NS_PER_S
 
 ENCAPSULATION_LE = b'\x00\x01\x00\x00'  # CDR_LE, no options
@@ -144,9 +145,6 @@ def pose_with_covariance_stamped(stamp_ns: int, frame_id: str, position: np.ndar
     return w.bytes()
 
 
-POINT_FIELD_FLOAT32 = 7  # sensor_msgs/PointField.FLOAT32
-
-
 def point_cloud_xyz32(stamp_ns: int, frame_id: str, points: np.ndarray) -> bytes:
     """sensor_msgs/PointCloud2 of points (N, 3): fields x, y, z float32, one row, dense when every
     point is finite."""
@@ -159,7 +157,7 @@ def point_cloud_xyz32(stamp_ns: int, frame_id: str, points: np.ndarray) -> bytes
     for k, name in enumerate('xyz'):
         w.string(name)
         w.u32(4 * k)  # offset
-        w.octet(POINT_FIELD_FLOAT32)
+        w.octet(FLOAT32)
         w.u32(1)  # count
     w.octet(0)  # is_bigendian
     w.u32(12)  # point_step
