@@ -65,22 +65,22 @@ class HacLifecycleNode(HacShell, LifecycleNode):
         return SUCCESS
 
     def on_shutdown(self, state: LifecycleState) -> TransitionCallbackReturn:
-        if self.active:
-            self._deactivate()
-        self._cleanup()
+        self._teardown()
         return SUCCESS
 
     def on_error(self, state: LifecycleState) -> TransitionCallbackReturn:
-        if self.active:
-            self._deactivate()
-        self._cleanup()
+        self._teardown()
         return SUCCESS
 
     def destroy_node(self) -> None:
+        self._teardown()
+        super().destroy_node()
+
+    def _teardown(self) -> None:
+        """From any state: deactivate if active, then drop the state."""
         if self.active:
             self._deactivate()
         self._cleanup()
-        super().destroy_node()
 
 
 def main(args: list[str] | None = None) -> int:
