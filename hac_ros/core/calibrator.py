@@ -28,7 +28,7 @@ import numpy as np
 from hac_ros.core.convention_check import ConventionCheck
 from hac_ros.core.conventions import Conventions
 from hac_ros.core.estimator import RollingScale
-from hac_ros.core.ground import GroundModel, Plane
+from hac_ros.core.ground import GroundModel
 from hac_ros.core.humans import RootFilter
 from hac_ros.core.layouts import layout_from_params
 from hac_ros.core.metric import MetricStage, StageConfig
@@ -236,14 +236,6 @@ class Calibrator:
         text = REASONS.get(reason, reason)
         return [NoticeOut(int(stamp_ns), reason, f'rejected input ({reason}): {text}; '
                           'further ones are counted in /diagnostics')]
-
-    def set_ground_plane(self, normal_map: np.ndarray | None, offset_slam: float = 0.0) -> None:
-        """Force a known ground plane (SLAM map frame, down-pointing unit normal, SLAM units)."""
-        if normal_map is None:
-            self.ground.set_known(None)
-        else:
-            n = np.asarray(normal_map, dtype=float)
-            self.ground.set_known(Plane(n / np.linalg.norm(n), float(offset_slam)))
 
     # ================================================================== state
     @property

@@ -13,7 +13,7 @@ the line. The offset ``b`` comes from the map alone: the lowest dense segment of
 ``n`` (a histogram, not the single lowest point; :meth:`MapIndex.floor_offset`).
 
 Ablations: ``slam_y`` (the SLAM map's y axis as the normal), ``largest_plane`` (RANSAC's largest
-plane of the map), ``none``; and a known plane (``set_known``) for the upper bound.
+plane of the map), ``none``.
 """
 from __future__ import annotations
 
@@ -123,7 +123,6 @@ class GroundModel:
         self._contact_count = 0
         self._contacts_since_fit = 0
         self._contact_normal: np.ndarray | None = None
-        self._known: Plane | None = None
         self._plane_cache: tuple[MapIndex, bytes, Plane | None] | None = None
         self._rng = np.random.default_rng(self._seed)
 
@@ -163,21 +162,14 @@ class GroundModel:
             self._contacts_since_fit = 0
             self._refine_with_contacts(self.inlier_m / scale)
 
-    def set_known(self, plane: Plane | None) -> None:
-        """Use a known plane (SLAM map frame, SLAM units): the upper bound of the ablation."""
-        self._known = plane
-        self._plane_cache = None
-
     # ------------------------------------------------------------------ queries
     @property
     def refined(self) -> bool:
-        """Whether the normal comes from contact joints (or is known), not the body axis alone."""
-        return self._known is not None or self._contact_normal is not None
+        """Whether the normal comes from contact joints, not the body axis alone."""
+        return self._contact_normal is not None
 
     def normal(self) -> np.ndarray | None:
         """The current down-pointing unit normal in the map frame, or None (not enough evidence)."""
-        if self._known is not None:
-            return self._known.normal
         if self.mode == 'slam_y':
             return np.array([0.0, 1.0, 0.0])
         if self.mode == 'hmr' and self._contact_normal is not None:
@@ -188,8 +180,6 @@ class GroundModel:
 
     def plane(self, map_index: MapIndex | None) -> Plane | None:
         """The current plane for this map, cached per (map, normal)."""
-        if self._known is not None:
-            return self._known
         if self.mode == 'none' or map_index is None or len(map_index) < 3:
             return None
         normal = None if self.mode == 'largest_plane' else self.normal()

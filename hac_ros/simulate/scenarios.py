@@ -76,19 +76,6 @@ class Scenario:
     def segment_start(self, i: int) -> int:
         return max(s for s in self.segment_starts if s <= i)
 
-    def true_ground_plane_slam(self, i: int) -> tuple[np.ndarray, float]:
-        """The floor (z = 0) in the SLAM map frame of pose i: (normal (3,) unit, pointing down; offset).
-
-        Plane ``{p : normal·p = offset}`` in SLAM units, with the scale of pose i (exact for a
-        constant scale).
-        """
-        s0 = self.segment_start(i)
-        R0 = self.gt_R_wc[s0]
-        down_world = np.array([0.0, 0.0, -1.0])
-        normal = R0.T @ down_world
-        offset = float(normal @ self.slam_c[i] + self.gt_c[i, 2] / self.true_scale[i])
-        return normal, offset
-
     @property
     def duration_s(self) -> float:
         return float(self.pose_stamps_ns[-1] - self.pose_stamps_ns[0]) / 1e9
