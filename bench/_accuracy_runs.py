@@ -78,9 +78,9 @@ def scene_from_scenario(sc: Any) -> Scene:
 
 
 def scene_from_composite(data: Any, seed: int) -> Scene:
-    from composite import events
+    from composite import HEIGHT, WIDTH, events
 
-    return Scene(f'composite:{data.name}', seed, events(data), data.K, 640, 480,
+    return Scene(f'composite:{data.name}', seed, events(data), data.K, WIDTH, HEIGHT,
                  np.asarray(data.stamps_ns), np.full(len(data.stamps_ns), data.scale_fit),
                  [j[None] for j in data.joints_world], [np.array([0])] * len(data.joints_world))
 
@@ -129,7 +129,13 @@ def run_ours(scene: Scene, params: HacParams, literal: World, online: bool = Fal
     """Our offline figures (and the online ones when asked) for one configuration; ``literal``:
     the literal method's world joints, for W-MPJPE on the frames both publish."""
     cal = Calibrator(params, defer_metric=True)
-    deferred = feed(cal, scene)
+    return figures(scene, params, cal, feed(cal, scene), literal, online)
+
+
+def figures(scene: Scene, params: HacParams, cal: Calibrator, deferred: list[Any], literal: World,
+            online: bool = False) -> dict[str, float]:
+    """:func:`run_ours`' figures of a deferred run (``deferred``: the outputs of ``cal``, made
+    with ``defer_metric``) of ``scene``'s inputs, however they were fed."""
     samples = [o for o in deferred if isinstance(o, SampleOut) and o.accepted]
     resets = [o.stamp_ns for o in deferred if isinstance(o, ResetOut)]
     out: dict[str, float] = {'samples': len(samples)}

@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _report import (RESULTS, machine, machine_line, table, write_json,  # noqa: E402
+from _report import (RESULTS, command_line, machine, machine_line, table, write_json,  # noqa: E402
                      write_section)
 
 REPO = Path(__file__).resolve().parents[1]
@@ -276,8 +276,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f'[{k}/{len(tasks)}] {result["scenario"]} seed {result["seed"]} '
                   f'{result["condition"]}', file=sys.stderr, flush=True)
     summary = summarise(results)
-    meta = {'command': 'python bench/accuracy.py ' + ' '.join(argv if argv is not None
-                                                               else sys.argv[1:]),
+    meta = {'command': command_line(__file__, argv),
             'machine': machine(), 'wall_s': time.perf_counter() - start, 'seeds': seeds,
             'scenes': len(tasks), 'resumed_scenes': resumed}
     text = render(summary, meta)

@@ -21,6 +21,7 @@ from scipy.spatial.transform import Rotation
 
 from hac_ros.core import metrics
 from hac_ros.core.layouts import SMPL24
+from hac_ros.simulate.feed import ORDER
 from hac_ros.simulate.hmr import DepthBias, predict
 from hac_ros.tum import read_tum
 
@@ -159,5 +160,4 @@ def events(data: Composite) -> list[tuple[int, str, tuple]]:
             for i, s in enumerate(data.stamps_ns)]
     out += [(int(s), 'joints', (data.joints_cam[k][None], 'camera'))
             for k, s in enumerate(data.frame_stamps_ns)]
-    order = {'map': 0, 'pose': 1, 'joints': 2}
-    return sorted(out, key=lambda e: (e[0], order[e[1]]))
+    return sorted(out, key=lambda e: (e[0], ORDER[e[1]]))

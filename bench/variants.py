@@ -34,7 +34,8 @@ from typing import Any
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _report import machine, machine_line, table, write_json, write_section  # noqa: E402
+from _report import (command_line, machine, machine_line, table, write_json,  # noqa: E402
+                     write_section)
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = REPO.parent / 'shared' / 'data'
@@ -65,13 +66,15 @@ def _body_frame(events: list) -> list:
     return [(s, k, (p[0] @ R_q.T, *p[1:]) if k == 'pose' else p) for s, k, p in events]
 
 
-def _imported(sc: Any, directory: Path) -> list:
-    """The scenario through files and ``hac import``, read back as calibrator events."""
+def _imported(sc: Any, scene: Any, params: Any, directory: Path) -> dict[str, float]:
+    """The scenario through files and ``hac import``, then the replay's own input path
+    (``hac_ros.feeder.deferred_run``): its figures."""
+    from _accuracy_runs import figures
+
+    from hac_ros.feeder import deferred_run
     from hac_ros.importer import import_files
     from hac_ros.recording import Recording
-    from hac_ros.simulate.feed import ORDER
     from hac_ros.tum import rotations_to_quats, write_tum
-    from msg_adapters import cloud_to_xyz, pose_array_to_joints, pose_msg_to_rt, stamp_to_ns
 
     write_tum(directory / 'slam.tum', sc.pose_stamps_ns, sc.slam_c, rotations_to_quats(sc.slam_R_wc))
     np.save(directory / 'map.npy', sc.maps[-1].points_slam.astype(float))
@@ -84,18 +87,9 @@ def _imported(sc: Any, directory: Path) -> list:
     import_files(directory / 'rec', directory / 'slam.tum', directory / 'map.npy',
                  directory / 'joints.npz', camera=f'{fx},{fy},{cx},{cy},{sc.width},{sc.height}',
                  joint_layout='smpl24')
-    events = []
     with Recording(directory / 'rec') as rec:
-        for _, msg in rec.read('/slam/cloud'):
-            events.append((stamp_to_ns(msg.header.stamp), 'map',
-                           (cloud_to_xyz(msg), msg.header.frame_id)))
-        for _, msg in rec.read('/slam/pose'):
-            events.append((stamp_to_ns(msg.header.stamp), 'pose',
-                           (*pose_msg_to_rt(msg), msg.header.frame_id)))
-        for _, msg in rec.read('/hmr/joints'):
-            events.append((stamp_to_ns(msg.header.stamp), 'joints',
-                           (pose_array_to_joints(msg, 24), msg.header.frame_id)))
-    return sorted(events, key=lambda e: (e[0], ORDER[e[1]]))
+        cal, deferred = deferred_run(rec, params)
+    return figures(scene, params, cal, deferred, {})
 
 
 def run_task(task: tuple[str, int]) -> dict[str, Any]:
@@ -135,12 +129,12 @@ def run_task(task: tuple[str, int]) -> dict[str, Any]:
                 for s, k, p in scene.events],
                 joints_world=[to_layout(j, layout) for j in scene.joints_world])
         variants[layout] = (other, base.replace(joint_layout=layout))
+    figures = {variant: run_ours(v_scene, params, {}) for variant, (v_scene, params)
+               in variants.items()}
     if sc is not None:
         with tempfile.TemporaryDirectory() as tmp:
-            variants['imported'] = (dataclasses.replace(scene, events=_imported(sc, Path(tmp))),
-                                    base)
-    for variant, (v_scene, params) in variants.items():
-        row = run_ours(v_scene, params, {})
+            figures['imported'] = _imported(sc, scene, base, Path(tmp))
+    for variant, row in figures.items():
         rows[variant] = {k: row[k] for k in ('scale_err', 'scale_bias')}
     return {'scenario': name, 'seed': seed, 'rows': rows}
 
@@ -208,8 +202,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f'[{k}/{len(tasks)}] {result["scenario"]} seed {result["seed"]}',
                   file=sys.stderr, flush=True)
     summary = summarise(results)
-    meta = {'command': 'python bench/variants.py ' + ' '.join(argv if argv is not None
-                                                               else sys.argv[1:]),
+    meta = {'command': command_line(__file__, argv),
             'machine': machine(), 'wall_s': time.perf_counter() - start}
     text = render(summary, meta)
     print(text)

@@ -6,6 +6,7 @@ from pathlib import Path
 
 from hac_ros.cli import escape_help
 from hac_ros.core.errors import HacError
+from hac_ros.core.layouts import BUILT_IN
 from hac_ros.recording import STORAGES
 from hac_ros.core.params import POSE_TYPES
 from hac_ros.simulate.scenarios import SCENARIOS
@@ -24,7 +25,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--hmr-bias', type=float, default=None,
                         help=escape_help('HMR depth bias (0.03 = 3 % too far); default: random '
                                          'few %; 0: none'))
-    parser.add_argument('--joint-layout', choices=('smpl24', 'coco17', 'h36m17'), default='smpl24',
+    parser.add_argument('--joint-layout', choices=tuple(BUILT_IN), default='smpl24',
                         help='the HMR model\'s joints (replay with the same joint_layout)')
     parser.add_argument('--motion', type=Path, default=None,
                         help='real motion (a ../shared/data/cmu_mocap/*.npz) instead of the gait')

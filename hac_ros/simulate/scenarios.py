@@ -204,7 +204,7 @@ def make_scenario(name: str, seed: int = 0, duration: float | None = None, rate:
 
     # --- HMR: the same bodies, in the HMR model's joint layout
     layout = BUILT_IN[joint_layout] if joint_layout in BUILT_IN else None
-    if layout is None or layout.name == 'custom':
+    if layout is None:
         raise HacError(f'joint layout must be one of {", ".join(BUILT_IN)}, not {joint_layout!r}')
     people = [to_layout(person, joint_layout) for person in people]
     depth_bias = DepthBias(bias, t, body_rng, wander=hmr_bias is None or hmr_bias != 0.0)
