@@ -36,6 +36,7 @@ from hac_ros.core.humans import smooth_outputs
 from hac_ros.core.offline import offline_scale
 from hac_ros.core.outputs import HumanJointsOut, ResetOut, SampleOut, ScaleOut
 from hac_ros.core.params import HacParams
+from hac_ros.simulate.feed import feed_events
 
 AUTHORS_COS = 0.999
 CONVERGED_REL = 0.05
@@ -87,14 +88,7 @@ def scene_from_composite(data: Any, seed: int) -> Scene:
 
 def feed(cal: Calibrator, scene: Scene) -> list[Any]:
     out = list(cal.add_camera_info(scene.K, scene.width, scene.height, 'camera'))
-    for stamp, kind, payload in scene.events:
-        if kind == 'map':
-            out += cal.add_map(stamp, *payload)
-        elif kind == 'pose':
-            out += cal.add_pose(stamp, *payload)
-        else:
-            out += cal.add_joints(stamp, *payload)
-    return out + cal.flush()
+    return out + feed_events(cal, scene.events) + cal.flush()
 
 
 def w_mpjpe(scene: Scene, stamps_ns: list[int], joints: list[np.ndarray]) -> float:

@@ -33,7 +33,6 @@ import numpy as np
 from hac_ros.core.calibrator import Calibrator
 from hac_ros.core.errors import HacError
 from hac_ros.core.humans import smooth_outputs
-from hac_ros.core.layouts import layout_from_params
 from hac_ros.core.metric import finite_scale
 from hac_ros.core.numeric import NS
 from hac_ros.core.offline import OfflineScale, offline_scale
@@ -204,9 +203,9 @@ def replay(input_path: str | Path, output_path: str | Path, params: HacParams | 
         n_inputs = sum(recording.counts.get(t, 0) for t in topics.kinds())
         n_pass = sum(recording.counts.values()) if copy_inputs else n_inputs
         schedule = None
+        calibrator = Calibrator(params, defer_metric=mode == 'offline')
         with staged_output(output_path) as staged:
-            layout = layout_from_params(params)
-            writer = OutputWriter(staged, storage, layout_data(layout))
+            writer = OutputWriter(staged, storage, layout_data(calibrator.layout))
             try:
                 handler = OutputHandler(params, writer, printer, keep_poses=export_tum is not None)
                 off = {MARKERS[0]: not params.publish_markers, CLOUD[0]: not params.publish_cloud,
@@ -215,8 +214,7 @@ def replay(input_path: str | Path, output_path: str | Path, params: HacParams | 
                     if not off.get(topic, False):
                         writer.connection(in_root(topic), msgtype,
                                           latched=topic in LATCHED_TOPICS)
-                feeder = CoreFeeder(recording, topics,
-                                    Calibrator(params, defer_metric=mode == 'offline'),
+                feeder = CoreFeeder(recording, topics, calibrator,
                                     keep_poses=export_tum is not None)
                 on_message = _input_copier(recording, writer) if copy_inputs else None
                 if mode == 'online':

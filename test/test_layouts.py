@@ -17,7 +17,7 @@ from hac_ros.core.params import HacParams
 from hac_ros.messages import OutputMessages
 from hac_ros.recording import Recording, read_output
 from hac_ros.simulate import make_scenario
-from hac_ros.simulate.feed import scenario_events
+from hac_ros.simulate.feed import feed_events, scenario_events
 from hac_ros.simulate.layouts import to_layout
 from hac_ros.simulate.humans import STANDING
 
@@ -25,21 +25,25 @@ DURATION_S = 15.0
 BODY_FRAME_Q = [-0.5, 0.5, -0.5, 0.5]  # the optical frame in an x-forward, z-up camera frame
 
 
+def events(sc, pose_rotation: np.ndarray | None = None, joints=lambda j: j) -> list:
+    """The scenario's inputs, the SLAM poses' rotations right-multiplied by ``pose_rotation`` (as
+    a SLAM wrapper that publishes another child frame would), the joints through ``joints``."""
+    out = []
+    for stamp, kind, payload in scenario_events(sc):
+        if kind == 'pose' and pose_rotation is not None:
+            payload = (payload[0] @ pose_rotation, *payload[1:])
+        elif kind == 'joints':
+            payload = (joints(payload[0]), *payload[1:])
+        out.append((stamp, kind, payload))
+    return out
+
+
 def run(sc, params: HacParams, pose_rotation: np.ndarray | None = None, camera_info: bool = True,
         joints=lambda j: j) -> list:
-    """Every input of ``sc`` into a fresh calibrator; the SLAM poses' rotations right-multiplied
-    by ``pose_rotation`` (as a SLAM wrapper that publishes another child frame would)."""
+    """Every input of ``sc`` (:func:`events`) into a fresh calibrator, flushed: its outputs."""
     cal = Calibrator(params)
     out = list(cal.add_camera_info(sc.K, sc.width, sc.height, sc.camera_frame)) if camera_info else []
-    for stamp, kind, payload in scenario_events(sc):
-        if kind == 'map':
-            out += cal.add_map(stamp, *payload)
-        elif kind == 'pose':
-            R = payload[0] if pose_rotation is None else payload[0] @ pose_rotation
-            out += cal.add_pose(stamp, R, *payload[1:])
-        else:
-            out += cal.add_joints(stamp, joints(payload[0]), payload[1])
-    return out + cal.flush()
+    return out + feed_events(cal, events(sc, pose_rotation, joints)) + cal.flush()
 
 
 def scale_error(sc, outputs: list) -> float:
@@ -185,13 +189,7 @@ def test_the_warning_stays_in_diagnostics(walk):
     R = Rotation.from_quat(BODY_FRAME_Q).as_matrix().T
     cal = Calibrator(HacParams())
     cal.add_camera_info(walk.K, walk.width, walk.height, walk.camera_frame)
-    for stamp, kind, payload in scenario_events(walk):
-        if kind == 'map':
-            cal.add_map(stamp, *payload)
-        elif kind == 'pose':
-            cal.add_pose(stamp, payload[0] @ R, *payload[1:])
-        else:
-            cal.add_joints(stamp, *payload)
+    feed_events(cal, events(walk, R))
     status = cal.status()
     assert 'pose_convention' in status.suspects
     messages = OutputMessages(HacParams())

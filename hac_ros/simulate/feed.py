@@ -5,7 +5,7 @@ The order is the recording's: by stamp; at one stamp the map first, then the pos
 """
 from __future__ import annotations
 
-from typing import Any, Iterator
+from typing import Any, Iterable, Iterator
 
 from hac_ros.core.calibrator import Calibrator
 from hac_ros.core.outputs import Output
@@ -25,16 +25,23 @@ def scenario_events(sc: Any) -> Iterator[tuple[int, str, tuple]]:
     return iter(events)
 
 
+def feed_events(cal: Calibrator, events: Iterable[tuple[int, str, tuple]]) -> list[Output]:
+    """Events (stamp_ns, kind, payload), as :func:`scenario_events` gives them, into ``cal``;
+    its outputs (not flushed)."""
+    outs: list[Output] = []
+    for stamp, kind, payload in events:
+        if kind == 'map':
+            outs += cal.add_map(stamp, *payload)
+        elif kind == 'pose':
+            outs += cal.add_pose(stamp, *payload)
+        else:
+            outs += cal.add_joints(stamp, *payload)
+    return outs
+
+
 def feed_scenario(cal: Calibrator, sc: Any, camera_info: bool = True) -> list[Output]:
     """Every input of the scenario into ``cal``; returns all outputs (flushed at the end)."""
     outs: list[Output] = []
     if camera_info:
         outs += cal.add_camera_info(sc.K, sc.width, sc.height, sc.camera_frame)
-    for stamp, kind, payload in scenario_events(sc):
-        if kind == 'map':
-            outs += cal.add_map(stamp, payload[0], payload[1])
-        elif kind == 'pose':
-            outs += cal.add_pose(stamp, *payload)
-        else:
-            outs += cal.add_joints(stamp, *payload)
-    return outs + cal.flush()
+    return outs + feed_events(cal, scenario_events(sc)) + cal.flush()
