@@ -33,8 +33,8 @@ import numpy as np
 from hac_ros.core import metrics
 from hac_ros.core.calibrator import Calibrator
 from hac_ros.core.humans import smooth_outputs
-from hac_ros.core.offline import offline_scale
-from hac_ros.core.outputs import HumanJointsOut, ResetOut, SampleOut, ScaleOut
+from hac_ros.core.offline import resolve_offline
+from hac_ros.core.outputs import HumanJointsOut, SampleOut, ScaleOut
 from hac_ros.core.params import HacParams
 from hac_ros.simulate.feed import feed_events
 
@@ -131,14 +131,10 @@ def figures(scene: Scene, params: HacParams, cal: Calibrator, deferred: list[Any
     """:func:`run_ours`' figures of a deferred run (``deferred``: the outputs of ``cal``, made
     with ``defer_metric``) of ``scene``'s inputs, however they were fed."""
     samples = [o for o in deferred if isinstance(o, SampleOut) and o.accepted]
-    resets = [o.stamp_ns for o in deferred if isinstance(o, ResetOut)]
     out: dict[str, float] = {'samples': len(samples)}
     if len(samples) < params.min_samples:
         return {**out, 'scale_err': math.nan, 'scale_bias': math.nan, 'w_mpjpe': math.nan}
-    schedule = offline_scale(np.array([s.stamp_ns for s in samples], dtype=np.int64),
-                             np.array([s.scale for s in samples]), resets, params.window_s,
-                             params.min_samples)
-    resolved = cal.metric.fresh().resolve(deferred, schedule, schedule.error)
+    resolved = resolve_offline(cal.metric.fresh(), params, [deferred])[0][0]  # as the replay
     frames = [o for o in resolved if isinstance(o, ScaleOut)]
     signed = _signed_errors(scene, frames)
     humans = [o for o in resolved if isinstance(o, HumanJointsOut)]

@@ -192,8 +192,8 @@ def tie_ordered(messages: Iterable[tuple[str, int, Any]], kinds: dict[str, str]
 
 def deferred_run(recording: Recording, params: HacParams) -> tuple[Calibrator, list[Output]]:
     """One run of the calibrator over ``recording`` with its metric outputs deferred: the
-    calibrator and every output in order, to be resolved with any scale schedule
-    (``calibrator.metric.fresh().resolve(outputs, scale_at)``; :mod:`hac_ros.core.metric`)."""
+    calibrator and every output in order, to be resolved as the offline replay does, or with any
+    scale schedule (:func:`hac_ros.core.offline.resolve_offline`)."""
     calibrator = Calibrator(params, defer_metric=True)
     outputs: list[Output] = []
     CoreFeeder(recording, InputTopics.check(recording, params), calibrator).run(outputs.extend)

@@ -26,18 +26,15 @@ import time
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Iterable
-
-import numpy as np
+from typing import Any, Callable
 
 from hac_ros.core.calibrator import Calibrator
 from hac_ros.core.errors import HacError
 from hac_ros.core.humans import smooth_outputs
 from hac_ros.core.metric import finite_scale
 from hac_ros.core.numeric import NS
-from hac_ros.core.offline import OfflineScale, offline_scale
-from hac_ros.core.outputs import (NoticeOut, Output, PendingFrame, PendingOdometry,
-                                  PoseOut, ResetOut, SampleOut, Status)
+from hac_ros.core.offline import OfflineScale, resolve_offline
+from hac_ros.core.outputs import NoticeOut, Output, PoseOut, ResetOut, SampleOut, Status
 from hac_ros.core.params import HacParams
 from hac_ros.feeder import CoreFeeder, InputTopics
 from hac_ros.messages import (CLOUD, LATCHED_TOPICS, MARKERS, OBSTACLES, OUTPUT_TOPICS, SAMPLES,
@@ -244,31 +241,15 @@ def _offline(feeder: CoreFeeder, handler: OutputHandler,
     Memory: the run's outputs are kept until the schedule is known (about 1.9 kB per frame of one
     person, docs/replay.md).
     """
-    calibrator = feeder.calibrator
     recorded: list[list[Output]] = []
-    samples: list[SampleOut] = []
-    resets: list[int] = []
-
-    def record(outputs: list[Output]) -> None:
-        for output in outputs:
-            if isinstance(output, SampleOut):
-                if output.accepted:
-                    samples.append(output)
-            elif isinstance(output, ResetOut):
-                resets.append(output.stamp_ns)
-        recorded.append(outputs)
-
     with _progress(progress, n_pass, 'estimate') as bar:
-        feeder.run(record, on_message=on_message, progress=bar)
-    p = calibrator.params
-    schedule = offline_scale(np.array([s.stamp_ns for s in samples], dtype=np.int64),
-                             np.array([s.scale for s in samples]), resets, p.window_s,
-                             p.min_samples)
+        feeder.run(recorded.append, on_message=on_message, progress=bar)
+    calibrator = feeder.calibrator
     stage = calibrator.metric.fresh()
-    planes = final_planes(recorded)
-    resolved = [stage.resolve(outputs, schedule, schedule.error, planes) for outputs in recorded]
+    resolved, schedule = resolve_offline(stage, calibrator.params, recorded)
+    assert schedule is not None
     recorded.clear()
-    if p.human_filter == 'smooth':
+    if calibrator.params.human_filter == 'smooth':
         smooth_outputs([o for outputs in resolved for o in outputs], calibrator.layout)
     with _progress(progress, len(resolved), 'write') as bar:
         for outputs in resolved:
@@ -277,17 +258,6 @@ def _offline(feeder: CoreFeeder, handler: OutputHandler,
                 bar.update(1)
     pending = calibrator.pending_status()
     return stage.status(pending, finite_scale(schedule(pending.status.stamp_ns))), schedule
-
-
-def final_planes(recorded: Iterable[list[Output]]) -> dict[int, Any]:
-    """Segment -> its last ground plane (SLAM map frame) in a deferred run's outputs: offline, each
-    segment has one final alignment (SPEC, the metric frame)."""
-    planes: dict[int, Any] = {}
-    for outputs in recorded:
-        for output in outputs:
-            if isinstance(output, (PendingOdometry, PendingFrame)) and output.plane is not None:
-                planes[output.segment] = output.plane
-    return planes
 
 
 def _input_copier(recording: Recording, writer: OutputWriter) -> Callable[[str, int, Any], None]:

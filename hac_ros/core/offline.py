@@ -35,10 +35,17 @@ from __future__ import annotations
 import bisect
 import math
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
 from hac_ros.core.numeric import MAD_TO_SIGMA, MEDIAN_STD_ERROR, NS
+from hac_ros.core.outputs import Output, PendingFrame, PendingOdometry, ResetOut, SampleOut
+
+if TYPE_CHECKING:
+    from hac_ros.core.ground import Plane
+    from hac_ros.core.metric import MetricStage, ScaleAt
+    from hac_ros.core.params import HacParams
 
 # A window median this many standard errors from the segment median is not noise. With one window
 # per half window over a long recording (hundreds of windows), 5 sigma keeps false alarms rare.
@@ -168,6 +175,43 @@ def offline_scale(sample_stamps_ns: np.ndarray, sample_scales: np.ndarray,
         segment_scale(stamps[a:b], scales[a:b], start, window_s, min_samples, drift_z, drift_min_rel)
         for start, a, b in zip(starts, edges[:-1], edges[1:])]
     return OfflineScale(segments)
+
+
+def resolve_offline(stage: 'MetricStage', params: 'HacParams', batches: Sequence[list[Output]],
+                    scale_at: 'ScaleAt | None' = None
+                    ) -> tuple[list[list[Output]], OfflineScale | None]:
+    """A deferred run's outputs resolved as the offline replay resolves them: with the offline
+    schedule of the run's own accepted samples and resets, or with ``scale_at`` (stamp -> metres
+    per SLAM unit) when given, and each segment aligned with its final ground plane (SPEC, the
+    metric frame).
+
+    stage: a fresh stage of the run's calibrator (``calibrator.metric.fresh()``; it keeps the
+    segments for :meth:`~hac_ros.core.metric.MetricStage.status`); batches: the calibrator's
+    outputs (made with ``defer_metric``) in the lists its calls returned. Returns the resolved
+    lists and the schedule (None with ``scale_at``).
+    """
+    schedule = None
+    error_at = None
+    if scale_at is None:
+        samples = [o for batch in batches for o in batch if isinstance(o, SampleOut) and o.accepted]
+        resets = [o.stamp_ns for batch in batches for o in batch if isinstance(o, ResetOut)]
+        schedule = offline_scale(np.array([s.stamp_ns for s in samples], dtype=np.int64),
+                                 np.array([s.scale for s in samples]), resets, params.window_s,
+                                 params.min_samples)
+        scale_at, error_at = schedule, schedule.error
+    planes = final_planes(batches)
+    return [stage.resolve(batch, scale_at, error_at, planes) for batch in batches], schedule
+
+
+def final_planes(batches: Sequence[list[Output]]) -> 'dict[int, Plane | None]':
+    """Segment -> its last ground plane (SLAM map frame) in a deferred run's outputs: offline, each
+    segment has one final alignment (SPEC, the metric frame)."""
+    planes: dict[int, Plane | None] = {}
+    for batch in batches:
+        for output in batch:
+            if isinstance(output, (PendingOdometry, PendingFrame)) and output.plane is not None:
+                planes[output.segment] = output.plane
+    return planes
 
 
 def segment_scale(stamps_ns: np.ndarray, scales: np.ndarray, start_ns: int, window_s: float,
