@@ -289,7 +289,7 @@ class Calibrator:
 
     def pending_status(self, stamp_ns: int | None = None) -> PendingStatus:
         """The status before the metric stage places its ground plane in the metric frame."""
-        plane = self.ground.plane(self.map) if self.map is not None else None
+        plane = self.ground.plane(self.map)
         status = Status(
             stamp_ns=int(self._last_frame_ns if stamp_ns is None else stamp_ns),
             converged=self.converged, scale=self.scale, spread=self.estimator.spread(),
@@ -419,7 +419,7 @@ class Calibrator:
             out += self._person(stamp, person, R_wc, c_map, joints)
         out += self.check.notices(stamp)
         if self.defer_metric or self.published_scale(stamp) is not None:
-            plane = self.ground.plane(self.map) if self.map is not None else None
+            plane = self.ground.plane(self.map)
             out += self._metric(PendingFrame(stamp, self.segment, R_wc, c_map, frame.joints_cam,
                                              self.estimator.spread(), plane))
         return out
@@ -469,7 +469,7 @@ class Calibrator:
         n = max(self.estimator.samples, 1)
         sigma_scale = MEDIAN_STD_ERROR * self.estimator.spread() / math.sqrt(n)
         share = sum(self._sources) / len(self._sources) if self._sources else 0.0
-        plane = self.ground.plane(self.map) if self.map is not None else None
+        plane = self.ground.plane(self.map)
         return self._metric(PendingOdometry(pose.stamp_ns, self.child_frame_id, self.segment,
                                             pose.R_wc, pose.c_map, sigma_scale, plane, share))
 
