@@ -190,14 +190,7 @@ def poses_at(traj: Trajectory, query_ns: np.ndarray, max_gap_ns: int, tol_ns: in
     q = np.asarray(query_ns, dtype=np.int64)
     s = traj.stamps_ns
     rot = Rotation.from_quat(traj.quats_xyzw)
-    near = np.clip(np.searchsorted(s, q), 0, len(s) - 1)
-    left = np.clip(near - 1, 0, len(s) - 1)
-    nearest = np.where(np.abs(s[left] - q) < np.abs(s[near] - q), left, near)
-    exact = np.abs(s[nearest] - q) <= tol_ns
-    right = np.searchsorted(s, q, side='right')
-    inside = (right > 0) & (right < len(s))
-    lo, hi = np.clip(right - 1, 0, len(s) - 1), np.clip(right, 0, len(s) - 1)
-    interp = ~exact & inside & (s[hi] - s[lo] <= max_gap_ns)
+    exact, interp, nearest, lo, hi = _bracket(s, q, tol_ns, max_gap_ns)
     keep = exact | interp
     idx = np.flatnonzero(keep)
     lo, hi, nearest = lo[keep], hi[keep], nearest[keep]
@@ -220,13 +213,26 @@ def unpaired_joint_stamps(pose_ns: np.ndarray, joints_ns: np.ndarray, slop_ns: i
     in a gap between two poses longer than ``max_gap_ns`` (the replay cannot interpolate a pose for
     them), and the longest such gap in seconds (inf when outside)."""
     pose_ns, joints_ns = np.asarray(pose_ns, np.int64), np.asarray(joints_ns, np.int64)
-    right = np.searchsorted(pose_ns, joints_ns)
-    lo, hi = np.clip(right - 1, 0, len(pose_ns) - 1), np.clip(right, 0, len(pose_ns) - 1)
-    near = np.minimum(np.abs(pose_ns[lo] - joints_ns), np.abs(pose_ns[hi] - joints_ns)) <= slop_ns
-    outside = (joints_ns < pose_ns[0]) | (joints_ns > pose_ns[-1])
-    gap = (pose_ns[hi] - pose_ns[lo]).astype(float) / NS
-    bad = ~near & (outside | (gap > max_gap_ns / NS))
+    exact, interp, _, lo, hi = _bracket(pose_ns, joints_ns, slop_ns, max_gap_ns)
+    bad = ~(exact | interp)
     if not bad.any():
         return 0, 0.0
-    worst = float(np.inf) if (bad & outside).any() else float(gap[bad].max())
-    return int(bad.sum()), worst
+    outside = (joints_ns < pose_ns[0]) | (joints_ns > pose_ns[-1])
+    gap_s = (pose_ns[hi] - pose_ns[lo])[bad].max() / NS
+    return int(bad.sum()), float(np.inf) if (bad & outside).any() else float(gap_s)
+
+
+def _bracket(s: np.ndarray, q: np.ndarray, tol_ns: int, max_gap_ns: int
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Where each query stamp of ``q`` falls among the sorted stamps ``s`` (both int ns): exact
+    (within ``tol_ns`` of its nearest stamp), interp (not exact, between two stamps at most
+    ``max_gap_ns`` apart), and the indices of the nearest, the previous and the next stamp."""
+    near = np.clip(np.searchsorted(s, q), 0, len(s) - 1)
+    left = np.clip(near - 1, 0, len(s) - 1)
+    nearest = np.where(np.abs(s[left] - q) < np.abs(s[near] - q), left, near)
+    exact = np.abs(s[nearest] - q) <= tol_ns
+    right = np.searchsorted(s, q, side='right')
+    inside = (right > 0) & (right < len(s))
+    lo, hi = np.clip(right - 1, 0, len(s) - 1), np.clip(right, 0, len(s) - 1)
+    interp = ~exact & inside & (s[hi] - s[lo] <= max_gap_ns)
+    return exact, interp, nearest, lo, hi
