@@ -5,29 +5,25 @@ from __future__ import annotations
 
 import os
 import signal
-import subprocess
-import sys
 import time
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
-import yaml
 
 rclpy = pytest.importorskip('rclpy')
 pytestmark = pytest.mark.ros
 
 from rclpy.context import Context  # noqa: E402
-from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
 
 from hac_ros.lifecycle_node import HacLifecycleNode  # noqa: E402
-from hac_ros.spin_thread import SpinThread  # noqa: E402
 from msg_adapters import cloud_to_xyz, pose_msg_to_rt, stamp_to_ns  # noqa: E402
 
-from test_node import (INPUTS, LATCHED, OUTPUTS, RELIABLE, TEST_PARAMS, TYPES,  # noqa: E402,F401
-                       Harness, frames_after, harness, scenario_recording, wait_for)
+from test_node import (RELIABLE, TEST_PARAMS, TYPES, Harness, frames_after,  # noqa: E402,F401
+                       harness, scenario_recording, wait_for)
+from test_node_process import STARTUP_S, Client, start_node, stop  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 CLOUD_LATE = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
@@ -144,46 +140,28 @@ def test_tf_through_a_stand_in_broadcaster(tmp_path, walk):
     publishes each TransformStamped on /tf_standin): odom -> camera is the odometry, and
     metric -> odom composes the odometry of a stamp into its /hac/pose."""
     params = {**TEST_PARAMS, 'min_samples': 10, 'publish_tf': True, 'publish_odom_tf': True}
-    path = tmp_path / 'hac.yaml'
-    path.write_text(yaml.safe_dump({'hac_node': {'ros__parameters': params}}))
-    env = {**os.environ, 'PYTHONPATH': os.pathsep.join([str(REPO / 'test' / 'standins'),
-                                                        os.environ.get('PYTHONPATH', '')])}
-    node = subprocess.Popen([sys.executable, '-m', 'hac_ros.node', '--ros-args', '--params-file',
-                             str(path)], cwd=REPO, env=env, stdout=subprocess.PIPE,
-                            stderr=subprocess.STDOUT, text=True)
-    context = Context()
-    rclpy.init(context=context)
-    io = rclpy.create_node('hac_tf_test', context=context)
-    got: dict[str, list[Any]] = {'tf': [], 'odometry': [], 'pose': []}
-    io.create_subscription(TYPES.get('geometry_msgs/msg/TransformStamped'), '/tf_standin',
-                           got['tf'].append, RELIABLE)
-    for kind in ('odometry', 'pose'):
-        topic = f'/hac/{kind}'
-        io.create_subscription(TYPES.get(OUTPUTS[topic]), topic, got[kind].append, RELIABLE)
-    publishers = {kind: io.create_publisher(TYPES.get(msgtype), topic,
-                                            LATCHED if kind == 'cloud' else RELIABLE)
-                  for kind, (topic, msgtype) in INPUTS.items()}
-    executor = SingleThreadedExecutor(context=context)
-    executor.add_node(io)
-    spinner = SpinThread(executor)
+    standins = os.pathsep.join([str(REPO / 'test' / 'standins'), os.environ.get('PYTHONPATH', '')])
+    node = start_node(tmp_path, params, env={'PYTHONPATH': standins})
+    client = Client()
+    tfs: list[Any] = []
+    client.io.create_subscription(TYPES.get('geometry_msgs/msg/TransformStamped'), '/tf_standin',
+                                  tfs.append, RELIABLE)
+    got = client.received
     try:
-        assert wait_for(lambda: all(p.get_subscription_count() for p in publishers.values())
-                        and io.count_publishers('/tf_standin') > 0, 30.0), 'no node, no TF'
+        assert wait_for(lambda: client.node_is_up() and client.io.count_publishers('/tf_standin'),
+                        STARTUP_S), 'no node, no TF'
         for event in walk.events[:frames_after(walk, 0.6)]:
-            publishers[event.kind].publish(event.msg)
+            client.publishers[event.kind].publish(event.msg)
             time.sleep(0.5 if event.kind == 'cloud' else 0.004 if event.kind == 'joints' else 0)
-        assert wait_for(lambda: len(got['pose']) > 50 and len(got['tf']) > 100, 15.0)
+        assert wait_for(lambda: len(got['/hac/pose']) > 50 and len(tfs) > 100, 15.0)
     finally:
-        spinner.close()
-        io.destroy_node()
-        rclpy.shutdown(context=context)
-        node.send_signal(signal.SIGINT)
-        log = node.communicate(timeout=10)[0]
+        client.close()
+        _, log = stop(node, signal.SIGINT)
     assert 'tf2_ros is not available' not in log, log
-    odom = {stamp_to_ns(m.header.stamp): pose_msg_to_rt(m) for m in got['odometry']}
-    pose = {stamp_to_ns(m.header.stamp): pose_msg_to_rt(m) for m in got['pose']}
+    odom = {stamp_to_ns(m.header.stamp): pose_msg_to_rt(m) for m in got['/hac/odometry']}
+    pose = {stamp_to_ns(m.header.stamp): pose_msg_to_rt(m) for m in got['/hac/pose']}
     checked = 0
-    for tf in got['tf']:
+    for tf in tfs:
         stamp, t, q = stamp_to_ns(tf.header.stamp), tf.transform.translation, tf.transform.rotation
         if stamp not in odom or stamp not in pose:
             continue  # the last few: received before the outputs of their stamp
