@@ -58,6 +58,30 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
 
 
+# ---------------------------------------------------------------- arguments several commands share
+def add_output_recording(parser: argparse.ArgumentParser) -> None:
+    """``-o OUT``: the recording a command creates, and ``--storage`` of it."""
+    from hac_ros.recording import STORAGES
+
+    parser.add_argument('-o', '--output', metavar='OUT', required=True,
+                        help='output recording to create (must not exist)')
+    parser.add_argument('--storage', choices=STORAGES, default='mcap',
+                        help='storage plugin of OUT (default mcap)')
+
+
+def add_mode_and_params(parser: argparse.ArgumentParser, mode_help: str, params_help: str) -> None:
+    """``--mode`` of the replay and ``--params FILE``, the node's parameters file."""
+    from hac_ros.replay import MODES
+
+    parser.add_argument('--mode', choices=MODES, default='offline', help=mode_help)
+    add_params(parser, params_help)
+
+
+def add_params(parser: argparse.ArgumentParser, params_help: str) -> None:
+    """``--params FILE``: a parameters file as hac_node reads it."""
+    parser.add_argument('--params', metavar='FILE', help=params_help)
+
+
 def escape_help(text: str) -> str:
     """``text`` for an argparse help string, which %-formats it (a literal % must be %%)."""
     return text.replace('%', '%%')

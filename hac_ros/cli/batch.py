@@ -3,8 +3,8 @@ from __future__ import annotations
 
 import argparse
 
+from hac_ros.cli import add_mode_and_params
 from hac_ros.core.params import HacParams
-from hac_ros.replay import MODES
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -24,10 +24,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--resume', action='store_true',
                         help='skip inputs whose output is complete for the same input, parameters '
                         'and mode; redo the others')
-    parser.add_argument('--mode', choices=MODES, default='offline',
-                        help='offline (default) or online, as hac replay')
-    parser.add_argument('--params', metavar='FILE',
-                        help='the node\'s parameters file (hac_node: ros__parameters:), for every '
+    add_mode_and_params(parser, 'offline (default) or online, as hac replay',
+                        'the node\'s parameters file (hac_node: ros__parameters:), for every '
                         'recording; the SLAM pose type is read from each recording')
 
 

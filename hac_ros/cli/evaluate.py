@@ -5,6 +5,7 @@ import argparse
 import json
 from pathlib import Path
 
+from hac_ros.cli import add_params
 from hac_ros.core.params import HacParams
 
 
@@ -15,9 +16,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         '/gt/scale), normally the replay\'s input')
     parser.add_argument('--json', metavar='F', help='also write the rows as JSON to F')
     parser.add_argument('--md', metavar='F', help='also write the table as Markdown to F')
-    parser.add_argument('--params', metavar='FILE',
-                        help='the parameters file the replay used (for the reference rows; '
-                        'default: the defaults in the recording\'s joint layout)')
+    add_params(parser, 'the parameters file the replay used (for the reference rows; default: '
+               'the defaults in the recording\'s joint layout)')
     parser.add_argument('--no-references', action='store_true',
                         help='skip the "no calibration" and "true scale" rows (they re-run the core)')
 

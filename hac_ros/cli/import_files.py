@@ -7,8 +7,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+from hac_ros.cli import add_output_recording
 from hac_ros.core.layouts import LAYOUTS
-from hac_ros.recording import STORAGES
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -18,8 +18,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         'pipeline write, for hac replay. Every stamp becomes integer nanoseconds by '
         'round(t x 1e9). Nothing is written unless every file is good (exit 2 with one line '
         'saying what is wrong); a warning when the trajectory is too sparse for the joints.')
-    parser.add_argument('-o', '--output', metavar='OUT', required=True,
-                        help='output recording to create (must not exist)')
+    add_output_recording(parser)
     parser.add_argument('--trajectory', metavar='T', required=True,
                         help='TUM file: stamp tx ty tz qx qy qz qw, camera-to-map, SLAM units, '
                         'optical axes (x right, y down, z forward); # comments')
@@ -43,8 +42,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--joint-layout', choices=LAYOUTS,
                         help='check K against the layout (not for custom) and write '
                         'OUT/params.yaml with joint_layout, for hac replay --params')
-    parser.add_argument('--storage', choices=STORAGES, default='mcap',
-                        help='storage plugin of OUT (default mcap)')
     parser.add_argument('--map-frame', default='map',
                         help='frame_id of /slam/pose and /slam/cloud (default map)')
     parser.add_argument('--camera-frame', default='camera_optical',

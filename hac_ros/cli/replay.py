@@ -3,23 +3,17 @@ from __future__ import annotations
 
 import argparse
 
+from hac_ros.cli import add_mode_and_params, add_output_recording
 from hac_ros.core.params import POSE_MSGTYPES, HacParams
-from hac_ros.recording import STORAGES
-from hac_ros.replay import MODES
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('input', metavar='IN', help='input recording (rosbag2 directory, .mcap, '
                         '.db3, or ROS 1 .bag); only read')
-    parser.add_argument('-o', '--output', metavar='OUT', required=True,
-                        help='output recording to create (must not exist)')
-    parser.add_argument('--mode', choices=MODES, default='offline',
-                        help='offline (default): the best estimate using the whole recording; '
-                        'online: exactly what hac_node publishes, frame by frame')
-    parser.add_argument('--params', metavar='FILE',
-                        help='the node\'s parameters file (hac_node: ros__parameters:)')
-    parser.add_argument('--storage', choices=STORAGES, default='mcap',
-                        help='storage plugin of OUT (default mcap)')
+    add_output_recording(parser)
+    add_mode_and_params(parser, 'offline (default): the best estimate using the whole recording; '
+                        'online: exactly what hac_node publishes, frame by frame',
+                        'the node\'s parameters file (hac_node: ros__parameters:)')
     parser.add_argument('--pose-topic', help='overrides pose_topic')
     parser.add_argument('--cloud-topic', help='overrides cloud_topic')
     parser.add_argument('--joints-topic', help='overrides joints_topic')

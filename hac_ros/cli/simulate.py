@@ -4,10 +4,9 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from hac_ros.cli import escape_help
+from hac_ros.cli import add_output_recording, escape_help
 from hac_ros.core.errors import HacError
 from hac_ros.core.layouts import BUILT_IN
-from hac_ros.recording import STORAGES
 from hac_ros.core.params import POSE_TYPES
 from hac_ros.simulate.scenarios import SCENARIOS
 
@@ -15,12 +14,11 @@ from hac_ros.simulate.scenarios import SCENARIOS
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('scenario', choices=sorted(SCENARIOS), metavar='SCENARIO',
                         help=escape_help('; '.join(f'{k}: {v[1]}' for k, v in SCENARIOS.items())))
-    parser.add_argument('-o', '--output', required=True, type=Path, help='recording to create')
+    add_output_recording(parser)
     parser.add_argument('--seed', type=int, default=0)
     parser.add_argument('--duration', type=float, default=None,
                         help='seconds (default: the scenario\'s own)')
     parser.add_argument('--rate', type=float, default=30.0, help='camera rate, Hz')
-    parser.add_argument('--storage', choices=STORAGES, default='mcap')
     parser.add_argument('--pose-type', choices=POSE_TYPES, default='PoseStamped')
     parser.add_argument('--hmr-bias', type=float, default=None,
                         help=escape_help('HMR depth bias (0.03 = 3 % too far); default: random '
@@ -34,7 +32,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from hac_ros.simulate import make_scenario, write_recording
 
-    if args.output.exists():
+    output = Path(args.output)
+    if output.exists():
         raise HacError(f'{args.output} exists: refusing to overwrite it')
     if args.motion is not None and not args.motion.is_file():
         raise HacError(f'motion file {args.motion} not found')
@@ -42,7 +41,7 @@ def run(args: argparse.Namespace) -> int:
                        hmr_bias=args.hmr_bias,
                        motion=str(args.motion) if args.motion is not None else None,
                        joint_layout=args.joint_layout)
-    write_recording(sc, args.output, storage=args.storage, pose_type=args.pose_type)
+    write_recording(sc, output, storage=args.storage, pose_type=args.pose_type)
     print(f'{args.output}: {args.scenario}, {sc.duration_s:.1f} s, {len(sc.pose_stamps_ns)} poses, '
           f'{len(sc.joints_stamps_ns)} joints frames, {len(sc.maps)} maps, true scale '
           f'{sc.true_scale[0]:.4g} m/unit, HMR bias {sc.hmr_bias:+.3f}')
