@@ -19,9 +19,22 @@ from hac_ros.core.numeric import NS
 from hac_ros.tum import tum_rows
 
 
-def seconds_to_ns(t: np.ndarray) -> np.ndarray:
-    """Float seconds (N,) → int64 nanoseconds by round(t × 1e9) (SPEC, ``hac import``)."""
-    return np.round(np.asarray(t, dtype=np.float64) * 1e9).astype(np.int64)
+MAX_STAMP_S = 2.0**31  # builtin_interfaces/Time's sec is an int32; a ROS time is not negative
+
+
+def seconds_to_ns(t: np.ndarray, where: str = 'stamps', labels: list[str] | None = None
+                  ) -> np.ndarray:
+    """Float seconds (N,) → int64 nanoseconds by round(t × 1e9) (SPEC, ``hac import``).
+    :class:`InputError` (``where``: the file, ``labels``: each stamp's place in it) for a stamp
+    that is not a ROS time: negative, or past 2^31 s."""
+    t = np.asarray(t, dtype=np.float64)
+    outside = ~((t >= 0.0) & (t < MAX_STAMP_S))
+    if outside.any():
+        i = int(np.argmax(outside))
+        label = labels[i] if labels is not None else f'[{i}]'
+        raise InputError(f'{where}: {label}: stamp {float(t[i])!r} s is not a ROS time '
+                         '(0 to 2^31 s)')
+    return np.round(t * 1e9).astype(np.int64)
 
 
 @dataclass
@@ -100,7 +113,7 @@ def read_trajectory(path: str | Path, what: str = 'trajectory',
     if not rows:
         raise InputError(f'{what} {path}: no pose in it (TUM: t tx ty tz qx qy qz qw per line)')
     data = np.asarray(rows, dtype=float)
-    stamps = seconds_to_ns(data[:, 0])
+    stamps = seconds_to_ns(data[:, 0], f'{what} {path}', labels)
     if duplicates is not None:
         repeated = np.flatnonzero(np.diff(stamps) == 0) + 1
         duplicates += [int(labels[i].split()[1]) for i in repeated]
@@ -153,8 +166,9 @@ def read_joints(path: str | Path, what: str = 'joints',
     if joints_per_person is not None and joints.shape[2] != joints_per_person:
         raise InputError(f'{what} {path}: {joints.shape[2]} joints per person (shape '
                          f'{joints.shape}), but the joint layout has {joints_per_person}')
-    stamps_ns = seconds_to_ns(stamps)
-    _check_increasing(path, what, stamps_ns, [f'stamps[{i}]' for i in range(len(stamps))])
+    labels = [f'stamps[{i}]' for i in range(len(stamps))]
+    stamps_ns = seconds_to_ns(stamps, f'{what} {path}', labels)
+    _check_increasing(path, what, stamps_ns, labels)
     joints = joints.astype(float)
     if np.isinf(joints).any():
         raise InputError(f'{what} {path}: joints holds inf values (use NaN blocks for absent '

@@ -177,18 +177,21 @@ def _skip_binary(path: Path, data: bytes, offset: int, element: _Element, order:
         if offset + size > len(data):
             raise InputError(f'map file {path}: truncated PLY in element "{element.name}"')
         return offset + size
-    for _ in range(element.count):
+    for _ in range(element.count):  # each item moves on by one byte at least: bounded by the data
         for _, kind, count_kind in element.properties:
             if count_kind is not None:
                 count_type = np.dtype(order + count_kind)
                 if offset + count_type.itemsize > len(data):
                     raise InputError(f'map file {path}: truncated PLY in element "{element.name}"')
                 n = int(np.frombuffer(data, count_type, 1, offset)[0])
+                if n < 0:
+                    raise InputError(f'map file {path}: PLY element "{element.name}": a list '
+                                     f'of {n} items')
                 offset += count_type.itemsize + n * np.dtype(kind).itemsize
             else:
                 offset += np.dtype(kind).itemsize
-    if offset > len(data):
-        raise InputError(f'map file {path}: truncated PLY in element "{element.name}"')
+        if offset > len(data):
+            raise InputError(f'map file {path}: truncated PLY in element "{element.name}"')
     return offset
 
 
@@ -213,7 +216,10 @@ def _ply_ascii(path: Path, body: bytes, before: list[_Element], vertex: _Element
                         values[name] = words[k]
                         k += 1
                     else:
-                        k += 1 + int(words[k])
+                        n = int(words[k])
+                        if n < 0:
+                            raise ValueError(f'a list of {n} items')
+                        k += 1 + n
                 out[i] = [float(values[axis]) for axis in 'xyz']
             else:
                 if len(words) != len(vertex.properties):

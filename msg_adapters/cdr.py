@@ -13,6 +13,7 @@ from typing import Any, NamedTuple
 
 from msg_adapters.errors import MessageError
 from msg_adapters.pointcloud import xyz_from_buffer
+from msg_adapters.stamps import time_to_ns
 
 class PointFieldSpec(NamedTuple):
     """One sensor_msgs/PointField as read from the CDR bytes."""
@@ -92,7 +93,8 @@ def parse_cloud_cdr(data: bytes | memoryview) -> RawCloud:
     """The header fields of a serialized PointCloud2 and a zero-copy view of its point data.
 
     Field order: sensor_msgs/msg/PointCloud2 (header, height, width, fields, is_bigendian,
-    point_step, row_step, data, is_dense). Raises :class:`MessageError` on truncated bytes.
+    point_step, row_step, data, is_dense). Raises :class:`MessageError` on truncated bytes or an
+    invalid stamp.
     """
     reader = _CdrReader(data)
     sec, nanosec = reader.i32(), reader.u32()
@@ -108,7 +110,7 @@ def parse_cloud_cdr(data: bytes | memoryview) -> RawCloud:
     is_bigendian = bool(reader.u8())
     point_step, row_step = reader.u32(), reader.u32()
     points = reader.u8_sequence()
-    return RawCloud(sec * 1_000_000_000 + nanosec, frame_id, height, width, fields, is_bigendian,
+    return RawCloud(time_to_ns(sec, nanosec), frame_id, height, width, fields, is_bigendian,
                     point_step, row_step, points)
 
 

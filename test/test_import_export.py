@@ -254,6 +254,15 @@ def _garbage(tmp: Path, files: dict) -> dict[str, tuple[dict, str]]:
     np.savez(tmp / 'nokeys.npz', times=good_t, poses=ok_joints)
     np.savez(tmp / 'frames.npz', stamps=good_t, joints=ok_joints[:4])
     np.savez(tmp / 'back.npz', stamps=good_t[[0, 2, 1, 3, 4]], joints=ok_joints)
+    np.savez(tmp / 'negative.npz', stamps=good_t - good_t[0] - 100.0, joints=ok_joints)
+    poses = [line for line in tum_lines if not line.startswith('#')]
+    (tmp / 'future.tum').write_text('\n'.join(f'{1e11 + k} {line.split(" ", 1)[1]}'
+                                             for k, line in enumerate(poses[:5])) + '\n')
+    # a face element before the vertices whose list announces -100 indices (signed char count)
+    (tmp / 'neglist.ply').write_bytes(
+        b'ply\nformat binary_little_endian 1.0\nelement face 1\nproperty list char int i\n'
+        b'element vertex 4\nproperty float x\nproperty float y\nproperty float z\nend_header\n'
+        + np.int8(-100).tobytes() + np.zeros(12, '<f4').tobytes())
     return {
         'missing trajectory': ({'--trajectory': tmp / 'none.tum'}, 'none.tum does not exist'),
         'missing map': ({'--map': tmp / 'none.ply'}, 'none.ply does not exist'),
@@ -267,6 +276,9 @@ def _garbage(tmp: Path, files: dict) -> dict[str, tuple[dict, str]]:
         'K vs joint layout': ({'--joint-layout': 'coco17'}, '24 joints per person'),
         'joints stamps go back': ({'--joints': tmp / 'back.npz'}, 'stamps must increase'),
         'trajectory stamps go back': ({'--trajectory': tmp / 'back.tum'}, 'stamps must increase'),
+        'joints stamps before 1970': ({'--joints': tmp / 'negative.npz'}, 'not a ROS time'),
+        'trajectory stamps past 2^31 s': ({'--trajectory': tmp / 'future.tum'}, 'not a ROS time'),
+        'PLY list of negative length': ({'--map': tmp / 'neglist.ply'}, 'a list of -100 items'),
         'TUM wrong columns': ({'--trajectory': tmp / 'cols.tum'}, 'expected 8 values'),
         'NaN in trajectory': ({'--trajectory': tmp / 'nan.tum'}, 'not finite'),
         'GT joints shapes': ({'--gt-joints': tmp / 'frames.npz'}, '5 stamps but joints has 4'),
@@ -278,7 +290,8 @@ def _garbage(tmp: Path, files: dict) -> dict[str, tuple[dict, str]]:
 CASES = ('missing trajectory', 'missing map', 'missing joints', 'truncated PLY',
          'truncated ASCII PLY', 'garbage PLY header', 'truncated npz', 'npz without the arrays',
          'npz stamps vs joints', 'K vs joint layout', 'joints stamps go back',
-         'trajectory stamps go back', 'TUM wrong columns', 'NaN in trajectory', 'GT joints shapes',
+         'trajectory stamps go back', 'joints stamps before 1970', 'trajectory stamps past 2^31 s',
+         'PLY list of negative length', 'TUM wrong columns', 'NaN in trajectory', 'GT joints shapes',
          'GT shares no stamp', 'bad camera')
 
 

@@ -139,7 +139,7 @@ class ResetOut:
 
 # Human-readable text of each rejection cause (the first occurrence is logged).
 REASONS = {
-    'pose_nonfinite': 'SLAM pose with NaN/inf or an invalid rotation',
+    'pose_nonfinite': 'SLAM pose with NaN/inf, an invalid rotation or an invalid stamp',
     'pose_out_of_order': 'SLAM pose stamp not after the previous one (out of order or repeated)',
     'pose_outlier': 'isolated SLAM pose jump (jump and back): pose ignored',
     'late_frame': 'joints frame older than the last processed frame: dropped',
