@@ -424,6 +424,17 @@ def test_a_persistent_pose_jump_resets_and_odometry_stays_continuous():
     assert any(o.stamp_ns > scene.stamps_ns[40] for o in odom)
 
 
+def test_a_camera_that_stood_still_then_moves_is_not_a_reset():
+    """Still for 20 poses (no speed, no extent to judge a jump by), then walking on from there:
+    its first step is a sliver of the map's extent, not a re-initialisation that drops the map."""
+    scene = walking_scene(frames=140, true_scale=2.0)
+    k = np.maximum(np.arange(140) - 20, 0)
+    cal, outs = run(scene, HacParams(), maps=lambda t: scene.floor_points_slam(step=0.05)
+                    if t == 0 else None, R_wc=scene.R_wc_slam[k], c=scene.c_slam[k])
+    assert not [o for o in outs if isinstance(o, ResetOut)]
+    assert cal.rejected['no_map'] == 0 and len(scales(outs)) > 50
+
+
 def test_an_isolated_outlier_pose_is_rejected_not_a_reset():
     scene = walking_scene(frames=40)
     contacts = scene.to_slam(scene.contact_world())

@@ -148,7 +148,7 @@ class Calibrator:
                 return out + self._diagnostics(stamp_ns)
         else:
             move = self.track.step(pose)
-            if self.track.is_jump(move):
+            if self.track.is_jump(move, self.map.extent if self.map is not None else 0.0):
                 self.track.suspects = [pose]
                 return out + self._diagnostics(stamp_ns)
 

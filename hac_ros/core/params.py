@@ -144,7 +144,8 @@ class HacParams:
                                 low=1e-4, high=10.0)
     ground_ransac_iters: int = _p(300, 'RANSAC iterations of the plane fits', low=1, high=100_000)
     reset_jump_factor: float = _p(8.0, 'a pose step larger than this many times the recent median '
-                                  'step (and than reset_jump_min_rel of the map extent) is a jump',
+                                  'step (and than reset_jump_min_rel of the trajectory extent and '
+                                  '1 % of the map extent) is a jump',
                                   low=1.5, high=1e6)
     reset_jump_min_rel: float = _p(0.05, 'a jump is at least this fraction of the trajectory '
                                    'extent so far', low=0.0, high=100.0)

@@ -3,10 +3,10 @@
 A monocular SLAM that re-initialises jumps to a new pose and stays there; a glitch jumps and comes
 back. :class:`PoseTrack` tells them apart (SPEC, processing order): a pose whose speed is far above
 the recent ones (``reset_jump_factor`` times their median) over a step that is a fraction of the
-trajectory's extent (``reset_jump_min_rel``) is a *suspect*; if the next poses come back near the
-old trajectory the suspects were outliers, if ``reset_confirm_poses`` of them continue from the
-jump the SLAM re-initialised. Speeds, not steps: keyframe-rate SLAMs publish irregularly, and a
-long gap between two poses is not a jump.
+trajectory's extent (``reset_jump_min_rel``) and of the map's (JUMP_MIN_MAP_REL) is a *suspect*; if
+the next poses come back near the old trajectory the suspects were outliers, if
+``reset_confirm_poses`` of them continue from the jump the SLAM re-initialised. Speeds, not steps:
+keyframe-rate SLAMs publish irregularly, and a long gap between two poses is not a jump.
 
 Poses are camera-to-map (SPEC, conventions): ``R_wc`` (3, 3) rotates the camera optical frame into
 the SLAM map frame, ``c_map`` (3,) is the camera centre in SLAM units, map frame.
@@ -25,6 +25,9 @@ from hac_ros.core.transforms import interpolate_pose
 
 JUMP_HISTORY = 30  # recent pose speeds whose median is the "normal" speed
 JUMP_MIN_HISTORY = 5  # steps needed before a jump can be told from normal motion
+# ... and a jump is at least this fraction of the map's extent: a camera that stood still has no
+# speed and no extent to judge its first motion by, while a re-initialisation jumps across the scene
+JUMP_MIN_MAP_REL = 0.01
 
 
 @dataclass
@@ -100,8 +103,9 @@ class PoseTrack:
         step = math.dist(pose.c_map.tolist(), last.c_map.tolist())
         return step, step / max(pose.stamp_ns - last.stamp_ns, 1)
 
-    def is_jump(self, move: tuple[float, float] | None) -> bool:
-        """A speed far above the recent ones, over a step that is a fraction of the trajectory.
+    def is_jump(self, move: tuple[float, float] | None, map_extent: float = 0.0) -> bool:
+        """A speed far above the recent ones, over a step that is a fraction of the trajectory
+        and of the map (``map_extent``, SLAM units; 0 without a map).
 
         move: the new pose's :meth:`step`.
         """
@@ -111,7 +115,8 @@ class PoseTrack:
         typical = median_1d(np.array(self._speeds))
         assert self._bbox is not None  # set with the first accepted pose
         extent = math.dist(*self._bbox)
-        return speed > self.jump_factor * typical and step > self.jump_min_rel * extent
+        return (speed > self.jump_factor * typical and step > self.jump_min_rel * extent
+                and step > JUMP_MIN_MAP_REL * map_extent)
 
     def follow(self, pose: Pose) -> Verdict:
         """After a jump: back near the old trajectory (the suspects were outliers) or continuing
