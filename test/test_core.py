@@ -14,7 +14,8 @@ from hac_ros.core.calibrator import Calibrator
 from hac_ros.core.estimator import RollingScale, SortedWindow
 from hac_ros.core.ground import GroundModel, Plane
 from hac_ros.core.layouts import SMPL24
-from hac_ros.core.outputs import (HumanJointsOut, OdometryOut, ResetOut, SampleOut, ScaleOut)
+from hac_ros.core.outputs import (HumanJointsOut, NoticeOut, OdometryOut, ResetOut, SampleOut,
+                                  ScaleOut)
 from hac_ros.core.numeric import median_1d, quantile_1d
 from hac_ros.core.params import HacParams
 from hac_ros.core.reference import MapIndex, literal_cone_median, lowest_segment_offset
@@ -422,6 +423,18 @@ def test_a_persistent_pose_jump_resets_and_odometry_stays_continuous():
     step_at_reset = np.linalg.norm(truth[40] - truth[39])
     assert errors.max() <= step_at_reset * (1 + 1e-6)
     assert any(o.stamp_ns > scene.stamps_ns[40] for o in odom)
+
+
+@pytest.mark.parametrize('unit', [1000.0, 100.0])
+def test_joints_in_millimetres_or_centimetres_are_rejected_not_calibrated(unit):
+    """HMR joints in mm (cm) would calibrate 1000x (100x) too large: each person is refused with
+    a reason that names the unit, and no scale is published."""
+    scene = walking_scene(frames=60, true_scale=2.0)
+    cal, outs = run(scene, HacParams(), maps=lambda t: scene.floor_points_slam(step=0.05)
+                    if t == 0 else None, joints_cam=scene.joints_cam * unit)
+    assert cal.rejected['joints_not_metres'] == 60 and not len(scales(outs))
+    notice, = [o for o in outs if isinstance(o, NoticeOut) and o.cause == 'joints_not_metres']
+    assert 'must be metres' in notice.text
 
 
 def test_a_camera_that_stood_still_then_moves_is_not_a_reset():

@@ -45,6 +45,7 @@ from hac_ros.core.transforms import is_rotation
 
 PENDING_MAPS_MAX = 8  # maps waiting for a frame of their stamp
 GROUND_SHARE_SAMPLES = 30  # recent samples whose sources say whether the ground plane carries
+BODY_SPAN_MAX_M = 4.0  # a person's joints spread wider than this (box diagonal) are not metres
 
 
 @dataclass
@@ -430,6 +431,8 @@ class Calibrator:
         self.people += 1
         if not np.isfinite(joints).all():
             return self._rejected_sample(stamp, person, 'nonfinite_joints')
+        if math.dist(joints.min(axis=0).tolist(), joints.max(axis=0).tolist()) > BODY_SPAN_MAX_M:
+            return self._rejected_sample(stamp, person, 'joints_not_metres')
         if not (joints[:, 2] > 0.0).any():
             return self._rejected_sample(stamp, person, 'behind_camera')
         up_cam = self.layout.up_axis(joints)

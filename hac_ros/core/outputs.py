@@ -149,6 +149,8 @@ REASONS = {
                             'custom: joints_per_person)'),
     'joints_wrong_frame': 'joints in a frame other than the camera frame',
     'nonfinite_joints': 'a person with NaN/inf joints',
+    'joints_not_metres': ('a person whose joints spread over more than 4 m: HMR joints must be '
+                          'metres (millimetres or centimetres?)'),
     'behind_camera': 'a person entirely behind the camera',
     'no_pose': 'no SLAM pose at (or around) the joints stamp',
     'no_map': 'no map yet (or none since the last reset) and no ground plane',
