@@ -399,6 +399,20 @@ def test_map_overlap_tells_a_continued_map_from_a_new_one():
 
 
 # ---------------------------------------------------------------------- resets
+@pytest.mark.parametrize('second', ['grown', 'elsewhere'])
+def test_a_map_that_grew_is_the_same_map_one_elsewhere_is_a_reset(second):
+    """A small first map (5 % of the floor), then at frame 40 the whole floor: it holds every old
+    point, so it is the same map (no reset), although 95 % of its points are new. The same floor
+    rescaled and moved (a re-initialised SLAM's map) shares no point: a ``map_overlap`` reset."""
+    scene = walking_scene(frames=80, true_scale=2.0)
+    full = scene.floor_points_slam(step=0.05)
+    maps = {0: full[:len(full) // 20],
+            40: full if second == 'grown' else full * 0.5 + np.array([40.0, 0.0, 0.0])}
+    cal, outs = run(scene, HacParams(), maps=maps.get)
+    resets = [o.cause for o in outs if isinstance(o, ResetOut)]
+    assert resets == ([] if second == 'grown' else ['map_overlap'])
+
+
 def test_a_persistent_pose_jump_resets_and_odometry_stays_continuous():
     scene = walking_scene(frames=80, true_scale=2.0)
     contacts = scene.to_slam(scene.contact_world())

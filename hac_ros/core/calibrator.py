@@ -376,9 +376,11 @@ class Calibrator:
                                  self.params.cloud_max_points, self.params.index_max_points)
         if (self.map is not None and not self._expect_new_map and self.params.cloud_mode == 'replace'
                 and self.params.map_overlap_min > 0
-                and chosen.overlap_fraction(self.map) < self.params.map_overlap_min):
-            # the new map shares too few points with the old (within a scene-relative radius;
-            # MapIndex.overlap_fraction, computed ahead by the map builder where it could)
+                and chosen.overlap_fraction(self.map) < self.params.map_overlap_min
+                and self.map.overlap_fraction(chosen) < self.params.map_overlap_min):
+            # the maps share too few points either way (within a scene-relative radius;
+            # MapIndex.overlap_fraction): a map that grew around the old one keeps the old
+            # points, one that was pruned keeps its points near the old ones
             pose = self.track.last
             if pose is not None:
                 out += self._reset(pose, 'map_overlap', 'the new map does not overlap the previous '
