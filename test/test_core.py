@@ -490,6 +490,23 @@ def test_a_new_map_frame_resets():
     assert cal.estimator.samples == 10  # only the new map's frames
 
 
+@pytest.mark.parametrize('first', ['map', 'pose'])
+def test_a_map_in_another_frame_is_refused_also_before_the_first_pose(first):
+    """A latched map in ``odom`` usually arrives before the first pose (in ``map``) has fixed the
+    map frame: it is refused then too, not used in silence."""
+    scene = walking_scene(frames=30)
+    cal = Calibrator(HacParams())
+    outs = []
+    for t, stamp in enumerate(scene.stamps_ns):
+        if t == 0 and first == 'map':
+            outs += cal.add_map(int(stamp), scene.floor_points_slam(step=0.05), 'odom')
+        outs += cal.add_pose(int(stamp), scene.R_wc_slam[t], scene.c_slam[t], 'map')
+        if t == 0 and first == 'pose':
+            outs += cal.add_map(int(stamp), scene.floor_points_slam(step=0.05), 'odom')
+        outs += cal.add_joints(int(stamp), scene.joints_cam[t][None], 'camera')
+    assert cal.rejected['cloud_wrong_frame'] == 1 and cal.map_hits == 0
+
+
 # ---------------------------------------------------------------------- estimator
 @settings(max_examples=60, deadline=None)
 @given(values=st.lists(st.floats(0.01, 100.0), min_size=1, max_size=300),

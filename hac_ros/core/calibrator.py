@@ -58,9 +58,8 @@ class Calibrator:
     """Feed it inputs with ``add_*``; each call returns the outputs it produced, in order.
 
     defer_metric: the metric outputs (odometry, world joints, scale, diagnostics) come back as the
-    ``Pending*`` records of :mod:`hac_ros.core.outputs`, to be resolved by
-    ``calibrator.metric.fresh().resolve(outputs, scale_at)`` once the scale of every stamp is known
-    (the offline replay's first pass); every other output is the same.
+    ``Pending*`` records of :mod:`hac_ros.core.outputs`, resolved once the scale of every stamp is
+    known (:func:`hac_ros.core.offline.resolve_offline`); every other output is the same.
     """
 
     def __init__(self, params: HacParams | None = None, defer_metric: bool = False) -> None:
@@ -131,6 +130,7 @@ class Calibrator:
         move = None  # the pose's step, when the jump test computed it
         if self._map_frame is None:
             self._map_frame = frame_id
+            out += self._refuse_foreign_maps()
         elif frame_id != self._map_frame:
             out += self._reset(pose, 'map_frame', f'SLAM map frame changed {self._map_frame!r} -> '
                                f'{frame_id!r}: SLAM re-initialised')
@@ -357,6 +357,13 @@ class Calibrator:
         for frame in stale:
             out += self.reject('no_pose', frame.stamp_ns)
         return out
+
+    def _refuse_foreign_maps(self) -> list[Output]:
+        """Maps that came before the first pose fixed the map frame, in another frame: refused."""
+        foreign = [m for m in self._maps if m.frame_id != self._map_frame]
+        self._maps = [m for m in self._maps if m.frame_id == self._map_frame]
+        self._foreign_map = foreign[-1] if foreign else self._foreign_map
+        return [o for m in foreign for o in self.reject('cloud_wrong_frame', m.stamp_ns)]
 
     def _adopt_foreign_map(self, out: list[Output]) -> None:
         if self._foreign_map is not None and self._foreign_map.frame_id == self._map_frame:
