@@ -11,6 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from hac_ros.core.calibrator import Calibrator
+from hac_ros.core.errors import InputError
 from hac_ros.core.estimator import RollingScale, SortedWindow
 from hac_ros.core.ground import GroundModel, Plane
 from hac_ros.core.layouts import SMPL24
@@ -285,6 +286,21 @@ def test_bad_inputs_are_counted_never_raised_never_nan():
     # every cause is announced once, not once per message
     notices = [o.cause for o in outs if type(o).__name__ == 'NoticeOut']
     assert len(notices) == len(set(notices))
+
+
+def test_core_api_misuse_is_a_clear_error_or_a_rejection():
+    """What the adapters never hand over, a Python caller of the core might: map points that are
+    not (N, 3) raise InputError (not a reshape into other points); a camera size of NaN or inf
+    is a camera_info_invalid rejection."""
+    cal = Calibrator(HacParams())
+    for bad in (np.ones((5, 2)), np.ones((6, 4)), np.ones(9)):
+        with pytest.raises(InputError, match=r'\(N, 3\)'):
+            cal.add_map(1, bad, 'map')
+    assert cal.add_map(1, np.empty(0), 'map') and cal.rejected['cloud_empty'] == 1
+    K = np.array([[500.0, 0, 320], [0, 500.0, 240], [0, 0, 1]])
+    for width in (np.nan, np.inf, 0):
+        cal.add_camera_info(K, width, 480)
+    assert cal.rejected['camera_info_invalid'] == 3
 
 
 def test_no_point_in_the_cone_and_no_plane_is_no_reference():

@@ -106,7 +106,7 @@ class Calibrator:
         """Intrinsics of the camera: joints projecting outside the image go to the ground plane."""
         K = np.asarray(K, dtype=float)
         if K.shape != (3, 3) or not np.all(np.isfinite(K)) or K[0, 0] <= 0 or K[1, 1] <= 0 \
-                or width <= 0 or height <= 0:
+                or not 0 < width < 2**31 or not 0 < height < 2**31:  # also NaN
             return self.reject('camera_info_invalid', self._last_frame_ns)
         first = self._K is None
         self._K, self._image_size = K, (int(width), int(height))
@@ -157,7 +157,7 @@ class Calibrator:
         return out + self._diagnostics(stamp_ns)
 
     def add_map(self, stamp_ns: int, points_map: np.ndarray, frame_id: str = '') -> list[Output]:
-        """A map cloud: points (N, 3) SLAM units, map frame. Builds the index, then :meth:`add_map_index`."""
+        """A map cloud, (N, 3) SLAM units, map frame (else InputError): indexed, then handed on."""
         return self.add_map_index(self.build_index(stamp_ns, points_map, frame_id))
 
     def build_index(self, stamp_ns: int, points_map: np.ndarray, frame_id: str = '') -> MapIndex:

@@ -30,6 +30,7 @@ from itertools import chain
 import numpy as np
 from scipy.spatial import cKDTree
 
+from hac_ros.core.errors import InputError
 from hac_ros.core.numeric import median_1d, quantile_1d
 
 # The chain's balls advance geometrically by (1 + 2 tan θ): each ball then covers one cone segment
@@ -73,7 +74,11 @@ class MapIndex:
 
     def __init__(self, points_map: np.ndarray, frame_id: str = '', stamp_ns: int = 0,
                  max_points: int | None = None) -> None:
-        points = np.ascontiguousarray(points_map, dtype=np.float64).reshape(-1, 3)
+        points = np.ascontiguousarray(points_map, dtype=np.float64)
+        if points.size == 0:
+            points = points.reshape(0, 3)
+        elif points.ndim != 2 or points.shape[1] != 3:
+            raise InputError(f'map points must be an (N, 3) array, got shape {points.shape}')
         if not np.isfinite(points).all():  # the fast test first: a row-wise one costs ~1 ms at 100k
             points = points[np.isfinite(points).all(axis=1)]
         self.received = len(points)
