@@ -134,7 +134,7 @@ def figures(scene: Scene, params: HacParams, cal: Calibrator, deferred: list[Any
     out: dict[str, float] = {'samples': len(samples)}
     if len(samples) < params.min_samples:
         return {**out, 'scale_err': math.nan, 'scale_bias': math.nan, 'w_mpjpe': math.nan}
-    resolved = resolve_offline(cal.metric.fresh(), params, [deferred])[0][0]  # as the replay
+    (resolved,), _ = resolve_offline(cal.metric.fresh(), params, [deferred])  # as the replay
     frames = [o for o in resolved if isinstance(o, ScaleOut)]
     signed = _signed_errors(scene, frames)
     humans = [o for o in resolved if isinstance(o, HumanJointsOut)]

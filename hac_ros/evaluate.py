@@ -9,8 +9,9 @@ Three rows, so that a number has something to be compared with:
   any scale estimate could do with these SLAM poses and HMR joints.
 
 The two reference rows run the core once on IN with its metric outputs deferred and resolve them
-with each reference scale as the offline replay resolves OUT (:func:`hac_ros.core.offline.resolve_offline`:
-the same final ground planes), so that resets are anchored and the frame aligned as in OUT.
+with each reference scale as the offline replay resolves OUT
+(:func:`hac_ros.core.offline.resolve_offline`: the same final ground planes), so that resets are
+anchored and the frame aligned as in OUT.
 Metrics (SPEC, "Metrics"; implemented in :mod:`hac_ros.core.metrics`): ATE and ATE-S (m, camera
 centres of ``/hac/pose``, Sim(3) / SE(3) alignment, mean), RPE (m and %, the translation of
 ``/hac/odometry`` over 1 s steps: odometry is judged by its relative error), W-MPJPE and WA-MPJPE (mm, 100-frame chunks), RTE (%),
@@ -28,8 +29,8 @@ import numpy as np
 
 from hac_ros.core import metrics
 from hac_ros.core.humans import smooth_outputs
-from hac_ros.core.offline import resolve_offline
 from hac_ros.core.layouts import BUILT_IN
+from hac_ros.core.offline import resolve_offline
 from hac_ros.core.outputs import HumanJointsOut, OdometryOut, Output, PoseOut, ScaleOut
 from hac_ros.core.params import HacParams
 from hac_ros.recording import (CameraTrack, JointsTrack, Recording, Replayed, ScaleTrack, Truth,
@@ -105,7 +106,8 @@ def reference_runs(gt_path: str | Path, params: HacParams, truth: Truth) -> dict
     runs: dict[str, Replayed] = {}
     for name, output_scale in scales.items():
         collect = _Collector()
-        resolved = resolve_offline(calibrator.metric.fresh(), params, [deferred], output_scale)[0][0]
+        (resolved,), _ = resolve_offline(calibrator.metric.fresh(), params, [deferred],
+                                         output_scale)
         if params.human_filter == 'smooth':  # as the replay does offline
             smooth_outputs(resolved, calibrator.layout)
         collect(resolved)
