@@ -17,9 +17,10 @@ from scipy.spatial.transform import Rotation
 from hac_ros.core.errors import InputError
 from hac_ros.core.numeric import NS
 from hac_ros.tum import tum_rows
+from msg_adapters.stamps import INT32_MAX
 
 
-MAX_STAMP_S = 2.0**31  # builtin_interfaces/Time's sec is an int32; a ROS time is not negative
+MAX_STAMP_S = INT32_MAX + 1  # builtin_interfaces/Time's sec is an int32; no ROS time is negative
 
 
 def seconds_to_ns(t: np.ndarray, where: str = 'stamps', labels: list[str] | None = None
