@@ -48,8 +48,8 @@ setup(
     zip_safe=True,
     entry_points={
         'console_scripts': [
-            'hac_node = hac_ros.node:main',
-            'hac_lifecycle_node = hac_ros.lifecycle_node:main',
+            'hac_node = hac_ros.ros.node:main',
+            'hac_lifecycle_node = hac_ros.ros.lifecycle_node:main',
             'hac = hac_ros.cli:main',
         ],
     },

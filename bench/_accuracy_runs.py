@@ -30,12 +30,12 @@ from typing import Any
 
 import numpy as np
 
-from hac_ros.core import metrics
 from hac_ros.core.calibrator import Calibrator
-from hac_ros.core.humans import smooth_outputs
+from hac_ros.core.human_filter import smooth_outputs
 from hac_ros.core.offline import resolve_offline
 from hac_ros.core.outputs import HumanJointsOut, SampleOut, ScaleOut
 from hac_ros.core.params import HacParams
+from hac_ros.evaluation import metrics
 from hac_ros.simulate.feed import feed_events
 
 AUTHORS_COS = 0.999

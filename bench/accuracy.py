@@ -31,8 +31,7 @@ from typing import Any
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _report import (RESULTS, command_line, machine, machine_line, table, write_json,  # noqa: E402
-                     write_section)
+from _report import RESULTS, command_line, machine, machine_line, table, write_json, write_section  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = REPO.parent / 'shared' / 'data'

@@ -10,7 +10,7 @@ every second, as bench/replay_throughput.py; no ground truth, so the batch repla
 ``--scene simulated`` the simulator's scenarios in turn (``hac_ros.simulate``: walk, ego, stairs,
 crowd, ..., a seed each; small maps; ground truth, so the batch evaluates too). Timed, in rounds
 in this process (the order reversed every other round), each one call of
-``hac_ros.batch.batch`` over all of them into a fresh directory, from the call to the written
+``hac_ros.batch.runner.batch`` over all of them into a fresh directory, from the call to the written
 summary:
 
 - ``pool 1``: a process pool of one worker; ``pool 2``: of two (this machine's cores);
@@ -39,11 +39,11 @@ from pathlib import Path
 from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _report import (check, command_line, machine, section, table, write_json,  # noqa: E402
-                     write_section)
+from _report import check, command_line, machine, section, table, write_json, write_section  # noqa: E402
 from _scene import write_recording as write_room  # noqa: E402
 
-from hac_ros.batch import batch, default_workers  # noqa: E402
+from hac_ros.batch.pool import default_workers
+from hac_ros.batch.runner import batch
 from hac_ros.simulate import make_scenario, write_recording  # noqa: E402
 
 NAME = 'batch_throughput'
@@ -194,7 +194,7 @@ def report(data: dict[str, Any]) -> str:
         kind = ('simulated recordings (walk, ego, stairs, ... with ground truth: replay and '
                 'evaluation)')
     loads = ', '.join(f'{x:.1f}' for x in data['load_average_1min'])
-    what = (f"`hac batch` (`hac_ros.batch.batch`, offline mode) of {rec['count']} {kind} of "
+    what = (f"`hac batch` (`hac_ros.batch.runner.batch`, offline mode) of {rec['count']} {kind} of "
             f"{rec['duration_s']:g} s at 30 Hz ({rec['bytes'] / 1e6:.0f} MB mcap in all; "
             f'{per_recording:.2f} s per recording on one worker), each configuration one call '
             'over all of them, in rounds in one process (order reversed every other round). '

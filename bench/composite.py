@@ -19,11 +19,11 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from hac_ros.core import metrics
 from hac_ros.core.layouts import SMPL24
+from hac_ros.evaluation import metrics
+from hac_ros.files.tum import read_tum
 from hac_ros.simulate.feed import ORDER
 from hac_ros.simulate.hmr import DepthBias, predict
-from hac_ros.tum import read_tum
 
 # TUM intrinsics (the dataset's published calibrations)
 INTRINSICS = {'fr2_desk': np.array([[520.9, 0.0, 325.1], [0.0, 521.0, 249.7], [0.0, 0.0, 1.0]]),

@@ -27,7 +27,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _report import check, command_line, machine, publish, section, table  # noqa: E402
-from _scene import MAP_FRAME, CAMERA_FRAME, TRUE_SCALE, RoomScene, room_scene  # noqa: E402
+from _scene import CAMERA_FRAME, MAP_FRAME, TRUE_SCALE, RoomScene, room_scene  # noqa: E402
 
 from hac_ros.core.calibrator import Calibrator  # noqa: E402
 from hac_ros.core.params import HacParams  # noqa: E402

@@ -4,7 +4,7 @@
     python bench/node_latency.py [--map-points 100000] [--duration 30] [--rounds 2]
                                  [--dds-profile XML]
 
-Two nodes in turn, each in a process of its own: ``hac_node`` (``python -m hac_ros.node`` with the
+Two nodes in turn, each in a process of its own: ``hac_node`` (``python -m hac_ros.ros.node`` with the
 checkout's config/hac.yaml) and the echo floor (:data:`ECHO_NODE`: a node with the same
 subscriptions that republishes each joints message's bytes to ``/hac/human_joints``). This process
 plays the room scene (bench/_scene.py) live at 30 Hz to each: a SLAM pose, then the HMR joints of
@@ -51,12 +51,21 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E
 from sensor_msgs.msg import PointCloud2  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _report import (check, command_line, machine, measured_tree, publish,  # noqa: E402
-                     section, table)
-from _scene import (CLOUD_TOPIC, JOINTS_TOPIC, POSE_TOPIC, RATE_HZ, cdr_stamp,  # noqa: E402
-                    cloud_cdr, joints_cdr, pose_cdr, room_scene, set_cdr_stamp)
+from _report import check, command_line, machine, measured_tree, publish, section, table  # noqa: E402
+from _scene import (  # noqa: E402
+    CLOUD_TOPIC,
+    JOINTS_TOPIC,
+    POSE_TOPIC,
+    RATE_HZ,
+    cdr_stamp,
+    cloud_cdr,
+    joints_cdr,
+    pose_cdr,
+    room_scene,
+    set_cdr_stamp,
+)
 
-from hac_ros.spin_thread import SpinThread  # noqa: E402
+from hac_ros.ros.spin_thread import SpinThread  # noqa: E402
 
 NAME = 'node_latency'
 OUTPUT_TOPIC = '/hac/human_joints'
@@ -106,7 +115,7 @@ def start_node(kind: str, log: Any) -> subprocess.Popen:
     measured checkout (its cwd, so that ``-m`` imports that checkout's package)."""
     tree = measured_tree()
     command = ([sys.executable, '-c', ECHO_NODE] if kind == 'echo' else
-               [sys.executable, '-m', 'hac_ros.node', '--ros-args', '--params-file',
+               [sys.executable, '-m', 'hac_ros.ros.node', '--ros-args', '--params-file',
                 str(tree / 'config' / 'hac.yaml')])
     env = {**os.environ, 'PYTHONUNBUFFERED': '1', 'RCUTILS_COLORIZED_OUTPUT': '0'}
     return subprocess.Popen(command, cwd=tree, env=env, stdout=log, stderr=subprocess.STDOUT)

@@ -8,7 +8,7 @@ The recording (bench/_scene.py ``write_recording``, not timed): ``--duration`` s
 scene at 30 Hz, a SLAM pose and the HMR joints per frame and a ``--map-points`` map republished
 every second; mcap, in a temporary directory. Timed, in rounds of three side by side in this
 process: the bare read (rosbags' AnyReader over the recording, every message deserialized with the
-ROS 2 Jazzy typestore: bench/_scene.py ``read_recording``), then ``hac_ros.replay.replay`` in
+ROS 2 Jazzy typestore: bench/_scene.py ``read_recording``), then ``hac_ros.replay.replayer.replay`` in
 ``offline`` mode (the default), then in ``online`` mode, each from opening the recording to the
 written OUT. One untimed bare read comes first. Ratio per round and mode = replay seconds / that
 round's bare-read seconds; the median over the rounds is the figure. Target (issue 18): <= 8x.
@@ -30,7 +30,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _report import check, command_line, machine, publish, section, table  # noqa: E402
 from _scene import read_recording, write_recording  # noqa: E402
 
-from hac_ros.replay import replay  # noqa: E402
+from hac_ros.replay.replayer import replay  # noqa: E402
 
 NAME = 'replay_throughput'
 MODES = ('offline', 'online')
@@ -86,7 +86,7 @@ def report(data: dict[str, Any]) -> str:
             for mode in MODES]
     return section(
         'Replay throughput', data['command'],
-        f"`hac replay` (`hac_ros.replay.replay`, markers on, mcap out) of the room scene's "
+        f"`hac replay` (`hac_ros.replay.replayer.replay`, markers on, mcap out) of the room scene's "
         f"{rec['duration_s'] / 60:.0f}-minute 30 Hz recording ({rec['frames']} frames, a "
         f"{rec['map_points']:,}-point map every second, {rec['bytes'] / 1e6:.0f} MB mcap) "
         'against the bare read of the same recording (rosbags AnyReader, every message '

@@ -8,7 +8,7 @@ bench/composite.py) is run through the core's offline estimate (bench/_accuracy_
 ``run_ours``, the replay's default) as it comes and as a real pipeline may deliver it:
 
 - ``coco17``, ``h36m17``: the HMR model's joints in that layout (the simulator writes the layout;
-  the composite's joints are mapped by ``hac_ros.simulate.layouts``), ``joint_layout`` set;
+  the composite's joints are mapped by ``hac_ros.simulate.skeletons``), ``joint_layout`` set;
 - ``focal``: an HMR model that assumed a focal length of 800 px on the camera (the people at
   800/f times their depth), ``hmr_focal_px: 800``;
 - ``body_frame``: SLAM poses of an x-forward, z-up camera frame, ``pose_to_optical`` set;
@@ -34,8 +34,7 @@ from typing import Any
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _report import (command_line, machine, machine_line, table, write_json,  # noqa: E402
-                     write_section)
+from _report import command_line, machine, machine_line, table, write_json, write_section  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = REPO.parent / 'shared' / 'data'
@@ -68,13 +67,13 @@ def _body_frame(events: list) -> list:
 
 def _imported(sc: Any, scene: Any, params: Any, directory: Path) -> dict[str, float]:
     """The scenario through files and ``hac import``, then the replay's own input path
-    (``hac_ros.feeder.deferred_run``): its figures."""
+    (``hac_ros.replay.feeder.deferred_run``): its figures."""
     from _accuracy_runs import figures
 
-    from hac_ros.feeder import deferred_run
-    from hac_ros.importer import import_files
-    from hac_ros.recording import Recording
-    from hac_ros.tum import rotations_to_quats, write_tum
+    from hac_ros.files.importer import import_files
+    from hac_ros.files.tum import rotations_to_quats, write_tum
+    from hac_ros.recording.reader import Recording
+    from hac_ros.replay.feeder import deferred_run
 
     write_tum(directory / 'slam.tum', sc.pose_stamps_ns, sc.slam_c, rotations_to_quats(sc.slam_R_wc))
     np.save(directory / 'map.npy', sc.maps[-1].points_slam.astype(float))
@@ -100,7 +99,7 @@ def run_task(task: tuple[str, int]) -> dict[str, Any]:
 
     from hac_ros.core.params import HacParams
     from hac_ros.simulate import make_scenario
-    from hac_ros.simulate.layouts import to_layout
+    from hac_ros.simulate.skeletons import to_layout
 
     name, seed = task
     base = HacParams()

@@ -20,11 +20,12 @@ Needs a full ROS 2 install (launch, launch_ros, rviz2): never imported by the te
 from pathlib import Path
 
 from ament_index_python.packages import get_package_share_directory
-from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument, SetEnvironmentVariable
 from launch.conditions import IfCondition, UnlessCondition
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
+
+from launch import LaunchDescription
 
 PACKAGE = 'hac_ros'
 
@@ -51,7 +52,7 @@ def generate_launch_description() -> LaunchDescription:
                                           'beside best-effort joints)'),
     ]
     profile = str(share / 'config' / 'fastdds_large_data.xml')
-    # Fast DDS 2.x reads the first name, 3.x the second (as hac_ros.node.DDS_PROFILE_VARIABLES)
+    # Fast DDS 2.x reads the first name, 3.x the second (as hac_ros.ros.node.DDS_PROFILE_VARIABLES)
     dds_profile = [
         SetEnvironmentVariable(name, profile, condition=IfCondition(LaunchConfiguration('dds_profile')))
         for name in ('FASTRTPS_DEFAULT_PROFILES_FILE', 'FASTDDS_DEFAULT_PROFILES_FILE')]

@@ -9,9 +9,16 @@ from msg_adapters.cdr import RawCloud, cloud_points, parse_cloud_cdr
 from msg_adapters.errors import MessageError
 from msg_adapters.joints import JOINTS_PER_PERSON, joints_to_pose_array, pose_array_to_joints
 from msg_adapters.pointcloud import cloud_to_xyz, xyz_from_buffer, xyz_to_cloud
-from msg_adapters.poses import (matrix_to_quat, pose_msg_to_rt, pose_to_rt, quat_to_matrix,
-                                rt_to_odometry, rt_to_pose, rt_to_pose_stamped,
-                                rt_to_transform_stamped)
+from msg_adapters.poses import (
+                                matrix_to_quat,
+                                pose_msg_to_rt,
+                                pose_to_rt,
+                                quat_to_matrix,
+                                rt_to_odometry,
+                                rt_to_pose,
+                                rt_to_pose_stamped,
+                                rt_to_transform_stamped,
+)
 from msg_adapters.stamps import make_header, ns_to_stamp, stamp_to_ns
 from msg_adapters.types import MessageTypes, rclpy_types, rosbags_types
 

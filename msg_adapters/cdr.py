@@ -15,6 +15,7 @@ from msg_adapters.errors import MessageError
 from msg_adapters.pointcloud import xyz_from_buffer
 from msg_adapters.stamps import time_to_ns
 
+
 class PointFieldSpec(NamedTuple):
     """One sensor_msgs/PointField as read from the CDR bytes."""
 

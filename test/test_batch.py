@@ -26,12 +26,14 @@ from pathlib import Path
 
 import pytest
 
-from hac_ros.batch import COLUMNS, batch, recording_name
-from hac_ros.batch_ray import RAY_MAX_RETRIES, probe_ray_address
+from hac_ros.batch.jobs import COLUMNS, recording_name
+from hac_ros.batch.ray_tasks import RAY_MAX_RETRIES, probe_ray_address
+from hac_ros.batch.runner import batch
 from hac_ros.core.errors import HacError
-from hac_ros.recording import OutputWriter, Recording
-from hac_ros.recording_diff import recording_differences
-from hac_ros.replay import replay
+from hac_ros.recording.diff import recording_differences
+from hac_ros.recording.reader import Recording
+from hac_ros.recording.writer import OutputWriter
+from hac_ros.replay.replayer import replay
 from hac_ros.simulate import make_scenario, write_recording
 
 REPO = Path(__file__).resolve().parents[1]

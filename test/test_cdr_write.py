@@ -15,10 +15,10 @@ from hypothesis import strategies as st
 from rosbags.typesys import Stores, get_typestore
 from scipy.spatial.transform import Rotation
 
+from hac_ros.bridge.messages import DIAGNOSTICS, MARKERS, SAMPLES, OutputMessages, samples_message
 from hac_ros.core.calibrator import Calibrator
 from hac_ros.core.outputs import SampleOut
 from hac_ros.core.params import HacParams
-from hac_ros.messages import (DIAGNOSTICS, MARKERS, SAMPLES, OutputMessages, samples_message)
 from hac_ros.simulate import make_scenario
 from hac_ros.simulate.feed import scenario_events
 from msg_adapters import MessageError, cdr_write

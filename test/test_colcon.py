@@ -49,7 +49,7 @@ def test_colcon_build_installs_the_node_and_the_ament_marker(tmp_path):
     site = next((install / 'lib').glob('python3*/site-packages'))
     env = {**os.environ, 'PYTHONPATH': f'{site}{os.pathsep}{os.environ.get("PYTHONPATH", "")}',
            'RCUTILS_COLORIZED_OUTPUT': '0'}
-    probe = subprocess.run([sys.executable, '-c', 'import hac_ros.node; print(hac_ros.node.__file__)'],
+    probe = subprocess.run([sys.executable, '-c', 'import hac_ros.ros.node; print(hac_ros.ros.node.__file__)'],
                            env=env, capture_output=True, text=True, timeout=60, cwd=tmp_path)
     assert probe.returncode == 0 and probe.stdout.strip().startswith(str(install)), probe
     process = subprocess.Popen([str(node), '--ros-args', '--params-file', str(config)], env=env,

@@ -9,18 +9,24 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from scenes import NS, SOLE_M, Scene, walking_scene
 
 from hac_ros.core.calibrator import Calibrator
 from hac_ros.core.errors import InputError
 from hac_ros.core.estimator import RollingScale, SortedWindow
 from hac_ros.core.ground import GroundModel, Plane
 from hac_ros.core.layouts import SMPL24
-from hac_ros.core.outputs import (HumanJointsOut, NoticeOut, OdometryOut, ResetOut, SampleOut,
-                                  ScaleOut)
 from hac_ros.core.numeric import median_1d, quantile_1d
+from hac_ros.core.outputs import (
+    HumanJointsOut,
+    NoticeOut,
+    OdometryOut,
+    ResetOut,
+    SampleOut,
+    ScaleOut,
+)
 from hac_ros.core.params import HacParams
 from hac_ros.core.reference import MapIndex, literal_cone_median, lowest_segment_offset
-from scenes import NS, SOLE_M, Scene, walking_scene
 
 K = np.array([[500.0, 0.0, 320.0], [0.0, 500.0, 240.0], [0.0, 0.0, 1.0]])
 
@@ -658,7 +664,7 @@ def test_params_yaml_is_the_ros_parameters_file(tmp_path):
 
 
 def test_core_and_adapters_import_without_rclpy():
-    code = ('import sys, hac_ros, hac_ros.core.calibrator, hac_ros.core.metrics, msg_adapters; '
+    code = ('import sys, hac_ros, hac_ros.core.calibrator, hac_ros.evaluation.metrics, msg_adapters; '
             'assert "rclpy" not in sys.modules, "rclpy imported"')
     subprocess.run([sys.executable, '-c', code], check=True)
 

@@ -9,13 +9,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-from hac_ros.evaluate import evaluate
-from hac_ros.plots import FIGSIZE, figure_size_px, make_plots
-from hac_ros.replay import replay
-from hac_ros.tum import TUM_FILES
 from scenes import Scene, walking_scene
 from test_replay import write_recording
+
+from hac_ros.evaluation.evaluate import evaluate
+from hac_ros.evaluation.plots import FIGSIZE, figure_size_px, make_plots
+from hac_ros.files.tum import TUM_FILES
+from hac_ros.replay.replayer import replay
 
 REPO = Path(__file__).resolve().parents[1]
 PNG_SIGNATURE = b'\x89PNG\r\n\x1a\n'

@@ -1,15 +1,15 @@
-"""hac_ros.core.humans: people followed across frames, their world roots filtered in stamp time."""
+"""hac_ros.core.human_filter: people followed across frames, their world roots filtered in stamp time."""
 from __future__ import annotations
 
 import numpy as np
+from scenes import STANDING, walking_scene
 
 from hac_ros.core.calibrator import Calibrator
-from hac_ros.core.humans import RootFilter, smooth_people
+from hac_ros.core.human_filter import RootFilter, smooth_people
 from hac_ros.core.layouts import SMPL24
 from hac_ros.core.numeric import NS
 from hac_ros.core.outputs import HumanJointsOut
 from hac_ros.core.params import HacParams
-from scenes import STANDING, walking_scene
 
 NOISE_M = 0.05
 

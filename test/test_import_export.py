@@ -12,10 +12,10 @@ from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
 
 from hac_ros.cli import main as hac
-from hac_ros.import_readers import read_trajectory, seconds_to_ns
-from hac_ros.map_files import read_map
+from hac_ros.files.map_files import read_map
+from hac_ros.files.readers import read_trajectory, seconds_to_ns
+from hac_ros.files.tum import rotations_to_quats
 from hac_ros.simulate import make_scenario, write_recording
-from hac_ros.tum import rotations_to_quats
 from msg_adapters import cloud_to_xyz, pose_array_to_joints, stamp_to_ns
 
 SEED, DURATION = 3, 8.0

@@ -8,18 +8,19 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from hac_ros.bridge.messages import OutputMessages
 from hac_ros.cli import main as hac
 from hac_ros.core.calibrator import Calibrator
 from hac_ros.core.errors import ParameterError
 from hac_ros.core.layouts import BUILT_IN, layout_from_params
 from hac_ros.core.outputs import HumanJointsOut, NoticeOut, ScaleOut
 from hac_ros.core.params import HacParams
-from hac_ros.messages import OutputMessages
-from hac_ros.recording import Recording, read_output
+from hac_ros.recording.reader import Recording
+from hac_ros.recording.tracks import read_output
 from hac_ros.simulate import make_scenario
 from hac_ros.simulate.feed import feed_events, scenario_events
-from hac_ros.simulate.layouts import to_layout
-from hac_ros.simulate.humans import STANDING
+from hac_ros.simulate.motions import STANDING
+from hac_ros.simulate.skeletons import to_layout
 
 DURATION_S = 15.0
 BODY_FRAME_Q = [-0.5, 0.5, -0.5, 0.5]  # the optical frame in an x-forward, z-up camera frame

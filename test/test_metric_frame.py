@@ -9,9 +9,8 @@ import numpy as np
 import pytest
 
 from hac_ros.core.calibrator import Calibrator
-from hac_ros.core.metric import finite_scale
-from hac_ros.core.outputs import (CloudOut, HumanJointsOut, NoticeOut, OdometryOut, PoseOut,
-                                  ScaleOut)
+from hac_ros.core.metric_stage import finite_scale
+from hac_ros.core.outputs import CloudOut, HumanJointsOut, NoticeOut, OdometryOut, PoseOut, ScaleOut
 from hac_ros.core.params import HacParams
 from hac_ros.simulate import make_scenario
 from hac_ros.simulate.feed import scenario_events
@@ -228,7 +227,7 @@ def test_the_obstacle_cloud_is_the_metric_maps_band_above_the_floor():
     (gravity alignment: z is the height above the floor)."""
     from rosbags.typesys import Stores, get_typestore
 
-    from hac_ros.messages import CLOUD, OBSTACLES, OutputMessages
+    from hac_ros.bridge.messages import CLOUD, OBSTACLES, OutputMessages
     from msg_adapters import cloud_to_xyz
 
     params = HacParams(publish_obstacles=True, obstacle_min_height=0.3, obstacle_max_height=1.5)

@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from hac_ros.core import metrics
 from hac_ros.core.errors import InputError
-from hac_ros.tum import read_tum, write_tum
+from hac_ros.evaluation import metrics
+from hac_ros.files.tum import read_tum, write_tum
 
 
 def evo_pairs_and_ape(ref_path, est_path):

@@ -28,14 +28,23 @@ from hac_ros.core.calibrator import Calibrator  # noqa: E402
 from hac_ros.core.numeric import NS  # noqa: E402
 from hac_ros.core.outputs import HumanJointsOut, OdometryOut, ScaleOut  # noqa: E402
 from hac_ros.core.params import HacParams, describe, names  # noqa: E402
-from hac_ros.node import HacNode  # noqa: E402
-from hac_ros.node_parameters import parameter_table  # noqa: E402
-from msg_adapters import parse_cloud_cdr  # noqa: E402
+from hac_ros.ros.node import HacNode  # noqa: E402
+from hac_ros.ros.parameters import parameter_table  # noqa: E402
+from hac_ros.ros.spin_thread import SpinThread  # noqa: E402
 from hac_ros.simulate import make_scenario  # noqa: E402
-from hac_ros.spin_thread import SpinThread  # noqa: E402
-from msg_adapters import (cloud_to_xyz, intrinsics_to_camera_info, joints_to_pose_array,  # noqa: E402
-                          pose_array_to_joints, pose_msg_to_rt, rclpy_types, rt_to_pose_stamped,
-                          stamp_to_ns, xyz_from_buffer, xyz_to_cloud)
+from msg_adapters import (  # noqa: E402
+    cloud_to_xyz,
+    intrinsics_to_camera_info,
+    joints_to_pose_array,
+    parse_cloud_cdr,  # noqa: E402
+    pose_array_to_joints,
+    pose_msg_to_rt,
+    rclpy_types,
+    rt_to_pose_stamped,
+    stamp_to_ns,
+    xyz_from_buffer,
+    xyz_to_cloud,
+)
 
 TYPES = rclpy_types()
 REPO = Path(__file__).resolve().parents[1]
@@ -619,7 +628,7 @@ def test_docs_table_and_config_list_every_parameter_with_its_default():
     table = re.search(r'<!-- params:start -->\n(.*?)\n<!-- params:end -->', doc, re.S)
     assert table and table.group(1) == parameter_table(), (
         'docs/node.md parameter table is stale; regenerate it with '
-        'python -m hac_ros.node_parameters')
+        'python -m hac_ros.ros.parameters')
     config = REPO / 'config' / 'hac.yaml'
     assert HacParams.from_yaml(config) == HacParams()
     listed = yaml.safe_load(config.read_text(encoding='utf-8'))['hac_node']['ros__parameters']
@@ -630,7 +639,7 @@ def test_docs_table_and_config_list_every_parameter_with_its_default():
 
 
 def test_spin_thread_delivers_then_stops_before_its_executor_is_shut_down():
-    """hac_ros.spin_thread.SpinThread (the tests' and benchmarks' executor thread): callbacks run
+    """hac_ros.ros.spin_thread.SpinThread (the tests' and benchmarks' executor thread): callbacks run
     on it; close() ends the thread and shuts the executor down; a context shut down elsewhere
     ends the thread too."""
     float64 = TYPES.get('std_msgs/msg/Float64')

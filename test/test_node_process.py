@@ -23,12 +23,20 @@ pytestmark = [pytest.mark.slow, pytest.mark.ros]  # hac_node as a subprocess
 from rclpy.context import Context  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
+from test_node import (  # noqa: E402
+    FRAME_PERIOD_S,
+    INPUTS,
+    LATCHED,
+    OUTPUTS,
+    RELIABLE,
+    SCALE_TOL,
+    TYPES,
+    scenario_recording,
+    wait_for,
+)
 
-from hac_ros.node import DDS_PROFILE_VARIABLES  # noqa: E402
-from hac_ros.spin_thread import SpinThread  # noqa: E402
-
-from test_node import (FRAME_PERIOD_S, INPUTS, LATCHED, OUTPUTS, RELIABLE, SCALE_TOL,  # noqa: E402
-                       TYPES, scenario_recording, wait_for)
+from hac_ros.ros.node import DDS_PROFILE_VARIABLES  # noqa: E402
+from hac_ros.ros.spin_thread import SpinThread  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 STARTUP_S = 20.0  # the node imports numpy/scipy/rclpy and joins DDS discovery
@@ -43,7 +51,7 @@ def start_node(tmp_path: Path, params: dict[str, Any],
     path.write_text(yaml.safe_dump({'hac_node': {'ros__parameters': params}}))
     env = {**os.environ, 'PYTHONUNBUFFERED': '1', 'PYTHONFAULTHANDLER': '1',
            'RCUTILS_COLORIZED_OUTPUT': '0', **(env or {})}
-    return subprocess.Popen([sys.executable, '-m', 'hac_ros.node', '--ros-args', '--params-file',
+    return subprocess.Popen([sys.executable, '-m', 'hac_ros.ros.node', '--ros-args', '--params-file',
                              str(path)], cwd=REPO, env=env, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
 

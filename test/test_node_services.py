@@ -17,13 +17,20 @@ pytestmark = pytest.mark.ros
 
 from rclpy.context import Context  # noqa: E402
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
-
-from hac_ros.lifecycle_node import HacLifecycleNode  # noqa: E402
-from msg_adapters import cloud_to_xyz, pose_msg_to_rt, stamp_to_ns  # noqa: E402
-
-from test_node import (RELIABLE, TEST_PARAMS, TYPES, Harness, frames_after,  # noqa: E402,F401
-                       harness, scenario_recording, wait_for)
+from test_node import (  # noqa: E402,F401
+    RELIABLE,
+    TEST_PARAMS,
+    TYPES,
+    Harness,
+    frames_after,
+    harness,
+    scenario_recording,
+    wait_for,
+)
 from test_node_process import STARTUP_S, Client, start_node, stop  # noqa: E402
+
+from hac_ros.ros.lifecycle_node import HacLifecycleNode  # noqa: E402
+from msg_adapters import cloud_to_xyz, pose_msg_to_rt, stamp_to_ns  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 CLOUD_LATE = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,

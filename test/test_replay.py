@@ -15,12 +15,12 @@ from typing import Callable
 
 import numpy as np
 import pytest
+from scenes import NS, Scene, walking_scene
 
 from hac_ros.core.errors import HacError
 from hac_ros.core.offline import DRIFT_MIN_REL, offline_scale
 from hac_ros.core.params import HacParams
-from hac_ros.replay import replay
-from scenes import NS, Scene, walking_scene
+from hac_ros.replay.replayer import replay
 
 REPO = Path(__file__).resolve().parents[1]
 K = np.array([[500.0, 0.0, 320.0], [0.0, 500.0, 240.0], [0.0, 0.0, 1.0]])
@@ -46,8 +46,14 @@ def write_recording(path: Path, scene: Scene, storage: str = 'mcap', *, cloud_ev
     from rosbags.rosbag2 import StoragePlugin, Writer
     from rosbags.typesys import Stores, get_typestore
 
-    from msg_adapters import (intrinsics_to_camera_info, joints_to_pose_array, rosbags_types,
-                              rt_to_odometry, rt_to_pose_stamped, xyz_to_cloud)
+    from msg_adapters import (
+        intrinsics_to_camera_info,
+        joints_to_pose_array,
+        rosbags_types,
+        rt_to_odometry,
+        rt_to_pose_stamped,
+        xyz_to_cloud,
+    )
 
     typestore = get_typestore(Stores.ROS2_JAZZY)
     types = rosbags_types()
@@ -543,7 +549,7 @@ NO_MARKERS = HacParams(publish_markers=False, human_filter='none')
 
 def _on_stamps(run, stamps):
     """A replayed run restricted to ``stamps`` (to compare two runs on the same frames)."""
-    from hac_ros.recording import CameraTrack, JointsTrack, Replayed, ScaleTrack
+    from hac_ros.recording.tracks import CameraTrack, JointsTrack, Replayed, ScaleTrack
 
     o, j, s = run.odometry, run.joints, run.scale
     ko, kj, ks = (np.isin(x.stamps_ns, stamps) for x in (o, j, s))
@@ -553,7 +559,7 @@ def _on_stamps(run, stamps):
 
 
 def _both_modes(source: Path, tmp_path: Path, params: HacParams):
-    from hac_ros.recording import read_output
+    from hac_ros.recording.tracks import read_output
 
     runs = {}
     for mode in ('online', 'offline'):
@@ -564,8 +570,8 @@ def _both_modes(source: Path, tmp_path: Path, params: HacParams):
 
 def test_offline_is_at_least_as_accurate_as_online_on_walk(tmp_path):
     """On a clean walk (no HMR depth bias: the truth is the best scale there is)."""
-    from hac_ros.evaluate import row_metrics
-    from hac_ros.recording import read_truth
+    from hac_ros.evaluation.evaluate import row_metrics
+    from hac_ros.recording.tracks import read_truth
     from hac_ros.simulate import make_scenario
     from hac_ros.simulate import write_recording as simulate_recording
 
@@ -591,8 +597,8 @@ def test_offline_is_at_least_as_accurate_as_online_on_walk(tmp_path):
 
 
 def test_offline_follows_a_drifting_scale_where_online_lags(tmp_path):
-    from hac_ros.evaluate import row_metrics
-    from hac_ros.recording import read_truth
+    from hac_ros.evaluation.evaluate import row_metrics
+    from hac_ros.recording.tracks import read_truth
 
     def truth(t: int) -> float:
         return 2.0 + 0.6 * t / 199  # +30 % over 20 s
@@ -612,8 +618,8 @@ def test_offline_follows_a_drifting_scale_where_online_lags(tmp_path):
 
 
 def test_offline_estimates_each_segment_of_a_reset_on_its_own(tmp_path):
-    from hac_ros.evaluate import row_metrics
-    from hac_ros.recording import read_truth
+    from hac_ros.evaluation.evaluate import row_metrics
+    from hac_ros.recording.tracks import read_truth
 
     source = BAGS / 'reset_short'  # the SLAM re-initialises at 6 s with a new scale
     summary = replay(source, tmp_path / 'offline', NO_MARKERS, progress=False)
@@ -637,15 +643,15 @@ def test_offline_estimates_each_segment_of_a_reset_on_its_own(tmp_path):
 @pytest.mark.parametrize('base', [False, True])
 def test_deferred_outputs_resolved_with_the_schedule_equal_a_run_with_that_schedule(base):
     """The offline mode runs the calibrator once with its metric outputs deferred and resolves them
-    with the schedule (hac_ros.core.metric): exactly what a second run with the schedule gives,
+    with the schedule (hac_ros.core.metric_stage): exactly what a second run with the schedule gives,
     across a SLAM reset (the anchor) and with a base frame (the odometry's base offset)."""
     from dataclasses import fields
 
     from hac_ros.core.calibrator import Calibrator
-    from hac_ros.core.metric import finite_scale
+    from hac_ros.core.metric_stage import finite_scale
     from hac_ros.core.outputs import ResetOut, SampleOut
-    from hac_ros.recording import Recording
-    from hac_ros.feeder import CoreFeeder, InputTopics, deferred_run
+    from hac_ros.recording.reader import Recording
+    from hac_ros.replay.feeder import CoreFeeder, InputTopics, deferred_run
 
     class Scheduled(Calibrator):
         """A calibrator whose metric outputs use a given scale schedule (stamp -> scale)."""

@@ -21,15 +21,15 @@ from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
 from rclpy.serialization import deserialize_message, serialize_message  # noqa: E402
-
-from hac_ros.node import HacNode  # noqa: E402
-from hac_ros.feeder import tie_ordered  # noqa: E402
-from hac_ros.replay import replay  # noqa: E402
-from hac_ros.spin_thread import SpinThread  # noqa: E402
-from msg_adapters import rclpy_types, stamp_to_ns  # noqa: E402
 from rosbags.typesys import Stores, get_typestore  # noqa: E402
 from scenes import walking_scene  # noqa: E402
 from test_replay import write_recording  # noqa: E402
+
+from hac_ros.replay.feeder import tie_ordered  # noqa: E402
+from hac_ros.replay.replayer import replay  # noqa: E402
+from hac_ros.ros.node import HacNode  # noqa: E402
+from hac_ros.ros.spin_thread import SpinThread  # noqa: E402
+from msg_adapters import rclpy_types, stamp_to_ns  # noqa: E402
 
 TYPES = rclpy_types()
 JAZZY = get_typestore(Stores.ROS2_JAZZY)

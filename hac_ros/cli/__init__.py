@@ -2,7 +2,7 @@
 
 Thin: each sub-command is a module of this package with ``add_arguments(parser)`` and
 ``run(args) -> int``, and only argument parsing in it; the work is done by the library modules
-(:mod:`hac_ros.replay`, :mod:`hac_ros.evaluate`, ...). Errors the user can fix
+(:mod:`hac_ros.replay.replayer`, :mod:`hac_ros.evaluation.evaluate`, ...). Errors the user can fix
 (:class:`~hac_ros.core.errors.HacError`, :class:`~msg_adapters.MessageError`) print one line and
 exit 2; Ctrl-C exits 130.
 """
@@ -61,7 +61,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 # ---------------------------------------------------------------- arguments several commands share
 def add_output_recording(parser: argparse.ArgumentParser) -> None:
     """``-o OUT``: the recording a command creates, and ``--storage`` of it."""
-    from hac_ros.recording import STORAGES
+    from hac_ros.recording.reader import STORAGES
 
     parser.add_argument('-o', '--output', metavar='OUT', required=True,
                         help='output recording to create (must not exist)')
@@ -71,7 +71,7 @@ def add_output_recording(parser: argparse.ArgumentParser) -> None:
 
 def add_mode_and_params(parser: argparse.ArgumentParser, mode_help: str, params_help: str) -> None:
     """``--mode`` of the replay and ``--params FILE``, the node's parameters file."""
-    from hac_ros.replay import MODES
+    from hac_ros.replay.replayer import MODES
 
     parser.add_argument('--mode', choices=MODES, default='offline', help=mode_help)
     add_params(parser, params_help)

@@ -30,7 +30,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from hac_ros.batch import batch
+    from hac_ros.batch.runner import batch
 
     result = batch(args.inputs, args.output, HacParams.load(args.params), mode=args.mode,
                    workers=args.workers, ray=args.ray, resume=args.resume)

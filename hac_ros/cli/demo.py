@@ -1,10 +1,91 @@
-"""``hac demo`` (``make demo``): replay, evaluate and plot the bundled sample recording."""
+"""``hac demo`` (``make demo``): replay, evaluate and plot the bundled sample recording.
+
+The recording ``bags/demo_walk`` is only read. Its results go to ``out/`` (``out/replay`` the
+calibrated recording, ``out/eval.md`` and ``out/eval.json`` the metrics, ``out/*.png`` the
+figures, ``out/tum/`` the trajectories for evo); results of an earlier demo there are replaced,
+nothing else in ``out/`` is touched. Without the bundled recording (an installed package, or a
+checkout before it was added) a 20-second ``walk`` recording is simulated into a temporary directory.
+"""
 from __future__ import annotations
 
 import argparse
+import shutil
+import tempfile
+import time
 from pathlib import Path
 
-from hac_ros.demo import DEMO_RECORDING
+from hac_ros.core.errors import HacError
+
+REPO = Path(__file__).resolve().parents[2]
+
+DEMO_RECORDING = Path('bags') / 'demo_walk'
+
+SIMULATED = {'scenario': 'walk', 'seed': 0, 'duration_s': 20.0}  # when the recording is absent
+
+RESULTS = ('replay', 'tum', 'eval.md', 'eval.json', 'trajectories.png', 'scale.png',
+           'fallback.png', 'heights.png')
+
+def find_recording(explicit: str | None) -> Path | None:
+    """The demo recording: the one given, else ./bags/demo_walk, else the repository's."""
+    if explicit:
+        path = Path(explicit)
+        if not path.exists():
+            raise HacError(f'demo recording {path} does not exist')
+        return path
+    for candidate in (Path.cwd() / DEMO_RECORDING, REPO / DEMO_RECORDING):
+        if candidate.exists():
+            return candidate
+    return None
+
+def simulate_into(directory: Path) -> Path:
+    """``hac simulate walk`` into ``directory``; returns the recording's path."""
+    from hac_ros.cli import main
+
+    path = directory / 'demo_walk'
+    code = main(['simulate', SIMULATED['scenario'], '-o', str(path), '--seed',
+                 str(SIMULATED['seed']), '--duration', str(SIMULATED['duration_s'])])
+    if code != 0 or not path.exists():
+        raise HacError(f'could not simulate a demo recording (hac simulate exited with {code})')
+    return path
+
+def clear_results(out_dir: Path) -> None:
+    """Remove the results of an earlier demo (only the names the demo writes)."""
+    for name in RESULTS:
+        path = out_dir / name
+        if path.is_dir() and not path.is_symlink():
+            shutil.rmtree(path)
+        elif path.exists() or path.is_symlink():
+            path.unlink()
+
+def demo(out_dir: Path, recording: str | None = None) -> int:
+    from hac_ros.evaluation.evaluate import evaluate
+    from hac_ros.evaluation.plots import make_plots
+    from hac_ros.replay.replayer import replay
+
+    start = time.perf_counter()
+    with tempfile.TemporaryDirectory(prefix='hac_demo_') as tmp:
+        source = find_recording(recording)
+        if source is None:
+            print(f'{DEMO_RECORDING} not found: simulating a {SIMULATED["duration_s"]:.0f} s '
+                  f'"{SIMULATED["scenario"]}" recording instead')
+            source = simulate_into(Path(tmp))
+        out_dir.mkdir(parents=True, exist_ok=True)
+        clear_results(out_dir)
+        summary = replay(source, out_dir / 'replay', mode='offline', export_tum=out_dir / 'tum')
+        print(summary.text())
+        print()
+        result = evaluate(out_dir / 'replay', source)
+        print(result.text())
+        import json
+
+        (out_dir / 'eval.json').write_text(json.dumps(result.as_dict(), indent=2) + '\n',
+                                           encoding='utf-8')
+        (out_dir / 'eval.md').write_text(result.markdown() + '\n', encoding='utf-8')
+        print()
+        for name, path in make_plots(out_dir / 'replay', out_dir, source).items():
+            print(f'figure {name}: {path}')
+    print(f'\ndemo done in {time.perf_counter() - start:.1f} s; results in {out_dir}/')
+    return 0
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -15,6 +96,4 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from hac_ros.demo import demo
-
     return demo(Path(args.out_dir), args.recording)

@@ -23,7 +23,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from hac_ros.evaluate import evaluate
+    from hac_ros.evaluation.evaluate import evaluate
 
     result = evaluate(args.output, args.gt, HacParams.load(args.params) if args.params else None,
                       references=not args.no_references)

@@ -22,7 +22,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from hac_ros.exporter import export
+    from hac_ros.files.exporter import export
 
     print(export(args.output, args.npz, args.joint_layout).text())
     return 0

@@ -52,7 +52,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from hac_ros.importer import import_files
+    from hac_ros.files.importer import import_files
 
     result = import_files(args.output, args.trajectory, args.map, args.joints, camera=args.camera,
                           gt_trajectory=args.gt_trajectory, gt_joints=args.gt_joints,

@@ -13,7 +13,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from hac_ros.plots import make_plots
+    from hac_ros.evaluation.plots import make_plots
 
     for name, path in make_plots(args.output, args.out_dir, args.gt).items():
         print(f'{name}: {path}')

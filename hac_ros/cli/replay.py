@@ -29,7 +29,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from hac_ros.replay import replay
+    from hac_ros.replay.replayer import replay
 
     params = HacParams.load(args.params, {
         'pose_topic': args.pose_topic, 'cloud_topic': args.cloud_topic,

@@ -29,15 +29,25 @@ from hac_ros.core.convention_check import ConventionCheck
 from hac_ros.core.conventions import Conventions
 from hac_ros.core.estimator import RollingScale
 from hac_ros.core.ground import GroundModel
-from hac_ros.core.humans import RootFilter
+from hac_ros.core.human_filter import RootFilter
 from hac_ros.core.layouts import layout_from_params
-from hac_ros.core.metric import MetricStage, StageConfig
+from hac_ros.core.metric_stage import MetricStage, StageConfig
 from hac_ros.core.numeric import MEDIAN_STD_ERROR, NS
-from hac_ros.core.outputs import (REASONS, NoticeOut, Output, PendingFrame, PendingMap,
-                                  PendingOdometry, PendingSegment, PendingStatus, ResetOut,
-                                  SampleOut, Status)
+from hac_ros.core.outputs import (
+    REASONS,
+    NoticeOut,
+    Output,
+    PendingFrame,
+    PendingMap,
+    PendingOdometry,
+    PendingSegment,
+    PendingStatus,
+    ResetOut,
+    SampleOut,
+    Status,
+)
 from hac_ros.core.params import HacParams
-from hac_ros.core.poses import Pose, PoseTrack
+from hac_ros.core.pose_stream import Pose, PoseTrack
 from hac_ros.core.reference import MapIndex
 from hac_ros.core.sample import Scene, person_sample
 from hac_ros.core.services import ServiceRequests
@@ -97,7 +107,7 @@ class Calibrator:
         self.conventions = Conventions(p.pose_to_optical, p.hmr_focal_px, self.layout)
         self.check = ConventionCheck()  # warns when the geometry says a convention is wrong
         # what depends on the published scale: the segments' placements, the continuous
-        # odometry, the cloud (hac_ros.core.metric)
+        # odometry, the cloud (hac_ros.core.metric_stage)
         self.metric = MetricStage(StageConfig.from_params(p),
                                   RootFilter(self.layout) if p.human_filter == 'smooth' else None)
 

@@ -13,7 +13,6 @@ from hac_ros.core.layouts import JointLayout
 from hac_ros.core.outputs import NoticeOut
 
 
-
 def optical_rotation(pose_to_optical: list[float]) -> np.ndarray | None:
     """R(q) (3, 3), the camera optical frame in the SLAM pose's child frame (q = x, y, z, w); None
     for the identity (the SLAM publishes optical-frame poses)."""

@@ -44,7 +44,7 @@ from hac_ros.core.outputs import Output, PendingFrame, PendingOdometry, ResetOut
 
 if TYPE_CHECKING:
     from hac_ros.core.ground import Plane
-    from hac_ros.core.metric import MetricStage, ScaleAt
+    from hac_ros.core.metric_stage import MetricStage, ScaleAt
     from hac_ros.core.params import HacParams
 
 # A window median this many standard errors from the segment median is not noise. With one window
@@ -186,7 +186,7 @@ def resolve_offline(stage: 'MetricStage', params: 'HacParams', batches: Sequence
     metric frame).
 
     stage: a fresh stage of the run's calibrator (``calibrator.metric.fresh()``; it keeps the
-    segments for :meth:`~hac_ros.core.metric.MetricStage.status`); batches: the calibrator's
+    segments for :meth:`~hac_ros.core.metric_stage.MetricStage.status`); batches: the calibrator's
     outputs (made with ``defer_metric``) in the lists its calls returned. Returns the resolved
     lists and the schedule (None with ``scale_at``).
     """

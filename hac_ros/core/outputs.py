@@ -191,7 +191,7 @@ class NoticeOut:
 
 # ---------------------------------------------------------------------------- deferred outputs
 # A calibrator made with ``defer_metric=True`` returns these in place of the metric outputs; the
-# metric stage resolves them once the scale of every stamp is known (hac_ros.core.metric).
+# metric stage resolves them once the scale of every stamp is known (hac_ros.core.metric_stage).
 
 @dataclass(slots=True)
 class PendingSegment:

@@ -4,8 +4,8 @@
 recording with SPEC's input and ground-truth topics, ``feed_scenario`` feeds them to a Calibrator.
 """
 from hac_ros.simulate.feed import feed_scenario, scenario_events
-from hac_ros.simulate.recording import write_recording
 from hac_ros.simulate.scenarios import SCENARIOS, Scenario, make_scenario
+from hac_ros.simulate.writer import write_recording
 
 __all__ = ['SCENARIOS', 'Scenario', 'feed_scenario', 'make_scenario', 'scenario_events',
            'write_recording']

@@ -14,9 +14,9 @@ import numpy as np
 from hac_ros.core.errors import HacError
 from hac_ros.core.layouts import BUILT_IN
 from hac_ros.simulate import camera as rigs
-from hac_ros.simulate import humans
+from hac_ros.simulate import motions
 from hac_ros.simulate.hmr import DepthBias, draw_bias, in_view, predict
-from hac_ros.simulate.layouts import to_layout
+from hac_ros.simulate.skeletons import to_layout
 from hac_ros.simulate.slam import MapMessage, run_slam
 from hac_ros.simulate.world import Box, World, room
 
@@ -141,31 +141,31 @@ def make_scenario(name: str, seed: int = 0, duration: float | None = None, rate:
     people: list[np.ndarray]
     if name == 'stairs':
         _stairs(world)
-        people = [humans.gait(t, humans.shuttle_path((-4.0, 0.0), (4.0, 0.0), 1.0), world)]
+        people = [motions.gait(t, motions.shuttle_path((-4.0, 0.0), (4.0, 0.0), 1.0), world)]
     elif name == 'handstand':
-        people = [humans.handstand(t, humans.circle_path((0.0, 0.0), 2.5, 0.5), world)]
+        people = [motions.handstand(t, motions.circle_path((0.0, 0.0), 2.5, 0.5), world)]
     elif name == 'skate':
-        people = [humans.skate(t, humans.circle_path((0.0, 0.0), 3.0, 1.5))]
+        people = [motions.skate(t, motions.circle_path((0.0, 0.0), 3.0, 1.5))]
     elif name == 'occluded':
         for k in range(4):  # a row of tables between the camera and the walker
             x0 = -5.0 + 2.6 * k
             world.boxes.append(Box(np.array([x0, -0.3, 0.0]), np.array([x0 + 2.0, 0.9, 0.75]), 1.5))
-        people = [humans.gait(t, humans.shuttle_path((-4.5, 1.6), (4.5, 1.6), 1.0), world)]
+        people = [motions.gait(t, motions.shuttle_path((-4.5, 1.6), (4.5, 1.6), 1.0), world)]
     elif name == 'crowd':
-        people = [humans.gait(t, humans.circle_path((0.0, 0.0), 3.0, 1.1), world),
-                  humans.gait(t, humans.circle_path((0.0, 0.0), 1.8, 0.9, phase=2.0), world, 0.2),
-                  humans.gait(t, humans.shuttle_path((-4.0, -4.0), (4.0, -1.0), 1.2), world, 0.35)]
+        people = [motions.gait(t, motions.circle_path((0.0, 0.0), 3.0, 1.1), world),
+                  motions.gait(t, motions.circle_path((0.0, 0.0), 1.8, 0.9, phase=2.0), world, 0.2),
+                  motions.gait(t, motions.shuttle_path((-4.0, -4.0), (4.0, -1.0), 1.2), world, 0.35)]
     elif name == 'ego':
         world.floor_texture = 0.08  # a plain floor: sparsely mapped
-        people = [humans.gait(t, humans.circle_path((0.0, 0.0), 3.2, 1.0), world)]
+        people = [motions.gait(t, motions.circle_path((0.0, 0.0), 3.2, 1.0), world)]
     else:  # walk, drift, reset, static
-        people = [humans.gait(t, humans.circle_path((0.0, 0.0), 3.0, 1.1), world)]
+        people = [motions.gait(t, motions.circle_path((0.0, 0.0), 3.0, 1.1), world)]
     heights = body_rng.uniform(*(HAND_HEIGHT_M if name == 'handstand' else SOLE_HEIGHT_M),
                                len(people))
     for person, height in zip(people, heights):
         person[:, :, 2] += height  # the contact joint stands ``height`` above its surface
     if motion is not None:
-        people[0] = humans.load_motion(motion, t)
+        people[0] = motions.load_motion(motion, t)
         heights[0] = math.nan
 
     root = people[0][:, 0]

@@ -1,0 +1,1 @@
+"""Between ROS messages and the core: inputs into the Calibrator, its outputs as messages."""

@@ -1,0 +1,256 @@
+"""Calibrator outputs → serialized ROS messages, shared by the node and the replay.
+
+Both shells call :meth:`OutputMessages.convert` on every output of the
+:class:`~hac_ros.core.calibrator.Calibrator` and publish (``Publisher.publish(bytes)``) or write
+what comes back, so that the same recording gives the same bytes online and replayed. The messages
+are encoded straight from numpy by :mod:`msg_adapters.cdr_write` (the same bytes as building the
+message objects and serializing them, at a fraction of the cost). Topics and types: SPEC, "Outputs".
+
+Topic names are relative (a namespaced node moves them all) except ``/diagnostics``; the replay
+writes them resolved against ``/`` (:func:`in_root`).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from hac_ros.core.layouts import layout_from_params
+from hac_ros.core.outputs import (
+    CloudOut,
+    DiagnosticsOut,
+    HumanJointsOut,
+    OdometryOut,
+    Output,
+    PoseOut,
+    SampleOut,
+    ScaleOut,
+    Status,
+)
+from hac_ros.core.params import POSE_MSGTYPES, HacParams
+from msg_adapters import cdr_write
+from msg_adapters.poses import matrix_to_quat
+
+ODOMETRY = ('hac/odometry', 'nav_msgs/msg/Odometry')
+POSE = ('hac/pose', 'geometry_msgs/msg/PoseWithCovarianceStamped')
+HUMAN_JOINTS = ('hac/human_joints', 'geometry_msgs/msg/PoseArray')
+SCALE = ('hac/scale', 'std_msgs/msg/Float64')
+CLOUD = ('hac/cloud', 'sensor_msgs/msg/PointCloud2')
+OBSTACLES = ('hac/obstacles', 'sensor_msgs/msg/PointCloud2')  # publish_obstacles
+MARKERS = ('hac/markers', 'visualization_msgs/msg/MarkerArray')
+DIAGNOSTICS = ('/diagnostics', 'diagnostic_msgs/msg/DiagnosticArray')
+OUTPUT_TOPICS = (ODOMETRY, POSE, HUMAN_JOINTS, SCALE, CLOUD, OBSTACLES, MARKERS, DIAGNOSTICS)
+LATCHED_TOPICS = (CLOUD[0], OBSTACLES[0])  # reliable + transient local: late subscribers get them
+# Replay-only topic (not published by the node): one message per processed frame, at its stamp.
+# data = [person, scale, source, accepted] per person, scale in metres per SLAM unit (NaN when
+# rejected), source 0 = map hit, 1 = ground-plane fallback, 2 = rejected.
+SAMPLES = ('hac/samples', 'std_msgs/msg/Float64MultiArray')
+# Inputs (SPEC, ROS 2 interface): kind -> message type; the pose's is the pose_type parameter's
+INPUT_MSGTYPES = {'joints': 'geometry_msgs/msg/PoseArray', 'cloud': 'sensor_msgs/msg/PointCloud2',
+                  'camera_info': 'sensor_msgs/msg/CameraInfo'}
+
+
+def input_msgtype(kind: str, pose_type: str) -> str:
+    """The message type of input ``kind`` ('pose', 'joints', 'cloud', 'camera_info')."""
+    return POSE_MSGTYPES[pose_type] if kind == 'pose' else INPUT_MSGTYPES[kind]
+SAMPLE_FIELDS = 4
+SAMPLE_LABEL = 'person,scale,source(0 map 1 ground 2 rejected),accepted'
+SOURCE_CODES = {'map': 0.0, 'ground': 1.0}
+SOURCE_REJECTED = 2.0
+
+DIAGNOSTIC_NAME = 'hac_ros: scale estimator'
+PATH_LENGTH = 600  # camera positions kept for the path marker
+# The camera path (600 points, 14 kB) and the ground plane are re-sent at most once per this much
+# stamp time, the skeletons every frame: RViz keeps a marker until it is replaced (lifetime 0).
+SLOW_MARKERS_PERIOD_NS = 1_000_000_000
+PLANE_SIZE_M = 8.0  # side of the ground-plane marker, metres
+PLANE_THICKNESS_M = 0.01
+LINE_STRIP, LINE_LIST, CUBE = 4, 5, 1
+ADD = 0
+DIAG_OK, DIAG_WARN = 0, 1
+SKELETON_RGBA = (0.1, 0.9, 0.2, 1.0)
+PATH_RGBA = (0.2, 0.4, 1.0, 1.0)
+PLANE_RGBA = (0.6, 0.6, 0.6, 0.4)
+SKELETON_WIDTH_M, PATH_WIDTH_M = 0.03, 0.02
+
+
+def in_root(topic: str) -> str:
+    """A topic name resolved in the root namespace (``hac/pose`` -> ``/hac/pose``), as the replay
+    writes and reads it; absolute names are kept. ``~`` (private) names have no meaning there."""
+    if topic.startswith('~'):
+        raise ValueError(f'{topic!r}: a private (~) topic name needs a node')
+    return topic if topic.startswith('/') else '/' + topic
+
+
+@dataclass
+class Message:
+    """One serialized message to publish or write: topic (relative, see :func:`in_root`), type
+    name, CDR bytes, stamp (log time)."""
+
+    topic: str
+    msgtype: str
+    msg: bytes
+    stamp_ns: int
+
+
+class OutputMessages:
+    """Serializes the outputs; keeps the little state markers need (the camera path, the plane)."""
+
+    def __init__(self, params: HacParams) -> None:
+        self.params = params
+        self._path = np.empty((PATH_LENGTH, 3))  # ring buffer of camera positions, metres
+        self._path_count = 0
+        self._status: Status | None = None
+        self._plane: tuple[Status, np.ndarray] | None = None  # (status, pose (7,)) of the plane
+        self._slow_sent_ns: int | None = None  # stamp of the last path and plane markers sent
+
+    @property
+    def params(self) -> HacParams:
+        return self._params
+
+    @params.setter
+    def params(self, params: HacParams) -> None:
+        """The parameters; a new set (the node's runtime change) also renews what derives from
+        them: the skeleton marker's LINE_LIST point order, the layout's bones (parent, child)."""
+        self._params = params
+        self._bone_joints = np.array(layout_from_params(params).edges, dtype=int).reshape(-1)
+
+    def convert(self, output: Output) -> list[Message]:
+        """The messages of one calibrator output (none for samples, notices and resets)."""
+        frame = self.params.metric_frame
+        stamp = output.stamp_ns if not isinstance(output, DiagnosticsOut) else output.status.stamp_ns
+        if isinstance(output, PoseOut):
+            self._path[self._path_count % PATH_LENGTH] = output.position_metric
+            self._path_count += 1
+            data = cdr_write.pose_with_covariance_stamped(
+                stamp, frame, output.position_metric, matrix_to_quat(output.rotation_metric),
+                output.covariance)
+            return [Message(*POSE, data, stamp)]
+        if isinstance(output, OdometryOut):
+            data = cdr_write.odometry(stamp, self.params.odom_frame, output.child_frame_id,
+                                      output.position_metric, matrix_to_quat(output.rotation_metric),
+                                      output.covariance, output.linear_velocity,
+                                      output.angular_velocity, output.twist_covariance)
+            return [Message(*ODOMETRY, data, stamp)]
+        if isinstance(output, CloudOut):
+            msgs = [Message(*CLOUD, cdr_write.point_cloud_xyz32(stamp, frame, output.points_metric),
+                            stamp)]
+            if self.params.publish_obstacles and output.levelled:
+                z = output.points_metric[:, 2]
+                band = (z >= self.params.obstacle_min_height) & (z <= self.params.obstacle_max_height)
+                msgs.append(Message(*OBSTACLES, cdr_write.point_cloud_xyz32(
+                    stamp, frame, output.points_metric[band]), stamp))
+            return msgs
+        if isinstance(output, HumanJointsOut):
+            msgs = [Message(*HUMAN_JOINTS, cdr_write.pose_array(stamp, frame, output.joints_metric),
+                            stamp)]
+            if self.params.publish_markers:
+                msgs.append(Message(*MARKERS, self.markers(output), stamp))
+            return msgs
+        if isinstance(output, ScaleOut):
+            return [Message(*SCALE, cdr_write.float64(output.scale), stamp)]
+        if isinstance(output, DiagnosticsOut):
+            self._status = output.status
+            return [Message(*DIAGNOSTICS, self.diagnostics(output.status), stamp)]
+        return []
+
+    # ------------------------------------------------------------------ diagnostics
+    def diagnostics(self, status: Status) -> bytes:
+        """/diagnostics: one DiagnosticStatus with the estimator's state as key-values."""
+        values = [
+            ('converged', str(status.converged).lower()),
+            ('scale', f'{status.scale:.9g}'),
+            ('spread', f'{status.spread:.9g}'),
+            ('samples', str(status.samples)),
+            ('frames', str(status.frames)),
+            ('people', str(status.people)),
+            ('map_hits', str(status.map_hits)),
+            ('ground_fallbacks', str(status.ground_fallbacks)),
+            ('fallback_rate', f'{status.fallback_rate:.4f}'),
+            ('resets', str(status.resets)),
+            ('map_points', str(status.map_points)),
+            ('drifting', str(status.drifting).lower()),
+            ('frozen', str(status.frozen).lower()),
+            ('alignment', status.alignment),
+            ('rejected_total', str(sum(status.rejected.values()))),
+        ]
+        values += [(f'service.{name}', str(count)) for name, count in sorted(status.services.items())]
+        values += [(f'rejected.{reason}', str(count))
+                   for reason, count in sorted(status.rejected.items())]
+        level = DIAG_OK if status.converged else DIAG_WARN
+        message = (f'converged: scale {status.scale:.6g} +- {status.spread:.2g}' if status.converged
+                   else f'not converged: {status.samples} samples')
+        if status.frozen:
+            message += ' (frozen)'
+        values += [(f'suspect.{key}', text) for key, text in sorted(status.suspects.items())]
+        if status.suspects:
+            level = DIAG_WARN
+            message += '; inputs suspect: ' + ', '.join(sorted(status.suspects))
+        if status.alignment == 'slam' and self.params.metric_frame_alignment == 'gravity':
+            level = DIAG_WARN
+            message += '; metric frame: SLAM axes (no usable ground normal)'
+
+        return cdr_write.diagnostic_array(
+            status.stamp_ns, '', [(level, DIAGNOSTIC_NAME, message, self.params.metric_frame, values)])
+
+    # ------------------------------------------------------------------ markers
+    def markers(self, output: HumanJointsOut) -> bytes:
+        """Skeletons (one LINE_LIST per person) every frame; the camera path and the ground plane
+        with the first frame and then at most once per SLOW_MARKERS_PERIOD_NS of stamp time."""
+        stamp, frame = output.stamp_ns, self.params.metric_frame
+        people = [(person, joints) for person, joints in enumerate(output.joints_metric)
+                  if np.isfinite(joints).all()]
+        path, plane = _NO_POINTS, None
+        last = self._slow_sent_ns
+        if last is None or not 0 <= stamp - last < SLOW_MARKERS_PERIOD_NS:
+            path, plane = self._path_points(), self._plane_pose()
+            if len(path) >= 2 or plane is not None:
+                self._slow_sent_ns = stamp
+        w = cdr_write.CdrWriter()
+        w.u32(len(people) + (len(path) >= 2) + (plane is not None))
+        for person, joints in people:
+            cdr_write.marker(w, stamp, frame, 'skeleton', person, LINE_LIST, ADD,
+                             cdr_write.IDENTITY_POSE, (SKELETON_WIDTH_M, 0.0, 0.0), SKELETON_RGBA,
+                             joints[self._bone_joints])
+        if len(path) >= 2:
+            cdr_write.marker(w, stamp, frame, 'camera_path', 0, LINE_STRIP, ADD,
+                             cdr_write.IDENTITY_POSE, (PATH_WIDTH_M, 0.0, 0.0), PATH_RGBA, path)
+        if plane is not None:
+            cdr_write.marker(w, stamp, frame, 'ground_plane', 0, CUBE, ADD, plane,
+                             (PLANE_SIZE_M, PLANE_SIZE_M, PLANE_THICKNESS_M), PLANE_RGBA)
+        return w.bytes()
+
+    def _path_points(self) -> np.ndarray:
+        """The last PATH_LENGTH camera positions (N, 3), metres, oldest first."""
+        n = self._path_count
+        if n <= PATH_LENGTH:
+            return self._path[:n]
+        start = n % PATH_LENGTH
+        return np.concatenate([self._path[start:], self._path[:start]])
+
+    def _plane_pose(self) -> np.ndarray | None:
+        """Pose (7,) of the ground-plane marker: a thin box whose z axis is the plane's normal."""
+        status = self._status
+        if status is None or status.ground_point_metric is None:
+            return None
+        if self._plane is None or self._plane[0] is not status:
+            from scipy.spatial.transform import Rotation
+
+            normal = np.asarray(status.ground_normal_metric, dtype=float)
+            quat = Rotation.align_vectors([normal], [[0.0, 0.0, 1.0]])[0].as_quat()
+            self._plane = (status, np.concatenate([status.ground_point_metric, quat]))
+        return self._plane[1]
+
+
+_NO_POINTS = np.empty((0, 3))
+
+
+def samples_message(samples: list[SampleOut]) -> bytes:
+    """The /hac/samples message of one frame (see :data:`SAMPLES`)."""
+    data = np.empty(SAMPLE_FIELDS * len(samples))
+    for k, s in enumerate(samples):
+        code = SOURCE_CODES.get(s.source, SOURCE_REJECTED) if math.isfinite(s.scale) else SOURCE_REJECTED
+        data[SAMPLE_FIELDS * k:SAMPLE_FIELDS * (k + 1)] = (s.person, s.scale, code, float(s.accepted))
+    dims = [('sample', len(samples), len(data)), (SAMPLE_LABEL, SAMPLE_FIELDS, SAMPLE_FIELDS)]
+    return cdr_write.float64_multi_array(dims, data)

@@ -1,0 +1,1 @@
+"""Plain files: TUM trajectories, maps and joints in (``hac import``), arrays out (``hac export``)."""

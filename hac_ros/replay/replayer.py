@@ -1,0 +1,310 @@
+"""The replay: a recording's inputs through the node's core, its outputs into a new recording.
+
+:func:`replay` reads a recording (:mod:`hac_ros.recording`), feeds every input message to a
+:class:`~hac_ros.core.calibrator.Calibrator` as ``hac_node`` does (:mod:`hac_ros.replay.feeder`), converts the outputs with the node's :class:`~hac_ros.bridge.messages.OutputMessages`
+and writes them, each logged at its header stamp.
+
+Modes (docs/replay.md):
+
+- ``online``: what the node publishes, frame by frame (causal).
+- ``offline`` (default): one run of the calibrator with its metric outputs deferred
+  (:mod:`hac_ros.core.metric_stage`) keeps its accepted samples and its resets;
+  :mod:`hac_ros.core.offline` turns them into a stamp -> scale schedule per segment (the median,
+  or a centred rolling median where the scale drifts); the deferred outputs are then resolved with
+  that schedule and written (what a second run with that schedule would publish, without reading
+  the recording or indexing its maps again).
+
+OUT appears atomically (:class:`~hac_ros.recording.writer.staged_output`) and IN is only ever read. Besides
+SPEC's output topics the replay writes ``/hac/samples`` (per-frame scale samples, for
+``hac plot``; see :data:`~hac_ros.bridge.messages.SAMPLES`).
+"""
+from __future__ import annotations
+
+import math
+import sys
+import time
+from collections import Counter
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+from hac_ros.bridge.messages import (
+    CLOUD,
+    LATCHED_TOPICS,
+    MARKERS,
+    OBSTACLES,
+    OUTPUT_TOPICS,
+    SAMPLES,
+    Message,
+    OutputMessages,
+    in_root,
+    samples_message,
+)
+from hac_ros.core.calibrator import Calibrator
+from hac_ros.core.errors import HacError
+from hac_ros.core.human_filter import smooth_outputs
+from hac_ros.core.metric_stage import finite_scale
+from hac_ros.core.numeric import NS
+from hac_ros.core.offline import OfflineScale, resolve_offline
+from hac_ros.core.outputs import NoticeOut, Output, PoseOut, ResetOut, SampleOut, Status
+from hac_ros.core.params import HacParams
+from hac_ros.recording.reader import STORAGES, Recording, layout_data
+from hac_ros.recording.writer import OutputWriter, check_output_path, staged_output
+from hac_ros.replay.feeder import CoreFeeder, InputTopics
+
+MODES = ('offline', 'online')
+
+
+# ============================================================================ writing outputs
+class OutputHandler:
+    """Writes the messages of the calibrator's outputs and keeps what the summary needs."""
+
+    def __init__(self, params: HacParams, writer: OutputWriter | None, printer: 'NoticePrinter',
+                 keep_poses: bool = False) -> None:
+        self.messages = OutputMessages(params)
+        self.writer = writer
+        self.printer = printer
+        self.resets: list[ResetOut] = []
+        self.poses: list[PoseOut] | None = [] if keep_poses else None  # /hac/pose, for TUM
+
+    def __call__(self, outputs: list[Output]) -> None:
+        frame_samples: list[SampleOut] = []
+        for output in outputs:
+            if isinstance(output, NoticeOut):
+                self.printer(output)
+                continue
+            if isinstance(output, SampleOut):
+                if frame_samples and frame_samples[-1].stamp_ns != output.stamp_ns:
+                    self._write_samples(frame_samples)
+                    frame_samples = []
+                frame_samples.append(output)
+                continue
+            if isinstance(output, ResetOut):
+                self.resets.append(output)
+                continue
+            if isinstance(output, PoseOut) and self.poses is not None:
+                self.poses.append(output)
+            for message in self.messages.convert(output):
+                self._write(message)
+        if frame_samples:
+            self._write_samples(frame_samples)
+
+    def _write(self, message: Message) -> None:
+        if self.writer is not None:
+            self.writer.write(in_root(message.topic), message.msgtype, message.stamp_ns, message.msg)
+
+    def _write_samples(self, samples: list[SampleOut]) -> None:
+        self._write(Message(*SAMPLES, samples_message(samples), samples[0].stamp_ns))
+
+
+class NoticePrinter:
+    """Prints each NoticeOut once to stderr (a notice repeated with the same stamp and text is not)."""
+
+    def __init__(self, stream: Any = None, start_ns: int = 0) -> None:
+        self.stream = stream
+        self.start_ns = start_ns  # stamps are printed relative to the recording's start
+        self.seen: set[tuple[int, str, str]] = set()
+        self.counts: Counter[str] = Counter()
+
+    def __call__(self, notice: NoticeOut) -> None:
+        key = (notice.stamp_ns, notice.cause, notice.text)
+        if key in self.seen:
+            return
+        self.seen.add(key)
+        self.counts[notice.cause] += 1
+        when = f'{_seconds(notice.stamp_ns, self.start_ns)} ' if notice.stamp_ns >= 0 else ''
+        self.line(f'hac replay: {notice.level}: {when}{notice.text}')
+
+    def line(self, text: str) -> None:
+        """A line on the stream that does not break an active progress bar."""
+        from tqdm import tqdm
+
+        tqdm.write(text, file=self.stream or sys.stderr)
+
+
+def _seconds(stamp_ns: int, start_ns: int) -> str:
+    """A stamp as seconds into the recording (its absolute value would be unreadable)."""
+    return f't+{(stamp_ns - start_ns) / NS:.3f} s'
+
+
+# ============================================================================ the replay
+@dataclass
+class ReplaySummary:
+    """What ``hac replay`` did; printed at the end and returned to callers (tests, the demo)."""
+
+    mode: str
+    input_path: Path
+    output_path: Path
+    status: Status
+    wall_s: float
+    input_messages: int
+    outputs: dict[str, int]
+    resets: list[ResetOut] = field(default_factory=list)
+    offline: OfflineScale | None = None
+    tum: dict[str, Path] = field(default_factory=dict)
+    start_ns: int = 0  # the recording's first log time: times are printed relative to it
+
+    @property
+    def frames_per_s(self) -> float:
+        return self.status.frames / self.wall_s if self.wall_s > 0 else math.inf
+
+    def text(self) -> str:
+        s = self.status
+        lines = [f'hac replay ({self.mode}): {self.input_path} -> {self.output_path}',
+                 f'  frames {s.frames}, people {s.people}, input messages {self.input_messages}']
+        if self.offline is not None:
+            for k, segment in enumerate(self.offline.segments):
+                lines.append(f'  segment {k} (from {_seconds(segment.start_ns, self.start_ns)}): '
+                             f'{segment.describe()}')
+        lines.append(f'  final scale {s.scale:.6g} m/SLAM unit, spread {s.spread:.3g} '
+                     f'({s.samples} samples in the window, '
+                     f'{"converged" if s.converged else "not converged"})')
+        lines.append(f'  fallback rate {100 * s.fallback_rate:.1f} % (map hits {s.map_hits}, '
+                     f'ground plane {s.ground_fallbacks})')
+        rejected = ', '.join(f'{k} {v}' for k, v in sorted(s.rejected.items())) or 'none'
+        lines.append(f'  rejected: {rejected}')
+        resets = ', '.join(f'{r.cause} at {_seconds(r.stamp_ns, self.start_ns)}'
+                           for r in self.resets) or 'none'
+        lines.append(f'  resets {s.resets}: {resets}')
+        lines.append('  written: ' + (', '.join(f'{t} {n}' for t, n in sorted(self.outputs.items()))
+                                      or 'nothing'))
+        for kind, path in self.tum.items():
+            lines.append(f'  TUM {kind}: {path}')
+        lines.append(f'  wall time {self.wall_s:.2f} s, {self.frames_per_s:.0f} frames/s')
+        return '\n'.join(lines)
+
+
+def replay(input_path: str | Path, output_path: str | Path, params: HacParams | None = None,
+           mode: str = 'offline', storage: str = 'mcap', copy_inputs: bool = False,
+           export_tum: str | Path | None = None, progress: bool | None = None,
+           notices: Any = None, pose_type: str | None = None) -> ReplaySummary:
+    """Calibrate the recording at ``input_path`` into a new recording at ``output_path``.
+
+    mode: ``offline`` or ``online`` (module docstring); storage: of OUT, ``mcap`` or ``sqlite3``;
+    copy_inputs: every topic of IN is copied into OUT too; export_tum: a directory for TUM files
+    (:func:`hac_ros.files.tum.write_tum_exports`); progress: a bar on stderr (default: when it is a
+    terminal); notices: the stream notices are printed on (default stderr); pose_type:
+    ``PoseStamped`` or ``Odometry`` overrides the SLAM pose type read from IN (``--pose-type``).
+    Raises :class:`HacError` (OUT exists, IN missing or unreadable, missing topics, ...). On any
+    error or KeyboardInterrupt nothing is left at ``output_path``.
+    """
+    from hac_ros.files.tum import write_tum_exports
+
+    params = params or HacParams()
+    if mode not in MODES:
+        raise HacError(f'--mode must be offline or online, not {mode!r}')
+    if storage not in STORAGES:
+        raise HacError(f'--storage must be one of {", ".join(STORAGES)}, not {storage!r}')
+    input_path, output_path = Path(input_path), Path(output_path)
+    check_output_path(input_path, output_path)
+    if progress is None:
+        progress = sys.stderr.isatty()
+    start = time.perf_counter()
+    with Recording(input_path) as recording:
+        topics = InputTopics.check(recording, params, pose_type)
+        start_ns = recording.start_ns
+        printer = NoticePrinter(notices, start_ns)
+        if params.camera_info_topic and not topics.camera_info:
+            printer.line(f'hac replay: note: no {params.camera_info_topic} in the recording: '
+                         'joints are judged in view by the map cone alone')
+        n_inputs = sum(recording.counts.get(t, 0) for t in topics.kinds())
+        n_pass = sum(recording.counts.values()) if copy_inputs else n_inputs
+        schedule = None
+        calibrator = Calibrator(params, defer_metric=mode == 'offline')
+        with staged_output(output_path) as staged:
+            writer = OutputWriter(staged, storage, layout_data(calibrator.layout))
+            try:
+                handler = OutputHandler(params, writer, printer, keep_poses=export_tum is not None)
+                off = {MARKERS[0]: not params.publish_markers, CLOUD[0]: not params.publish_cloud,
+                       OBSTACLES[0]: not (params.publish_cloud and params.publish_obstacles)}
+                for topic, msgtype in (*OUTPUT_TOPICS, SAMPLES):
+                    if not off.get(topic, False):
+                        writer.connection(in_root(topic), msgtype,
+                                          latched=topic in LATCHED_TOPICS)
+                feeder = CoreFeeder(recording, topics, calibrator,
+                                    keep_poses=export_tum is not None)
+                on_message = _input_copier(recording, writer) if copy_inputs else None
+                if mode == 'online':
+                    with _progress(progress, n_pass, 'replay') as bar:
+                        feeder.run(handler, on_message=on_message, progress=bar)
+                    status = feeder.calibrator.status()
+                else:
+                    status, schedule = _offline(feeder, handler, on_message, progress, n_pass)
+            finally:
+                writer.close()
+            tum: dict[str, Path] = {}
+            if export_tum is not None:
+                tum = write_tum_exports(Path(export_tum), handler.poses or [], feeder.poses or [],
+                                        recording)
+    return ReplaySummary(mode, input_path, output_path, status, time.perf_counter() - start,
+                         n_inputs, dict(writer.counts), list(handler.resets), schedule, tum,
+                         start_ns)
+
+
+def _offline(feeder: CoreFeeder, handler: OutputHandler,
+             on_message: Callable[[str, int, Any], None] | None, progress: bool,
+             n_pass: int) -> tuple[Status, OfflineScale]:
+    """The offline mode: one run of the calibrator with its metric outputs deferred, the schedule
+    from its accepted samples and resets, then the deferred outputs resolved with the schedule and
+    written (hac_ros.core.metric_stage: the same outputs as a second run with that schedule would give).
+
+    Memory: the run's outputs are kept until the schedule is known (about 1.9 kB per frame of one
+    person, docs/replay.md).
+    """
+    recorded: list[list[Output]] = []
+    with _progress(progress, n_pass, 'estimate') as bar:
+        feeder.run(recorded.append, on_message=on_message, progress=bar)
+    calibrator = feeder.calibrator
+    stage = calibrator.metric.fresh()
+    resolved, schedule = resolve_offline(stage, calibrator.params, recorded)
+    assert schedule is not None
+    recorded.clear()
+    if calibrator.params.human_filter == 'smooth':
+        smooth_outputs([o for outputs in resolved for o in outputs], calibrator.layout)
+    with _progress(progress, len(resolved), 'write') as bar:
+        for outputs in resolved:
+            handler(outputs)
+            if bar is not None:
+                bar.update(1)
+    pending = calibrator.pending_status()
+    return stage.status(pending, finite_scale(schedule(pending.status.stamp_ns))), schedule
+
+
+def _input_copier(recording: Recording, writer: OutputWriter) -> Callable[[str, int, Any], None]:
+    """--copy-inputs: every input topic passes into OUT unchanged, at its log time.
+
+    A topic of IN with an output topic's name (IN is itself a replay) is not copied, nor a ROS 1
+    topic whose type ROS 2 Jazzy does not have.
+    """
+    ours = {in_root(t) for t, _ in (*OUTPUT_TOPICS, SAMPLES)}
+    typestore = recording.typestore
+    if not recording.is_ros2:
+        ours |= {t for t, msgtype in recording.topics.items() if msgtype not in typestore.fielddefs}
+
+    def copy(topic: str, log_ns: int, raw: Any) -> None:
+        if topic in ours:
+            return
+        conn = writer.connection(topic, recording.topics[topic], typestore=typestore)
+        writer.write_raw(conn, log_ns, recording.to_cdr(raw, topic, log_ns))
+    return copy
+
+
+class _progress:
+    """A tqdm bar on a terminal, nothing otherwise."""
+
+    def __init__(self, enabled: bool, total: int, desc: str) -> None:
+        self.enabled, self.total, self.desc = enabled, total, desc
+        self.bar: Any = None
+
+    def __enter__(self) -> Any:
+        if not self.enabled:
+            return None
+        from tqdm import tqdm
+
+        self.bar = tqdm(total=self.total, desc=self.desc, unit='msg', file=sys.stderr,
+                        dynamic_ncols=True, leave=False, mininterval=0.2)
+        return self.bar
+
+    def __exit__(self, *exc: Any) -> None:
+        if self.bar is not None:
+            self.bar.close()

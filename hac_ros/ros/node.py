@@ -1,0 +1,495 @@
+"""``hac_node``: the ROS 2 node, a thin shell around :class:`~hac_ros.core.calibrator.Calibrator`.
+
+It subscribes to the SLAM pose, the SLAM map cloud, the HMR joints and (optionally) the CameraInfo,
+forwards every message to the calibrator with its header stamp, and publishes exactly the messages
+:class:`~hac_ros.bridge.messages.OutputMessages` makes of the calibrator's outputs (the same messages
+``hac replay`` writes). It has no estimation logic of its own; SPEC, "ROS 2 interface" and
+"Processing order", and ``docs/node.md``.
+
+Threads. Everything that touches the calibrator runs on the executor's thread. The only other
+thread is the map builder (:class:`hac_ros.bridge.inputs.MapBuilder`, as in the replay): a map cloud
+arrives as raw CDR bytes, its header is read on the executor thread (microseconds), and decoding
+the points and building the :class:`MapIndex` (k-d tree) happen on the builder thread, so a
+1M-point map does not stall the frames. The finished index is handed to the calibrator on the
+executor's thread (the builder triggers a guard condition when a map is done). **While a map is
+being built, frames use the latest map already handed over** (the previous one); the new map is
+used from the first frame processed after it is ready whose stamp is not before the map's stamp.
+This is the one place where the node may differ from ``hac replay``, which always has the map at
+its stamp.
+
+Names. Topics are relative (``slam/pose`` in, ``hac/pose`` out: a namespace moves them all),
+``/diagnostics`` and ``/tf`` absolute, the services private: ``~/reset``, ``~/freeze``.
+
+Run: ``ros2 run hac_ros hac_node --ros-args --params-file config/hac.yaml`` or
+``python -m hac_ros.ros.node --ros-args ...``; the managed variant is ``hac_lifecycle_node``
+(:mod:`hac_ros.ros.lifecycle_node`).
+"""
+from __future__ import annotations
+
+import signal
+import sys
+import traceback
+from collections import Counter, deque
+from concurrent.futures import Future
+from typing import Any, Callable, Sequence
+
+import rclpy
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.event_handler import SubscriptionEventCallbacks
+from rclpy.exceptions import (
+    InvalidParameterTypeException,
+    InvalidParameterValueException,
+    ParameterException,
+)
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import qos_policy_name_from_kind
+from rclpy.serialization import deserialize_message
+from rclpy.signals import SignalHandlerOptions
+
+from hac_ros.bridge.inputs import MapBuilder, add_camera_info_msg, add_joints_msg, add_pose_msg
+from hac_ros.bridge.messages import OUTPUT_TOPICS, OutputMessages, input_msgtype
+from hac_ros.core.calibrator import Calibrator
+from hac_ros.core.errors import ParameterError
+from hac_ros.core.outputs import NoticeOut, OdometryOut, Output, PoseOut, ResetOut
+from hac_ros.core.params import NODE_NAME, POSE_MSGTYPES, HacParams, names
+from hac_ros.core.reference import MapIndex
+from hac_ros.ros.parameters import (
+    RESUBSCRIBE,
+    SHELL_ONLY,
+    TF_PARAMETERS,
+    declare_parameters,
+    unknown_overrides,
+)
+from hac_ros.ros.qos import cloud_qos, input_qos, output_qos, qos_hint
+from hac_ros.ros.tf_broadcast import TfSender
+from msg_adapters import MessageError, RawCloud, parse_cloud_cdr, rclpy_types
+
+TYPES = rclpy_types()  # rclpy's message classes by ROS name
+# Environment variables naming a Fast DDS XML profile (config/fastdds_large_data.xml): Fast DDS
+# 2.x reads the first, 3.x the second; read once per process, when rclpy starts
+DDS_PROFILE_VARIABLES = ('FASTRTPS_DEFAULT_PROFILES_FILE', 'FASTDDS_DEFAULT_PROFILES_FILE')
+
+# ---------------------------------------------------------------------------------------- maps
+MAPS_WAITING_MAX = 8  # accumulate mode: clouds waiting for the builder (older ones are dropped)
+GRAPH_CHECK_S = 2.0  # wall seconds between checks of the input topics' publisher types
+
+
+# ---------------------------------------------------------------------------------------- the shell
+class HacShell:
+    """Everything ``hac_node`` does, shared by :class:`HacNode` and the managed
+    :class:`hac_ros.ros.lifecycle_node.HacLifecycleNode`; mixed into an rclpy ``Node``.
+
+    Its life in four steps (the lifecycle's transitions; HacNode takes them all at start-up):
+    :meth:`_declare` (parameters and their callbacks), :meth:`_configure` (reads the parameters,
+    makes the calibrator and the map builder), :meth:`_activate` (publishers, subscriptions,
+    services, TF), :meth:`_deactivate` (drops those and keeps the state) and :meth:`_cleanup`
+    (drops the state).
+    """
+
+    params: HacParams
+    calibrator: Calibrator | None = None
+    active = False
+
+    # ------------------------------------------------------------------ life
+    def _declare(self) -> None:
+        declare_parameters(self)
+        unknown = unknown_overrides(self)
+        if unknown:  # a misspelt name in a parameters file would otherwise be ignored by ROS
+            self.get_logger().warning(f'unknown parameter(s) ignored: {", ".join(unknown)} '
+                                      '(see config/hac.yaml for the names)')
+        self.add_on_set_parameters_callback(self._validate_parameters)
+        self.add_post_set_parameters_callback(self._apply_parameters)
+
+    def _configure(self) -> None:
+        """Reads the parameters (ParameterError with the reason) and makes the state."""
+        values = {name: self.get_parameter(name).value for name in names()}
+        self.params = HacParams().replace(**values)
+        self.calibrator = Calibrator(self.params)
+        self.outputs = OutputMessages(self.params)
+        self.notices: Counter[str] = Counter()  # causes of the NoticeOut logged (once each)
+        self.qos_incompatible: Counter[str] = Counter()  # topics with an incompatible publisher
+        self.clouds_received = 0
+        self.maps_indexed = 0  # map indexes handed to the calibrator
+        self.maps_superseded = 0  # clouds dropped unbuilt: a newer one arrived first
+        self._clouds_rejected = 0  # undecodable clouds
+        self.map_build_s: deque[float] = deque(maxlen=100)  # recent decode+index durations
+        self._camera_info: tuple[Any, int, int] | None = None  # (K, width, height) last valid
+        self._map_index: MapIndex | None = None  # the last index handed to the calibrator
+        self._last_cloud: RawCloud | None = None  # the last cloud received (its bytes are kept)
+        self._failed_callbacks: set[str] = set()
+        self._builder = MapBuilder(self._build_index, workers=1)
+        self._maps_building: deque[Future] = deque()  # in arrival order
+        # a finished map wakes the executor, which hands it to the calibrator on its own thread
+        self._maps_ready = self.create_guard_condition(self._on_maps_ready)
+        self._output_publishers: dict[str, Any] = {}
+        self._subscriptions_by_kind: dict[str, Any] = {}
+        self._hac_services: list[Any] = []
+        self._wrong_types: set[tuple[str, str, str, str]] = set()  # publishers reported
+        self.tf: TfSender | None = None
+
+    def _activate(self) -> None:
+        for topic, msgtype in OUTPUT_TOPICS:
+            self._output_publishers[topic] = self.create_publisher(
+                TYPES.get(msgtype), topic, output_qos(topic))
+        for kind in ('pose', 'joints', 'camera_info', 'cloud'):
+            self._subscribe(kind)
+        self._hac_services = [self.create_service(TYPES.get('std_srvs/srv/Trigger'), '~/reset',
+                                              self._on_reset),
+                          self.create_service(TYPES.get('std_srvs/srv/SetBool'), '~/freeze',
+                                              self._on_freeze)]
+        self._update_tf()
+        self._type_check = self.create_timer(GRAPH_CHECK_S, self._check_input_types)
+        self.active = True
+        p = self.params
+        self.get_logger().info(
+            f'{self.get_name()}: {self.resolve_topic_name(p.pose_topic)} ({p.pose_type}) + '
+            f'{self.resolve_topic_name(p.joints_topic)} + {self.resolve_topic_name(p.cloud_topic)}'
+            f' -> {self.resolve_topic_name("hac")}/* in {p.metric_frame!r} '
+            f'({p.metric_frame_alignment}) and {p.odom_frame!r} (contact_mode {p.contact_mode}, '
+            f'input_qos {p.input_qos}, cloud_qos {p.cloud_qos})')
+
+    def _deactivate(self) -> None:
+        self.active = False
+        for kind in list(self._subscriptions_by_kind):
+            self.destroy_subscription(self._subscriptions_by_kind.pop(kind))
+        for service in self._hac_services:
+            self.destroy_service(service)
+        self._hac_services = []
+        self.destroy_timer(self._type_check)
+        for publisher in self._output_publishers.values():
+            self.destroy_publisher(publisher)
+        self._output_publishers = {}
+        self.tf = None
+
+    def _cleanup(self) -> None:
+        if self.calibrator is None:
+            return
+        self._builder.close()
+        self.destroy_guard_condition(self._maps_ready)
+        self.calibrator = None
+
+    # ------------------------------------------------------------------ subscriptions
+    def _subscribe(self, kind: str) -> None:
+        """(Re-)create the subscription of ``kind`` from the current parameters."""
+        old = self._subscriptions_by_kind.pop(kind, None)
+        if old is not None:
+            self.destroy_subscription(old)
+        p = self.params
+        topic = {'pose': p.pose_topic, 'joints': p.joints_topic,
+                 'camera_info': p.camera_info_topic, 'cloud': p.cloud_topic}[kind]
+        msg_type = TYPES.get(input_msgtype(kind, p.pose_type))
+        qos = cloud_qos(p) if kind == 'cloud' else input_qos(p)
+        raw = kind != 'camera_info'  # deserialized by rclpy only for CameraInfo
+        if not topic:
+            return  # camera_info_topic "" turns it off
+        callback = {'pose': self._on_pose, 'joints': self._on_joints,
+                    'camera_info': self._on_camera_info, 'cloud': self._on_cloud}[kind]
+        events = SubscriptionEventCallbacks(
+            incompatible_qos=lambda info, kind=kind, topic=topic: self._on_incompatible_qos(
+                kind, topic, info),
+            message_lost=lambda info, kind=kind: self._on_message_lost(kind, info))
+        self._subscriptions_by_kind[kind] = self.create_subscription(
+            msg_type, topic, self._guarded(kind, callback), qos, event_callbacks=events, raw=raw)
+
+    def subscription(self, kind: str) -> Any:
+        """The rclpy Subscription of input ``kind`` (``pose``, ``joints``, ``camera_info``,
+        ``cloud``), or None when it is turned off."""
+        return self._subscriptions_by_kind.get(kind)
+
+    def _on_incompatible_qos(self, kind: str, topic: str, info: Any) -> None:
+        policy = qos_policy_name_from_kind(info.last_policy_kind)
+        topic = self.resolve_topic_name(topic)
+        self.qos_incompatible[topic] += 1
+        self.get_logger().warning(
+            f'QoS mismatch on {topic}: a publisher offers an incompatible {policy} policy, so no '
+            f'messages from it will arrive; {qos_hint(kind, policy)}')
+
+    def _check_input_types(self) -> None:
+        """A publisher of another message type on an input topic gets no message through and
+        DDS says nothing (this rmw does not report the incompatible-type event): the graph is
+        checked every GRAPH_CHECK_S; each such publisher is counted as ``<kind>_wrong_type`` in
+        /diagnostics, logged once naming the parameter to change."""
+        for kind, subscription in self._subscriptions_by_kind.items():
+            topic, expected = subscription.topic_name, input_msgtype(kind, self.params.pose_type)
+            for info in self.get_publishers_info_by_topic(topic):
+                key = (topic, info.node_namespace, info.node_name, info.topic_type)
+                if info.topic_type == expected or key in self._wrong_types:
+                    continue
+                self._wrong_types.add(key)
+                hint = (f'set pose_type to {info.topic_type.rsplit("/", 1)[-1]!r}'
+                        if kind == 'pose' and info.topic_type in POSE_MSGTYPES.values() else
+                        f'{kind}_topic may name the wrong topic')
+                outputs = self.calibrator.reject(f'{kind}_wrong_type', -1)
+                for notice in outputs:  # the first time: say what to change
+                    notice.text = (f'type mismatch on {topic}: {info.node_name} publishes '
+                                   f'{info.topic_type}, the node subscribes {expected}, so none of '
+                                   f'its messages arrive; {hint}')
+                self._emit(outputs)
+
+    def _on_message_lost(self, kind: str, info: Any) -> None:
+        """The middleware saw messages that never reached this subscription (best-effort input
+        under load): counted as ``<kind>_lost`` in /diagnostics, logged once."""
+        for _ in range(max(int(info.total_count_change), 0)):
+            self._emit(self.calibrator.reject(f'{kind}_lost', -1))
+
+    def _guarded(self, kind: str, callback: Callable[[Any], None]) -> Callable[[Any], None]:
+        """The node never dies on input: an unexpected error is logged once and counted."""
+        def run(msg: Any) -> None:
+            try:
+                callback(msg)
+            except Exception:  # noqa: BLE001 - the node must stay up; the error is reported
+                self._emit(self.calibrator.reject('internal_error', -1))
+                if kind not in self._failed_callbacks:
+                    self._failed_callbacks.add(kind)
+                    self.get_logger().error(f'error handling a {kind} message (further ones are '
+                                            f'counted as rejected.internal_error):\n'
+                                            f'{traceback.format_exc()}')
+        return run
+
+    # ------------------------------------------------------------------ inputs
+    # A message that cannot be decoded (msg_adapters.MessageError, an invalid stamp included) is
+    # rejected with its kind's reason: pose_nonfinite, joints_malformed, camera_info_invalid.
+    # Poses and joints arrive as CDR bytes (raw subscriptions) and are deserialized here by
+    # rclpy, so that bytes that do not deserialize are a counted rejection too, never an
+    # exception in the executor.
+    def _on_pose(self, data: bytes) -> None:
+        msg = _deserialize(data, TYPES.get(POSE_MSGTYPES[self.params.pose_type]))
+        self._emit(add_pose_msg(self.calibrator, msg)[0])
+
+    def _on_joints(self, data: bytes) -> None:
+        msg = _deserialize(data, TYPES.get('geometry_msgs/msg/PoseArray'))
+        self._emit(add_joints_msg(self.calibrator, msg))
+
+    def _on_camera_info(self, msg: Any) -> None:
+        outputs, intrinsics = add_camera_info_msg(self.calibrator, msg)
+        if intrinsics is not None:
+            self._camera_info = intrinsics
+        self._emit(outputs)
+
+    def _on_cloud(self, data: bytes) -> None:
+        """Raw CDR bytes: read the header here, decode and index on the builder thread."""
+        self.clouds_received += 1
+        try:
+            cloud = parse_cloud_cdr(data)
+        except MessageError:
+            self._clouds_rejected += 1
+            self._emit(self.calibrator.reject('cloud_malformed', -1))
+            return
+        self._last_cloud = cloud
+        self._submit(cloud)
+
+    def _build_index(self, stamp_ns: int, points_map: Any, frame_id: str) -> MapIndex:
+        """The builder thread's index, with the current calibrator's parameters."""
+        return self.calibrator.build_index(stamp_ns, points_map, frame_id)
+
+    def _submit(self, cloud: RawCloud) -> None:
+        """Queue a cloud for the builder. In ``replace`` mode a cloud still waiting is superseded
+        (it would be replaced anyway); ``accumulate`` keeps up to MAPS_WAITING_MAX waiting."""
+        waiting = [f for f in self._maps_building if not f.done()]
+        if self.params.cloud_mode == 'replace':
+            superseded = waiting
+        else:
+            superseded = waiting[:max(0, len(waiting) - MAPS_WAITING_MAX + 1)]
+        self.maps_superseded += sum(f.cancel() for f in superseded)
+        future = self._builder.submit(cloud)
+        future.add_done_callback(lambda _: self._maps_ready.trigger())
+        self._maps_building.append(future)
+
+    def _on_maps_ready(self) -> None:
+        """Executor thread: hand the maps the builder finished to the calibrator, in order."""
+        while self._maps_building and self._maps_building[0].done():
+            future = self._maps_building.popleft()
+            if future.cancelled():
+                continue
+            built = future.result()
+            self.map_build_s.append(built.build_s)
+            if built.index is None:
+                self._clouds_rejected += 1
+            else:
+                self.maps_indexed += 1
+                self._map_index = built.index
+            self._emit(built.hand_to(self.calibrator))
+
+    @property
+    def clouds_done(self) -> int:
+        """Clouds received and finished with: indexed, rejected, or superseded by a newer one."""
+        return self.maps_indexed + self._clouds_rejected + self.maps_superseded
+
+    # ------------------------------------------------------------------ outputs
+    def _emit(self, outputs: Sequence[Output]) -> None:
+        """Log notices, publish the messages of every other output (exactly OutputMessages')."""
+        for output in outputs:
+            if isinstance(output, NoticeOut):
+                self.notices[output.cause] += 1
+                # one call site per severity: rclpy refuses a call site whose severity changes
+                if output.level == 'info':
+                    self.get_logger().info(output.text)
+                elif output.level == 'error':
+                    self.get_logger().error(output.text)
+                else:
+                    self.get_logger().warning(output.text)
+                continue
+            if isinstance(output, ResetOut):
+                continue  # announced by the NoticeOut that comes with it; counted in diagnostics
+            if self.tf is not None and isinstance(output, (OdometryOut, PoseOut)):
+                self.tf.send(output)
+            for message in self.outputs.convert(output):
+                self._output_publishers[message.topic].publish(message.msg)
+
+    # ------------------------------------------------------------------ services
+    def _on_reset(self, request: Any, response: Any) -> Any:
+        """``~/reset`` (Trigger): a new segment at the next SLAM pose (SPEC, Services)."""
+        self.calibrator.request_reset()
+        response.success = True
+        response.message = 'a new segment starts at the next SLAM pose (map and ground normal kept)'
+        return response
+
+    def _on_freeze(self, request: Any, response: Any) -> Any:
+        """``~/freeze`` (SetBool): hold the scale (true) or resume with a fresh window (false)."""
+        self.calibrator.request_freeze(bool(request.data))
+        response.success = True
+        response.message = ('the scale is held from the next SLAM pose' if request.data else
+                            'the scale is released at the next SLAM pose: a fresh window converges')
+        return response
+
+    # ------------------------------------------------------------------ parameters
+    def _changes(self, parameters: list[Parameter]) -> dict[str, Any]:
+        ours = set(names())
+        return {p.name: p.value for p in parameters if p.name in ours}
+
+    def _validate_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
+        """All or nothing: the whole set is checked by HacParams.replace before anything changes
+        (before configure, against the defaults: configure reads and checks them all)."""
+        try:
+            (self.params if self.calibrator is not None else HacParams()).replace(
+                **self._changes(parameters))
+        except ParameterError as exc:
+            return SetParametersResult(successful=False, reason=str(exc))
+        return SetParametersResult(successful=True)
+
+    def _apply_parameters(self, parameters: list[Parameter]) -> None:
+        """A runtime change (node_parameters: re-subscribes, takes effect at once or rebuilds the
+        estimator). Unconfigured, nothing: configure reads the parameters; inactive, the new
+        subscriptions and TF wait for activate."""
+        changes = self._changes(parameters)
+        if not changes or self.calibrator is None:
+            return
+        new = self.params.replace(**changes)  # validated in _validate_parameters
+        changed = {k for k in changes if getattr(new, k) != getattr(self.params, k)}
+        if not changed:
+            return
+        self.params = new
+        self.outputs.params = new
+        if self.active:
+            for kind in sorted({kind for name in changed for kind in RESUBSCRIBE.get(name, ())}):
+                self._subscribe(kind)
+            if changed & TF_PARAMETERS:
+                self._update_tf()
+        estimator = sorted(changed - SHELL_ONLY - set(RESUBSCRIBE))
+        if estimator:
+            self._rebuild_calibrator(estimator)
+        else:
+            self.calibrator.params = new  # fields the calibrator does not read: kept consistent
+        self.get_logger().info('parameters changed: ' + ', '.join(
+            f'{k}={getattr(new, k)!r}' for k in sorted(changed)))
+
+    def _rebuild_calibrator(self, changed: list[str]) -> None:
+        """Estimator parameters: a new calibrator, given the current map and CameraInfo.
+
+        The map handed over is the old calibrator's map in use (in ``accumulate`` mode, everything
+        accumulated), else the last one the node handed to it. When the thinning
+        (``index_max_points``) changed, the last cloud received is indexed again as well.
+        """
+        old = self.calibrator
+        self.calibrator = Calibrator(self.params)
+        if self._camera_info is not None:
+            self._emit(self.calibrator.add_camera_info(*self._camera_info))
+        current_map = old.map if old.map is not None else self._map_index
+        if current_map is not None:
+            self._emit(self.calibrator.add_map_index(current_map))
+        if 'index_max_points' in changed and self._last_cloud is not None:
+            self._submit(self._last_cloud)
+        self.notices.clear()
+        self.get_logger().warning(
+            f'estimator parameter(s) {", ".join(changed)} changed: the estimator was rebuilt and '
+            f'its estimate restarts (metric outputs resume after {self.params.min_samples} samples)')
+
+    def _update_tf(self) -> None:
+        """TF when publish_tf or publish_odom_tf is set and tf2_ros is importable (a warning
+        otherwise); hac_ros.ros.tf_broadcast keeps tf2_ros out of everything else."""
+        from hac_ros.ros.tf_broadcast import make_tf_sender
+
+        self.tf = make_tf_sender(self, self.params)
+
+
+class HacNode(HacShell, Node):
+    """hac_node: subscribes to the inputs, feeds the calibrator, publishes its outputs (SPEC)."""
+
+    def __init__(self, node_name: str = NODE_NAME, **kwargs: Any) -> None:
+        super().__init__(node_name, **kwargs)
+        self._declare()
+        self._configure()
+        self._activate()
+
+    def destroy_node(self) -> None:
+        self._cleanup()
+        super().destroy_node()
+
+
+def _deserialize(data: bytes, msg_type: type) -> Any:
+    """rclpy's message of ``data``, or None when the bytes do not deserialize as ``msg_type``."""
+    try:
+        return deserialize_message(data, msg_type)
+    except Exception:  # noqa: BLE001 - rclpy raises several types for bytes it cannot read
+        return None
+
+
+# ---------------------------------------------------------------------------------------- main
+# SIGINT and SIGTERM are Python's here, not rclpy's: rclpy's (Jazzy) signal thread triggers the
+# executor's guard condition while the main thread may already be destroying it (a segfault at
+# shutdown, about once in 30 SIGINTs, core dump in rcl_trigger_guard_condition), and its wake-up
+# could be seen before the context's shutdown, leaving executor.spin() waiting forever. A Python
+# handler only sets a flag; the loop sees it within this long.
+SHUTDOWN_POLL_S = 0.5
+
+def main(args: list[str] | None = None) -> int:
+    """``hac_node``: :func:`run` of :class:`HacNode`."""
+    return run(HacNode, args)
+
+
+def run(node_class: type, args: list[str] | None = None) -> int:
+    """init → spin ``node_class()`` → clean shutdown on SIGINT/SIGTERM (exit code 0); 2 on
+    invalid parameters.
+
+    SIGINT/SIGTERM set a flag (see SHUTDOWN_POLL_S): one during start-up ends the loop before it
+    spins, and everything made so far is destroyed in order.
+    """
+    stop: list[int] = []
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, lambda number, _frame: stop.append(number))
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    executor = SingleThreadedExecutor()
+    node = None
+    try:
+        node = node_class()
+        executor.add_node(node)
+        while rclpy.ok() and not stop:  # not executor.spin(): see SHUTDOWN_POLL_S
+            executor.spin_once(timeout_sec=SHUTDOWN_POLL_S)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except (ParameterError, InvalidParameterValueException, InvalidParameterTypeException,
+            ParameterException) as exc:
+        print(f'hac_node: invalid parameter: {exc}', file=sys.stderr)
+        return 2
+    finally:
+        executor.shutdown()
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

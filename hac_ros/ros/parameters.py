@@ -1,0 +1,143 @@
+"""The node's parameters as ROS sees them: descriptors, what a runtime change does, the docs table.
+
+The values, defaults, ranges and validation are :class:`hac_ros.core.params.HacParams`'; this
+module adds what only the ROS node needs: a ``ParameterDescriptor`` per field (type, range,
+choices, the runtime note), which parameters re-subscribe or rebuild the estimator when changed at
+runtime, how a node declares them, and the markdown table of docs/node.md
+(``python -m hac_ros.ros.parameters`` prints it). Importing it needs no ROS; the functions that
+take a node import rclpy when called.
+"""
+from __future__ import annotations
+
+from typing import Any
+
+from hac_ros.core.params import describe, names
+
+# ROS types `window_s: 30` (YAML, `ros2 param set`) as an integer and would refuse it for a double;
+# dynamic typing lets it through, and HacParams converts integers and rejects anything else
+# (also the range, which ROS checks only for double values).
+INTEGERS_FOR_DOUBLES = True
+ROS_OWN_PARAMETERS = frozenset({'use_sim_time', 'start_type_description_service'})  # every node's
+
+# What a runtime change does (docs/node.md, "Parameters at runtime"):
+# - these re-create the named subscriptions (topics and QoS cannot change on a live subscription);
+RESUBSCRIBE: dict[str, tuple[str, ...]] = {
+    'pose_topic': ('pose',), 'pose_type': ('pose',), 'joints_topic': ('joints',),
+    'camera_info_topic': ('camera_info',), 'cloud_topic': ('cloud',), 'cloud_qos': ('cloud',),
+    'input_qos': ('pose', 'joints', 'camera_info'),
+}
+# - these only change what the shell publishes (the calibrator does not read them);
+SHELL_ONLY = frozenset({'metric_frame', 'odom_frame', 'publish_markers', 'publish_tf',
+                        'publish_odom_tf', 'publish_obstacles', 'obstacle_min_height',
+                        'obstacle_max_height'})
+TF_PARAMETERS = frozenset({'metric_frame', 'odom_frame', 'publish_tf', 'publish_odom_tf'})
+# - every other parameter is an estimator parameter: the calibrator is rebuilt with the new values
+#   (its estimate restarts; the current map and CameraInfo are handed to the new one).
+RUNTIME_NOTE = {**{name: 're-subscribes' for name in RESUBSCRIBE},
+                **{name: 'takes effect at once' for name in SHELL_ONLY}}
+ESTIMATOR_NOTE = 'rebuilds the estimator (estimate restarts)'
+
+
+def runtime_effect(name: str) -> str:
+    """What changing parameter ``name`` at runtime does (for descriptors and docs)."""
+    return RUNTIME_NOTE.get(name, ESTIMATOR_NOTE)
+
+
+def parameter_descriptor(name: str) -> Any:
+    """The rcl_interfaces ParameterDescriptor of one HacParams field: type, description, range or
+    choices."""
+    from rcl_interfaces.msg import (
+        FloatingPointRange,
+        IntegerRange,
+        ParameterDescriptor,
+        ParameterType,
+    )
+
+    info = describe(name)
+    default = info['default']
+    descriptor = ParameterDescriptor(
+        name=name, description=f"{info['description']} [at runtime: {runtime_effect(name)}]")
+    if isinstance(default, bool):
+        descriptor.type = ParameterType.PARAMETER_BOOL
+    elif isinstance(default, int):
+        descriptor.type = ParameterType.PARAMETER_INTEGER
+        if info['low'] is not None and info['high'] is not None:
+            descriptor.integer_range = [IntegerRange(from_value=int(info['low']),
+                                                     to_value=int(info['high']), step=1)]
+    elif isinstance(default, float):
+        descriptor.type = ParameterType.PARAMETER_DOUBLE
+        descriptor.dynamic_typing = INTEGERS_FOR_DOUBLES
+        if info['low'] is not None and info['high'] is not None:
+            descriptor.floating_point_range = [FloatingPointRange(
+                from_value=float(info['low']), to_value=float(info['high']), step=0.0)]
+    elif info['kind'] == 'indices':
+        descriptor.type = ParameterType.PARAMETER_INTEGER_ARRAY
+        descriptor.additional_constraints = 'joint indices (integers >= 0)'
+    elif isinstance(default, list):
+        descriptor.type = ParameterType.PARAMETER_DOUBLE_ARRAY
+        descriptor.dynamic_typing = INTEGERS_FOR_DOUBLES
+        descriptor.additional_constraints = f"exactly {info['length']} finite numbers"
+    else:
+        descriptor.type = ParameterType.PARAMETER_STRING
+    if info['choices']:
+        descriptor.additional_constraints = 'one of: ' + ', '.join(info['choices'])
+    return descriptor
+
+
+def declare_parameters(node: Any) -> None:
+    """Declare every HacParams field on the rclpy ``node`` with its default and descriptor. The
+    empty joint-index lists (joint_layout custom) are declared as integer arrays: rclpy would
+    declare ``[]`` as a byte array and then refuse the integers of a parameters file."""
+    from rclpy.parameter import Parameter
+
+    for name in names():
+        info = describe(name)
+        if info['default'] == [] and info['kind'] == 'indices':
+            declared = node.declare_parameter(name, Parameter.Type.INTEGER_ARRAY,
+                                              parameter_descriptor(name))
+            if declared.value is None:  # not overridden: set [] with its type
+                node.set_parameters([Parameter(name, Parameter.Type.INTEGER_ARRAY, [])])
+            continue
+        node.declare_parameter(name, info['default'], parameter_descriptor(name))
+
+
+def unknown_overrides(node: Any) -> list[str]:
+    """The names overridden at start-up (a parameters file, --ros-args -p) that no parameter of
+    the node has: misspelt, ROS would ignore them silently."""
+    overrides = getattr(node, '_parameter_overrides', {})  # rclpy keeps them on the node
+    return sorted(name for name in overrides if name not in names()
+                  and name not in ROS_OWN_PARAMETERS and not name.startswith('qos_overrides.'))
+
+
+def parameter_table() -> str:
+    """The README-style markdown table of every parameter (docs/node.md holds exactly this)."""
+    def shown(value: Any) -> str:
+        if isinstance(value, bool):
+            return '`true`' if value else '`false`'
+        if isinstance(value, list):
+            return '`[' + ', '.join(f'{v:g}' for v in value) + ']`'  # [] for the index lists
+        return '`""`' if value == '' else f'`{value}`'
+
+    rows = ['| name | default | allowed | at runtime | meaning |', '|---|---|---|---|---|']
+    for name in names():
+        info = describe(name)
+        if info['choices']:
+            allowed = ', '.join(f'`{c}`' for c in info['choices'])
+        elif info['low'] is not None:
+            allowed = f"{info['low']:g} … {info['high']:g}"
+        elif info['kind'] == 'indices':
+            allowed = 'joint indices'
+        elif info['length']:
+            allowed = f"{info['length']} numbers"
+        elif isinstance(info['default'], bool):
+            allowed = '`true`, `false`'
+        else:
+            allowed = 'a string'
+        meaning = info['description'].replace('|', '/')
+        rows.append(f"| `{name}` | {shown(info['default'])} | {allowed} | {runtime_effect(name)} "
+                    f"| {meaning} |")
+    return '\n'.join(rows)
+
+
+if __name__ == '__main__':
+    print(parameter_table())
