@@ -9,7 +9,7 @@ STAMP   := $(VENV)/.hac_installed
 export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
 export ROS_DOMAIN_ID ?= $(shell echo $$(( $$$$ % 90 + 10 )))
 
-.PHONY: all install test demo bench bags clean
+.PHONY: all install lint test demo bench bags clean
 
 all: test
 
@@ -21,7 +21,11 @@ $(STAMP): setup.py setup.cfg package.xml
 
 install: $(STAMP)
 
-test: $(STAMP)
+lint: $(STAMP)
+	$(PY) -m ruff check hac_ros msg_adapters test bench launch
+	$(PY) -m mypy
+
+test: lint
 	$(PY) -m pytest -q
 
 demo: $(STAMP)

@@ -37,6 +37,8 @@ setup(
         'cluster': ['ray[default]>=2.9'],
         'dev': [
             'pytest>=7',
+            'ruff==0.17.6',  # pinned: new releases add rules
+            'mypy==2.4.1',
             'ray>=2.9',  # the tests run `hac batch --ray local` (the core of the cluster extra)
             'hypothesis>=6.80',
             'evo>=1.20',

@@ -37,7 +37,7 @@ from typing import Any
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _report import REPO, RESULTS, machine, table, write_section  # noqa: E402
+from _report import REPO, RESULTS, machine, table, write_section
 
 PROBE = Path(__file__).resolve().parent / 'ab_probe.py'
 CACHE = Path('/tmp/hac_ab_cache')

@@ -35,7 +35,7 @@ from pathlib import Path
 from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _report import measured_tree  # noqa: E402
+from _report import measured_tree
 
 PER_FRAME_POINTS = 1_000_000
 NODE_POINTS = 100_000

@@ -39,12 +39,12 @@ from pathlib import Path
 from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _report import check, command_line, machine, section, table, write_json, write_section  # noqa: E402
-from _scene import write_recording as write_room  # noqa: E402
+from _report import check, command_line, machine, section, table, write_json, write_section
+from _scene import write_recording as write_room
 
 from hac_ros.batch.pool import default_workers
 from hac_ros.batch.runner import batch
-from hac_ros.simulate import make_scenario, write_recording  # noqa: E402
+from hac_ros.simulate import make_scenario, write_recording
 
 NAME = 'batch_throughput'
 SCENARIOS = ('walk', 'ego', 'stairs', 'crowd', 'drift', 'occluded', 'skate', 'handstand')

@@ -1,4 +1,5 @@
-"""Real-data composite for the accuracy benchmark (and a test): real SLAM, real motion, a made scene.
+"""Real-data composite for the accuracy benchmark (and a test): real SLAM, real motion, a made
+scene.
 
 Real: the camera trajectory a monocular ORB-SLAM produced on TUM RGB-D (``freiburg2_desk``: 157
 keyframes over 91 s; ``freiburg1_xyz``: 32 over 18.6 s; arbitrary scale) is the SLAM input; its

@@ -16,6 +16,7 @@ docs/benchmarks.md.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 import os
 import sys
@@ -26,11 +27,11 @@ from typing import Any
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _report import check, command_line, machine, publish, section, table  # noqa: E402
-from _scene import CAMERA_FRAME, MAP_FRAME, TRUE_SCALE, RoomScene, room_scene  # noqa: E402
+from _report import check, command_line, machine, publish, section, table
+from _scene import CAMERA_FRAME, MAP_FRAME, TRUE_SCALE, RoomScene, room_scene
 
-from hac_ros.core.calibrator import Calibrator  # noqa: E402
-from hac_ros.core.params import HacParams  # noqa: E402
+from hac_ros.core.calibrator import Calibrator
+from hac_ros.core.params import HacParams
 
 NAME = 'core_speed'
 AUTHORS_CONE_COS = 0.999  # the authors' code: a map point is on a joint's ray when cos > 0.999
@@ -62,10 +63,8 @@ def literal_frame(points_map: np.ndarray, R_wc: np.ndarray, c_map: np.ndarray,
 
 
 def pin_to_one_core() -> None:
-    try:
+    with contextlib.suppress(AttributeError, OSError):
         os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})
-    except (AttributeError, OSError):
-        pass
 
 
 def measure(scene: RoomScene, map_points: int, frames: int, literal_frames: int) -> dict[str, Any]:

@@ -4,8 +4,8 @@
     python bench/node_latency.py [--map-points 100000] [--duration 30] [--rounds 2]
                                  [--dds-profile XML]
 
-Two nodes in turn, each in a process of its own: ``hac_node`` (``python -m hac_ros.ros.node`` with the
-checkout's config/hac.yaml) and the echo floor (:data:`ECHO_NODE`: a node with the same
+Two nodes in turn, each in a process of its own: ``hac_node`` (``python -m hac_ros.ros.node`` with
+the checkout's config/hac.yaml) and the echo floor (:data:`ECHO_NODE`: a node with the same
 subscriptions that republishes each joints message's bytes to ``/hac/human_joints``). This process
 plays the room scene (bench/_scene.py) live at 30 Hz to each: a SLAM pose, then the HMR joints of
 the same stamp (stamped with the wall clock), and a ``--map-points`` map republished every second.
@@ -32,27 +32,27 @@ os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 os.environ.pop('ROS_STATIC_PEERS', None)
 os.environ['ROS_DOMAIN_ID'] = str(10 + (os.getpid() + 45) % 90)
 
-import argparse  # noqa: E402
-import signal  # noqa: E402
-import subprocess  # noqa: E402
-import sys  # noqa: E402
-import tempfile  # noqa: E402
-import threading  # noqa: E402
-import time  # noqa: E402
-from pathlib import Path  # noqa: E402
-from typing import Any  # noqa: E402
+import argparse
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+from typing import Any
 
-import numpy as np  # noqa: E402
-import rclpy  # noqa: E402
-from geometry_msgs.msg import PoseArray, PoseStamped, PoseWithCovarianceStamped  # noqa: E402
-from nav_msgs.msg import Odometry  # noqa: E402
-from rclpy.executors import SingleThreadedExecutor  # noqa: E402
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
-from sensor_msgs.msg import PointCloud2  # noqa: E402
+import numpy as np
+import rclpy
+from geometry_msgs.msg import PoseArray, PoseStamped, PoseWithCovarianceStamped
+from nav_msgs.msg import Odometry
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import PointCloud2
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _report import check, command_line, machine, measured_tree, publish, section, table  # noqa: E402
-from _scene import (  # noqa: E402
+from _report import check, command_line, machine, measured_tree, publish, section, table
+from _scene import (
     CLOUD_TOPIC,
     JOINTS_TOPIC,
     POSE_TOPIC,
@@ -65,7 +65,7 @@ from _scene import (  # noqa: E402
     set_cdr_stamp,
 )
 
-from hac_ros.ros.spin_thread import SpinThread  # noqa: E402
+from hac_ros.ros.spin_thread import SpinThread
 
 NAME = 'node_latency'
 OUTPUT_TOPIC = '/hac/human_joints'

@@ -21,16 +21,16 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-import argparse  # noqa: E402
-import tempfile  # noqa: E402
-import time  # noqa: E402
-from typing import Any  # noqa: E402
+import argparse
+import tempfile
+import time
+from typing import Any
 
-import node_latency as nl  # noqa: E402  (sets the DDS environment before rclpy is imported)
-import numpy as np  # noqa: E402
-import rclpy  # noqa: E402
-from _report import check, command_line, machine, publish, section, table  # noqa: E402
-from _scene import NS, RATE_HZ, cloud_cdr, joints_cdr, pose_cdr, room_scene, set_cdr_stamp  # noqa: E402
+import node_latency as nl
+import numpy as np
+import rclpy
+from _report import check, command_line, machine, publish, section, table
+from _scene import NS, RATE_HZ, cloud_cdr, joints_cdr, pose_cdr, room_scene, set_cdr_stamp
 
 NAME = 'node_memory'
 TARGET_GROWTH = 0.05

@@ -8,8 +8,8 @@ The recording (bench/_scene.py ``write_recording``, not timed): ``--duration`` s
 scene at 30 Hz, a SLAM pose and the HMR joints per frame and a ``--map-points`` map republished
 every second; mcap, in a temporary directory. Timed, in rounds of three side by side in this
 process: the bare read (rosbags' AnyReader over the recording, every message deserialized with the
-ROS 2 Jazzy typestore: bench/_scene.py ``read_recording``), then ``hac_ros.replay.replayer.replay`` in
-``offline`` mode (the default), then in ``online`` mode, each from opening the recording to the
+ROS 2 Jazzy typestore: bench/_scene.py ``read_recording``), then ``hac_ros.replay.replayer.replay``
+in ``offline`` mode (the default), then in ``online`` mode, each from opening the recording to the
 written OUT. One untimed bare read comes first. Ratio per round and mode = replay seconds / that
 round's bare-read seconds; the median over the rounds is the figure. Target (issue 18): <= 8x.
 Prints, writes bench/results/replay_throughput.json and its section of docs/benchmarks.md.
@@ -27,10 +27,10 @@ from typing import Any
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _report import check, command_line, machine, publish, section, table  # noqa: E402
-from _scene import read_recording, write_recording  # noqa: E402
+from _report import check, command_line, machine, publish, section, table
+from _scene import read_recording, write_recording
 
-from hac_ros.replay.replayer import replay  # noqa: E402
+from hac_ros.replay.replayer import replay
 
 NAME = 'replay_throughput'
 MODES = ('offline', 'online')

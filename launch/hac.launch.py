@@ -48,13 +48,14 @@ def generate_launch_description() -> LaunchDescription:
                               description='HMR joints (PoseArray, camera optical frame)'),
         DeclareLaunchArgument('log_level', default_value='info', description='ROS log level'),
         DeclareLaunchArgument('dds_profile', default_value='false',
-                              description='load config/fastdds_large_data.xml (Fast DDS: large maps '
-                                          'beside best-effort joints)'),
+                              description='load config/fastdds_large_data.xml (Fast DDS: large '
+                                          'maps beside best-effort joints)'),
     ]
     profile = str(share / 'config' / 'fastdds_large_data.xml')
     # Fast DDS 2.x reads the first name, 3.x the second (as hac_ros.ros.node.DDS_PROFILE_VARIABLES)
     dds_profile = [
-        SetEnvironmentVariable(name, profile, condition=IfCondition(LaunchConfiguration('dds_profile')))
+        SetEnvironmentVariable(name, profile,
+                               condition=IfCondition(LaunchConfiguration('dds_profile')))
         for name in ('FASTRTPS_DEFAULT_PROFILES_FILE', 'FASTDDS_DEFAULT_PROFILES_FILE')]
     common = dict(
         package=PACKAGE, name='hac_node', namespace=LaunchConfiguration('namespace'),

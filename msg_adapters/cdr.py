@@ -9,14 +9,15 @@ from __future__ import annotations
 
 import struct
 from dataclasses import dataclass
-from typing import Any, NamedTuple
+from typing import Any
 
 from msg_adapters.errors import MessageError
 from msg_adapters.pointcloud import xyz_from_buffer
 from msg_adapters.stamps import time_to_ns
 
 
-class PointFieldSpec(NamedTuple):
+@dataclass(frozen=True)
+class PointFieldSpec:
     """One sensor_msgs/PointField as read from the CDR bytes."""
 
     name: str
@@ -27,7 +28,8 @@ class PointFieldSpec(NamedTuple):
 
 @dataclass
 class RawCloud:
-    """The fields of a serialized sensor_msgs/PointCloud2, with ``data`` a view into the CDR bytes."""
+    """The fields of a serialized sensor_msgs/PointCloud2, with ``data`` a view into the CDR
+    bytes."""
 
     stamp_ns: int
     frame_id: str
@@ -116,6 +118,7 @@ def parse_cloud_cdr(data: bytes | memoryview) -> RawCloud:
 
 
 def cloud_points(cloud: RawCloud) -> Any:
-    """Points of a raw cloud: (N, 3) float64, SLAM units, ``cloud.frame_id`` (the adapter's rules)."""
+    """Points of a raw cloud: (N, 3) float64, SLAM units, ``cloud.frame_id`` (the adapter's
+    rules)."""
     return xyz_from_buffer(cloud.data, cloud.fields, cloud.point_step, cloud.width, cloud.height,
                            cloud.row_step, cloud.is_bigendian)

@@ -14,8 +14,8 @@ quaternion (x, y, z, w) 4 float64, a colour (r, g, b, a) 4 float32.
 from __future__ import annotations
 
 import struct
+from collections.abc import Iterable, Sequence
 from functools import lru_cache
-from typing import Iterable, Sequence
 
 import numpy as np
 
@@ -135,7 +135,8 @@ def odometry(stamp_ns: int, frame_id: str, child_frame_id: str, position: np.nda
 
 def pose_with_covariance_stamped(stamp_ns: int, frame_id: str, position: np.ndarray,
                                  quat_xyzw: Sequence[float], covariance: np.ndarray) -> bytes:
-    """geometry_msgs/PoseWithCovarianceStamped: position (3,), quaternion (4,), covariance (6, 6)."""
+    """geometry_msgs/PoseWithCovarianceStamped: position (3,), quaternion (4,), covariance (6,
+    6)."""
     w = CdrWriter()
     w.header(stamp_ns, frame_id)
     body = np.concatenate([np.ravel(position), np.ravel(quat_xyzw), np.ravel(covariance)])

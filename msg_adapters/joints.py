@@ -22,8 +22,8 @@ _POSITION = operator.attrgetter('position.x', 'position.y', 'position.z')  # one
 def pose_array_to_joints(msg: Any, joints_per_person: int = JOINTS_PER_PERSON) -> np.ndarray:
     """PoseArray → (P, joints_per_person, 3) float64, metres, ``msg.header.frame_id``.
 
-    Zero poses → shape (0, joints_per_person, 3). Non-finite values pass through (the core counts them);
-    MessageError when the number of poses is not a multiple of ``joints_per_person``.
+    Zero poses → shape (0, joints_per_person, 3). Non-finite values pass through (the core counts
+    them); MessageError when the number of poses is not a multiple of ``joints_per_person``.
     """
     if not isinstance(joints_per_person, int) or joints_per_person <= 0:
         raise MessageError(f'PoseArray: joints_per_person must be a positive int, got '

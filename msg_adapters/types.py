@@ -7,8 +7,9 @@ ROS at import time: :func:`rclpy_types` imports the generated packages when it i
 from __future__ import annotations
 
 import importlib
+from collections.abc import Callable
 from functools import lru_cache
-from typing import Any, Callable
+from typing import Any
 
 from msg_adapters.errors import MessageError
 

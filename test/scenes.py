@@ -41,7 +41,8 @@ STANDING = STANDING + [0.0, 0.0, SOLE_M]
 
 
 def look_at(camera: np.ndarray, target: np.ndarray) -> np.ndarray:
-    """Camera-to-world rotation of an optical camera at ``camera`` looking at ``target`` (z up world)."""
+    """Camera-to-world rotation of an optical camera at ``camera`` looking at ``target`` (z up
+    world)."""
     z = target - camera
     z = z / np.linalg.norm(z)
     x = np.cross(z, [0.0, 0.0, 1.0])

@@ -168,7 +168,7 @@ def test_summary_csv_has_specs_columns_and_metrics_where_there_is_ground_truth(p
         row = by_name[name]
         assert row['status'] == 'ok' and row['error'] == ''
         assert int(row['frames']) == round(DURATION_S * 30) + 1
-        assert 0 < float(row['final_scale']) and 0 <= float(row['spread'])
+        assert float(row['final_scale']) > 0 and float(row['spread']) >= 0
         assert 0 <= float(row['fallback_pct']) <= 100 and int(row['resets']) >= 0
         assert float(row['wall_s']) > 0
         has_truth = name != 'nogt'

@@ -1,4 +1,5 @@
-"""msg_adapters.cdr_write and the node/replay output messages, byte for byte against rosbags and rclpy.
+"""msg_adapters.cdr_write and the node/replay output messages, byte for byte against rosbags and
+rclpy.
 
 Every encoded message is deserialized by rosbags (and rclpy where importable) into a real message
 object whose fields must equal the inputs, and that object serialized again must give exactly our
@@ -186,7 +187,7 @@ def test_marker_array(stamp, frame, ns, marker_id, points, count):
     w = cdr_write.CdrWriter()
     w.u32(count)
     pose = np.array([1.0, 2.0, 3.0, 0.0, 0.0, 0.0, 1.0])
-    for k in range(count):
+    for _ in range(count):
         cdr_write.marker(w, stamp, frame, ns, marker_id, 5, 0, pose, (0.1, 0.2, 0.3),
                          (0.25, 0.5, 0.75, 1.0), xyz)
     msg = roundtrip(w.bytes(), 'visualization_msgs/msg/MarkerArray')

@@ -79,8 +79,8 @@ def test_exact_scene_recovers_scale_from_the_contact_points(contact_mode, refere
 
 
 def test_exact_scene_max_ratio_with_every_rays_surface():
-    """max_ratio (authors' code): each joint's ray meets the floor behind it; the max is the contact,
-    low by its height above the floor over the camera's (the bias issue 19 removes)."""
+    """max_ratio (authors' code): each joint's ray meets the floor behind it; the max is the
+    contact, low by its height above the floor over the camera's (the bias issue 19 removes)."""
     scene = walking_scene(true_scale=0.37)
 
     def floor_hits(t: int) -> np.ndarray:
@@ -92,7 +92,7 @@ def test_exact_scene_max_ratio_with_every_rays_surface():
 
     params = HacParams(contact_mode='max_ratio', reference_mode='nearest_to_ray', cone_min_points=1,
                        map_overlap_min=0.0, sole_correction=False)  # the authors' rays
-    cal, outs = run(scene, params, maps=floor_hits)
+    _cal, outs = run(scene, params, maps=floor_hits)
     camera_height = scene.c_world[0, 2]
     np.testing.assert_allclose(scales(outs), scene.true_scale * (1 - SOLE_M / camera_height),
                                rtol=1e-9)
@@ -115,7 +115,8 @@ def test_ground_plane_recovers_scale_when_feet_are_out_of_view():
 
 
 def test_metric_outputs_follow_spec_transforms():
-    """Odometry c = s·o and world joints R J + s·o reproduce the true metric world (first camera frame)."""
+    """Odometry c = s·o and world joints R J + s·o reproduce the true metric world (first camera
+    frame)."""
     scene = walking_scene(true_scale=1.7)
     contacts = scene.to_slam(scene.contact_world())
     params = HacParams(cone_min_points=1, map_overlap_min=0.0, human_filter='none')
@@ -224,7 +225,7 @@ def test_an_occluder_in_front_of_the_feet_is_not_the_contact(ray_window_rel):
     clean, occluded = scene.to_slam(world), scene.to_slam(np.vstack([world, box]))
     maps = {0: clean, 20: occluded}
     params = HacParams(ray_window_rel=ray_window_rel)
-    cal, outs = run(scene, params, maps=lambda t: maps.get(t))
+    _cal, outs = run(scene, params, maps=lambda t: maps.get(t))
     late = [s for s in samples(outs) if s.stamp_ns >= scene.stamps_ns[20]]
     assert late and all(abs(s.scale / scene.true_scale - 1) < 0.05 for s in late)
     if ray_window_rel > 10:
@@ -241,7 +242,7 @@ def test_a_hit_beyond_the_floor_is_refused():
     o, contact = scene.c_world, scene.contact_world()
     below = o + 2.0 * (contact - o)  # the foot rays continued down to z = -1.5
     points = scene.to_slam(np.vstack([world[~near_feet], below]))
-    cal, outs = run(scene, HacParams(cone_min_points=1), maps=lambda t: points if t == 0 else None)
+    _cal, outs = run(scene, HacParams(cone_min_points=1), maps=lambda t: points if t == 0 else None)
     # once the plane exists (a few body frames), every such hit is refused for the plane
     # (a rare cone still catches floor points at the edge of the untextured strip: plausible hits)
     used = [s for s in samples(outs) if s.accepted and s.stamp_ns >= scene.stamps_ns[5]]
@@ -319,7 +320,7 @@ def test_no_point_in_the_cone_and_no_plane_is_no_reference():
 
 def test_no_map_at_all_is_counted():
     scene = walking_scene(frames=5)
-    cal, outs = run(scene, HacParams())
+    cal, _outs = run(scene, HacParams())
     assert cal.rejected['no_map'] == 5
 
 
@@ -430,7 +431,7 @@ def test_a_map_that_grew_is_the_same_map_one_elsewhere_is_a_reset(second):
     full = scene.floor_points_slam(step=0.05)
     maps = {0: full[:len(full) // 20],
             40: full if second == 'grown' else full * 0.5 + np.array([40.0, 0.0, 0.0])}
-    cal, outs = run(scene, HacParams(), maps=maps.get)
+    _cal, outs = run(scene, HacParams(), maps=maps.get)
     resets = [o.cause for o in outs if isinstance(o, ResetOut)]
     assert resets == ([] if second == 'grown' else ['map_overlap'])
 

@@ -1,4 +1,5 @@
-"""The fast ray query (depth window, k-d tree, thinning) against the literal method on every scenario.
+"""The fast ray query (depth window, k-d tree, thinning) against the literal method on every
+scenario.
 
 Tolerance (docs/method.md): the two differ only by map points outside the depth window — occluders
 and far surfaces — so the sequence scale is the same to 0.1 % where the cones hold nothing but the

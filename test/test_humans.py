@@ -1,4 +1,5 @@
-"""hac_ros.core.human_filter: people followed across frames, their world roots filtered in stamp time."""
+"""hac_ros.core.human_filter: people followed across frames, their world roots filtered in stamp
+time."""
 from __future__ import annotations
 
 import numpy as np
@@ -24,7 +25,7 @@ def two_walkers(rate_hz: float, seconds: float = 6.0, noise_m: float = NOISE_M, 
     for i in range(int(seconds * rate_hz)):
         t = i / rate_hz
         people = []
-        for k, (speed, y) in enumerate(((1.2, 0.0), (0.8, 1.5))):
+        for speed, y in ((1.2, 0.0), (0.8, 1.5)):
             root = np.array([speed * t, y + 0.3 * np.sin(0.5 * t), 0.0])
             people.append(STANDING + root)
         order = rng.permutation(2)

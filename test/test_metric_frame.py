@@ -3,7 +3,8 @@ odometry, the globally consistent /hac/pose, the gravity-aligned metric frame, /
 services' semantics. Pure core, no ROS."""
 from __future__ import annotations
 
-from typing import Callable
+import itertools
+from collections.abc import Callable
 
 import numpy as np
 import pytest
@@ -69,7 +70,7 @@ def test_a_5pct_step_at_50_m_moves_the_pose_and_leaves_every_odometry_step_exact
     odom, pose = by_stamp(out, OdometryOut), by_stamp(out, PoseOut)
     assert len(odom) == len(pose) == end - (converged_at - reset_at)
     stamps = sorted(odom)
-    for a, b in zip(stamps, stamps[1:]):
+    for a, b in itertools.pairwise(stamps):
         if b == stamp(converged_at):  # the gap: 599 -> 600 counts zero, 601..650 at the new scale
             expected = 1.2 * STEP * (converged_at - reset_at)
         else:
@@ -99,7 +100,7 @@ def test_covariances_grow_with_distance_and_are_inflated_after_a_reset():
     out += straight_run(cal, 200, 260, Q, 'map2')
     odom = [by_stamp(out, OdometryOut)[k] for k in sorted(by_stamp(out, OdometryOut))]
     variances = [o.covariance[0, 0] for o in odom]
-    assert all(b >= a for a, b in zip(variances, variances[1:])) and variances[-1] > variances[1]
+    assert all(b >= a for a, b in itertools.pairwise(variances)) and variances[-1] > variances[1]
     assert all(np.all(np.diag(o.twist_covariance) > 0) for o in odom)
     pose = by_stamp(out, PoseOut)
     first_after = pose[stamp(200)].covariance[0, 0]
@@ -169,7 +170,7 @@ def test_the_cloud_is_the_map_in_metres_sent_on_a_new_map_and_on_a_scale_change_
         clouds += [o for o in out if isinstance(o, CloudOut)]
     maps_used = {m.stamp_ns for m in sc.maps}
     assert clouds and all(c.points_metric.dtype == np.float32 for c in clouds)
-    assert all(b.stamp_ns - a.stamp_ns >= 2 * NS for a, b in zip(clouds, clouds[1:]))
+    assert all(b.stamp_ns - a.stamp_ns >= 2 * NS for a, b in itertools.pairwise(clouds))
     assert len(clouds) <= len(maps_used) + 1
     scale_change = [c for c in clouds if c.stamp_ns >= switch + 3 * NS]
     assert scale_change, 'a 2 % scale change republishes the cloud'
@@ -211,7 +212,7 @@ def test_freeze_holds_the_scale_and_reset_starts_a_segment_without_an_odometry_j
     index = {int(s): i for i, s in enumerate(sc.pose_stamps_ns)}
     true_steps = np.linalg.norm(np.diff(sc.gt_c, axis=0), axis=1)
     gaps = 0
-    for a, b in zip(odom, odom[1:]):
+    for a, b in itertools.pairwise(odom):
         step = np.linalg.norm(b.position_metric - a.position_metric)
         if b.linear_velocity.any():  # no jump at the freeze, the release or the reset
             assert step < 3 * true_steps.max()

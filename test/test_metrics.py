@@ -110,7 +110,8 @@ def test_human_metrics_known_answers():
 
 
 def test_wa_mpjpe_chunks_like_tram():
-    """250 frames: chunks [0, 100) and [100, 249) (TRAM stops one frame short); chunk errors differ."""
+    """250 frames: chunks [0, 100) and [100, 249) (TRAM stops one frame short); chunk errors
+    differ."""
     rng = np.random.default_rng(2)
     gt = rng.normal(size=(250, 24, 3))
     pred = gt.copy()

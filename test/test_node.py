@@ -7,9 +7,10 @@ from __future__ import annotations
 
 import re
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 import pytest
@@ -17,26 +18,26 @@ import yaml
 
 rclpy = pytest.importorskip('rclpy')
 
-from rclpy.context import Context  # noqa: E402
-from rclpy.executors import SingleThreadedExecutor  # noqa: E402
-from rclpy.parameter import Parameter  # noqa: E402
-from rclpy.parameter_client import AsyncParameterClient  # noqa: E402
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
-from rclpy.serialization import deserialize_message, serialize_message  # noqa: E402
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.parameter import Parameter
+from rclpy.parameter_client import AsyncParameterClient
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import deserialize_message, serialize_message
 
-from hac_ros.core.calibrator import Calibrator  # noqa: E402
-from hac_ros.core.numeric import NS  # noqa: E402
-from hac_ros.core.outputs import HumanJointsOut, OdometryOut, ScaleOut  # noqa: E402
-from hac_ros.core.params import HacParams, describe, names  # noqa: E402
-from hac_ros.ros.node import HacNode  # noqa: E402
-from hac_ros.ros.parameters import parameter_table  # noqa: E402
-from hac_ros.ros.spin_thread import SpinThread  # noqa: E402
-from hac_ros.simulate import make_scenario  # noqa: E402
-from msg_adapters import (  # noqa: E402
+from hac_ros.core.calibrator import Calibrator
+from hac_ros.core.numeric import NS
+from hac_ros.core.outputs import HumanJointsOut, OdometryOut, ScaleOut
+from hac_ros.core.params import HacParams, describe, names
+from hac_ros.ros.node import HacNode
+from hac_ros.ros.parameters import parameter_table
+from hac_ros.ros.spin_thread import SpinThread
+from hac_ros.simulate import make_scenario
+from msg_adapters import (
     cloud_to_xyz,
     intrinsics_to_camera_info,
     joints_to_pose_array,
-    parse_cloud_cdr,  # noqa: E402
+    parse_cloud_cdr,
     pose_array_to_joints,
     pose_msg_to_rt,
     rclpy_types,
@@ -208,7 +209,8 @@ class Harness:
 
     def play(self, events: list[Event], topics: dict[str, str] | None = None,
              frame_period_s: float = FRAME_PERIOD_S) -> None:
-        """Publish in order; a map is waited for (indexed), frames are paced by ``frame_period_s``."""
+        """Publish in order; a map is waited for (indexed), frames are paced by
+        ``frame_period_s``."""
         for event in events:
             self.publish(event, (topics or {}).get(event.kind))
             if event.kind == 'joints':
@@ -639,8 +641,8 @@ def test_docs_table_and_config_list_every_parameter_with_its_default():
 
 
 def test_spin_thread_delivers_then_stops_before_its_executor_is_shut_down():
-    """hac_ros.ros.spin_thread.SpinThread (the tests' and benchmarks' executor thread): callbacks run
-    on it; close() ends the thread and shuts the executor down; a context shut down elsewhere
+    """hac_ros.ros.spin_thread.SpinThread (the tests' and benchmarks' executor thread): callbacks
+    run on it; close() ends the thread and shuts the executor down; a context shut down elsewhere
     ends the thread too."""
     float64 = TYPES.get('std_msgs/msg/Float64')
     context = Context()

@@ -20,10 +20,10 @@ import yaml
 rclpy = pytest.importorskip('rclpy')
 pytestmark = [pytest.mark.slow, pytest.mark.ros]  # hac_node as a subprocess
 
-from rclpy.context import Context  # noqa: E402
-from rclpy.executors import SingleThreadedExecutor  # noqa: E402
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
-from test_node import (  # noqa: E402
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from test_node import (
     FRAME_PERIOD_S,
     INPUTS,
     LATCHED,
@@ -35,8 +35,8 @@ from test_node import (  # noqa: E402
     wait_for,
 )
 
-from hac_ros.ros.node import DDS_PROFILE_VARIABLES  # noqa: E402
-from hac_ros.ros.spin_thread import SpinThread  # noqa: E402
+from hac_ros.ros.node import DDS_PROFILE_VARIABLES
+from hac_ros.ros.spin_thread import SpinThread
 
 REPO = Path(__file__).resolve().parents[1]
 STARTUP_S = 20.0  # the node imports numpy/scipy/rclpy and joins DDS discovery

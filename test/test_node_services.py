@@ -15,9 +15,9 @@ import pytest
 rclpy = pytest.importorskip('rclpy')
 pytestmark = pytest.mark.ros
 
-from rclpy.context import Context  # noqa: E402
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
-from test_node import (  # noqa: E402,F401
+from rclpy.context import Context
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from test_node import (  # noqa: F401
     RELIABLE,
     TEST_PARAMS,
     TYPES,
@@ -27,10 +27,10 @@ from test_node import (  # noqa: E402,F401
     scenario_recording,
     wait_for,
 )
-from test_node_process import STARTUP_S, Client, start_node, stop  # noqa: E402
+from test_node_process import STARTUP_S, Client, start_node, stop
 
-from hac_ros.ros.lifecycle_node import HacLifecycleNode  # noqa: E402
-from msg_adapters import cloud_to_xyz, pose_msg_to_rt, stamp_to_ns  # noqa: E402
+from hac_ros.ros.lifecycle_node import HacLifecycleNode
+from msg_adapters import cloud_to_xyz, pose_msg_to_rt, stamp_to_ns
 
 REPO = Path(__file__).resolve().parents[1]
 CLOUD_LATE = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,

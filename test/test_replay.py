@@ -10,8 +10,8 @@ import signal
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 import pytest
@@ -334,7 +334,7 @@ def test_pose_type_read_from_the_recording_and_a_wrong_override_is_an_error(tmp_
             summary = replay(source, tmp_path / f'{source.name}_{node_type}',
                              HacParams(pose_type=node_type), progress=False)
             assert summary.status.frames == 40
-    with pytest.raises(HacError, match='nav_msgs/msg/Odometry.*--pose-type Odometry'):
+    with pytest.raises(HacError, match=r'nav_msgs/msg/Odometry.*--pose-type Odometry'):
         replay(odometry, tmp_path / 'wrong', pose_type='PoseStamped', progress=False)
     with pytest.raises(HacError, match='--pose-type PoseStamped'):
         replay(pose, tmp_path / 'wrong', pose_type='Odometry', progress=False)
@@ -529,7 +529,7 @@ def test_ctrl_c_leaves_no_output_and_never_touches_the_input(tmp_path):
     time.sleep(0.3)  # well inside the replay (a 3000-frame recording takes seconds)
     assert proc.poll() is None, 'the replay finished before it could be interrupted'
     proc.send_signal(signal.SIGINT)
-    stdout, stderr = proc.communicate(timeout=30)
+    _stdout, stderr = proc.communicate(timeout=30)
     assert proc.returncode == 130, stderr
     assert 'Traceback' not in stderr
     assert not out.exists()
@@ -643,8 +643,8 @@ def test_offline_estimates_each_segment_of_a_reset_on_its_own(tmp_path):
 @pytest.mark.parametrize('base', [False, True])
 def test_deferred_outputs_resolved_with_the_schedule_equal_a_run_with_that_schedule(base):
     """The offline mode runs the calibrator once with its metric outputs deferred and resolves them
-    with the schedule (hac_ros.core.metric_stage): exactly what a second run with the schedule gives,
-    across a SLAM reset (the anchor) and with a base frame (the odometry's base offset)."""
+    with the schedule (hac_ros.core.metric_stage): exactly what a second run with the schedule
+    gives, across a SLAM reset (the anchor) and with a base frame (the odometry's base offset)."""
     from dataclasses import fields
 
     from hac_ros.core.calibrator import Calibrator

@@ -8,28 +8,29 @@ the same order. The node's /hac/odometry and /hac/human_joints must equal the re
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 import pytest
 
 rclpy = pytest.importorskip('rclpy')
 
-from rclpy.context import Context  # noqa: E402
-from rclpy.executors import SingleThreadedExecutor  # noqa: E402
-from rclpy.parameter import Parameter  # noqa: E402
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
-from rclpy.serialization import deserialize_message, serialize_message  # noqa: E402
-from rosbags.typesys import Stores, get_typestore  # noqa: E402
-from scenes import walking_scene  # noqa: E402
-from test_replay import write_recording  # noqa: E402
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import deserialize_message, serialize_message
+from rosbags.typesys import Stores, get_typestore
+from scenes import walking_scene
+from test_replay import write_recording
 
-from hac_ros.replay.feeder import tie_ordered  # noqa: E402
-from hac_ros.replay.replayer import replay  # noqa: E402
-from hac_ros.ros.node import HacNode  # noqa: E402
-from hac_ros.ros.spin_thread import SpinThread  # noqa: E402
-from msg_adapters import rclpy_types, stamp_to_ns  # noqa: E402
+from hac_ros.replay.feeder import tie_ordered
+from hac_ros.replay.replayer import replay
+from hac_ros.ros.node import HacNode
+from hac_ros.ros.spin_thread import SpinThread
+from msg_adapters import rclpy_types, stamp_to_ns
 
 TYPES = rclpy_types()
 JAZZY = get_typestore(Stores.ROS2_JAZZY)
@@ -112,7 +113,7 @@ def play_to_node(recording: Path) -> dict[str, list[Any]]:
                 msg = deserialize_message(bytes(raw), TYPES.get(types[topic]))
                 publishers[topic].publish(msg)
                 sent += 1
-                assert wait_for(lambda: counting.done >= sent), \
+                assert wait_for(lambda sent=sent: counting.done >= sent), \
                     f'the node did not process message {sent} ({topic})'
         # the outputs were published in the callbacks above; wait until the last ones arrived
         counts = [-1]

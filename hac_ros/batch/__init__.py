@@ -1,9 +1,9 @@
 """``hac batch``: many recordings calibrated in parallel, on a process pool or as Ray tasks.
 
-:func:`batch` replays each input recording (:func:`hac_ros.replay.replayer.replay`, the same parameters and
-mode for all) into ``DIR/<name>``, where ``<name>`` is the input's file or directory name without a
-``.mcap``/``.db3``/``.bag`` suffix (:func:`recording_name`), and writes ``DIR/summary.csv`` and
-``DIR/summary.md`` (SPEC, "Command line"; docs/batch.md).
+:func:`batch` replays each input recording (:func:`hac_ros.replay.replayer.replay`, the same
+parameters and mode for all) into ``DIR/<name>``, where ``<name>`` is the input's file or directory
+name without a ``.mcap``/``.db3``/``.bag`` suffix (:func:`recording_name`), and writes
+``DIR/summary.csv`` and ``DIR/summary.md`` (SPEC, "Command line"; docs/batch.md).
 
 One recording is one call of :func:`run_job`, in a worker of a process pool (``spawn``: the caller
 may have imported rclpy, whose threads a fork would copy half-way) or as a Ray task (``--ray``);

@@ -10,9 +10,10 @@ import shutil
 import socket
 import time
 import traceback
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 from hac_ros import __version__
 from hac_ros.core.errors import HacError
@@ -132,7 +133,7 @@ def run_job(job: Job) -> Row:
             row = _calibrate(job, log)
             row.wall_s = time.perf_counter() - start
             _write_json(job.marker_path, {**key, 'row': asdict(row)})
-        except Exception as exc:  # noqa: BLE001 - any failure is this row's, never the batch's
+        except Exception as exc:
             reason = one_line(exc)
             if not isinstance(exc, HacError):
                 traceback.print_exc(file=log)

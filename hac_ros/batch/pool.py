@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 import os
-from typing import Callable
+from collections.abc import Callable
 
 from hac_ros.batch.jobs import Job, Row, one_line, run_job
 
@@ -36,7 +36,7 @@ def run_pool(jobs: list[Job], workers: int, on_row: OnRow) -> None:
             except BrokenProcessPool:
                 row = Row(job.input, 'failed', 'a worker process died (killed, or out of memory?) '
                           'before this recording finished: run again with --resume')
-            except Exception as exc:  # noqa: BLE001 - e.g. its log file could not be opened
+            except Exception as exc:
                 row = Row(job.input, 'failed', one_line(exc))
             on_row(job, row)
     finally:

@@ -11,7 +11,8 @@ import contextlib
 import logging
 import os
 import socket
-from typing import Any, Iterator
+from collections.abc import Iterator
+from typing import Any
 
 from hac_ros.batch.jobs import Job, Row, one_line, run_job
 from hac_ros.batch.pool import OnRow
@@ -55,7 +56,7 @@ def run_ray(ray: Any, jobs: list[Job], on_row: OnRow) -> None:
                 job = refs[ref]
                 try:
                     row = ray.get(ref)
-                except Exception as exc:  # noqa: BLE001 - a task lost after its retries
+                except Exception as exc:
                     row = Row(job.input, 'failed', f'Ray task failed after {RAY_MAX_RETRIES} '
                               f'retries: {one_line(exc)}')
                 on_row(job, row)
@@ -86,7 +87,7 @@ def connect_ray(ray: Any, address: str, workers: int) -> bool:
         options.update(address=address)
     try:
         ray.init(**options)
-    except Exception as exc:  # noqa: BLE001 - version mismatch, authentication, ...
+    except Exception as exc:
         raise HacError(f'--ray {address}: {one_line(exc)}') from exc
     return True
 

@@ -4,9 +4,10 @@ from __future__ import annotations
 import contextlib
 import sys
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 from hac_ros.batch.jobs import LOGS, SUMMARY_CSV, SUMMARY_MD, Job, Row, plan, recording_name
 from hac_ros.batch.pool import default_workers, run_pool

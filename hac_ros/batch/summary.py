@@ -5,8 +5,8 @@ import csv
 import io
 import os
 import statistics
+from collections.abc import Iterable
 from pathlib import Path
-from typing import Iterable
 
 from hac_ros.batch.jobs import COLUMNS, LOGS, SUMMARY_CSV, SUMMARY_MD, Row, _finite
 

@@ -23,6 +23,7 @@ from hac_ros.core.outputs import (
     HumanJointsOut,
     OdometryOut,
     Output,
+    PendingStatus,
     PoseOut,
     SampleOut,
     ScaleOut,
@@ -119,7 +120,8 @@ class OutputMessages:
     def convert(self, output: Output) -> list[Message]:
         """The messages of one calibrator output (none for samples, notices and resets)."""
         frame = self.params.metric_frame
-        stamp = output.stamp_ns if not isinstance(output, DiagnosticsOut) else output.status.stamp_ns
+        stamp = (output.status.stamp_ns if isinstance(output, (DiagnosticsOut, PendingStatus))
+                 else output.stamp_ns)
         if isinstance(output, PoseOut):
             self._path[self._path_count % PATH_LENGTH] = output.position_metric
             self._path_count += 1
@@ -129,16 +131,18 @@ class OutputMessages:
             return [Message(*POSE, data, stamp)]
         if isinstance(output, OdometryOut):
             data = cdr_write.odometry(stamp, self.params.odom_frame, output.child_frame_id,
-                                      output.position_metric, matrix_to_quat(output.rotation_metric),
-                                      output.covariance, output.linear_velocity,
-                                      output.angular_velocity, output.twist_covariance)
+                                      output.position_metric,
+                                      matrix_to_quat(output.rotation_metric), output.covariance,
+                                      output.linear_velocity, output.angular_velocity,
+                                      output.twist_covariance)
             return [Message(*ODOMETRY, data, stamp)]
         if isinstance(output, CloudOut):
             msgs = [Message(*CLOUD, cdr_write.point_cloud_xyz32(stamp, frame, output.points_metric),
                             stamp)]
             if self.params.publish_obstacles and output.levelled:
                 z = output.points_metric[:, 2]
-                band = (z >= self.params.obstacle_min_height) & (z <= self.params.obstacle_max_height)
+                band = ((z >= self.params.obstacle_min_height)
+                        & (z <= self.params.obstacle_max_height))
                 msgs.append(Message(*OBSTACLES, cdr_write.point_cloud_xyz32(
                     stamp, frame, output.points_metric[band]), stamp))
             return msgs
@@ -175,7 +179,8 @@ class OutputMessages:
             ('alignment', status.alignment),
             ('rejected_total', str(sum(status.rejected.values()))),
         ]
-        values += [(f'service.{name}', str(count)) for name, count in sorted(status.services.items())]
+        values += [(f'service.{name}', str(count))
+                   for name, count in sorted(status.services.items())]
         values += [(f'rejected.{reason}', str(count))
                    for reason, count in sorted(status.rejected.items())]
         level = DIAG_OK if status.converged else DIAG_WARN
@@ -192,7 +197,8 @@ class OutputMessages:
             message += '; metric frame: SLAM axes (no usable ground normal)'
 
         return cdr_write.diagnostic_array(
-            status.stamp_ns, '', [(level, DIAGNOSTIC_NAME, message, self.params.metric_frame, values)])
+            status.stamp_ns, '',
+            [(level, DIAGNOSTIC_NAME, message, self.params.metric_frame, values)])
 
     # ------------------------------------------------------------------ markers
     def markers(self, output: HumanJointsOut) -> bytes:
@@ -250,7 +256,9 @@ def samples_message(samples: list[SampleOut]) -> bytes:
     """The /hac/samples message of one frame (see :data:`SAMPLES`)."""
     data = np.empty(SAMPLE_FIELDS * len(samples))
     for k, s in enumerate(samples):
-        code = SOURCE_CODES.get(s.source, SOURCE_REJECTED) if math.isfinite(s.scale) else SOURCE_REJECTED
-        data[SAMPLE_FIELDS * k:SAMPLE_FIELDS * (k + 1)] = (s.person, s.scale, code, float(s.accepted))
+        code = (SOURCE_CODES.get(s.source, SOURCE_REJECTED) if math.isfinite(s.scale)
+                else SOURCE_REJECTED)
+        start = SAMPLE_FIELDS * k
+        data[start:start + SAMPLE_FIELDS] = (s.person, s.scale, code, float(s.accepted))
     dims = [('sample', len(samples), len(data)), (SAMPLE_LABEL, SAMPLE_FIELDS, SAMPLE_FIELDS)]
     return cdr_write.float64_multi_array(dims, data)

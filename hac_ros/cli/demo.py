@@ -4,7 +4,8 @@ The recording ``bags/demo_walk`` is only read. Its results go to ``out/`` (``out
 calibrated recording, ``out/eval.md`` and ``out/eval.json`` the metrics, ``out/*.png`` the
 figures, ``out/tum/`` the trajectories for evo); results of an earlier demo there are replaced,
 nothing else in ``out/`` is touched. Without the bundled recording (an installed package, or a
-checkout before it was added) a 20-second ``walk`` recording is simulated into a temporary directory.
+checkout before it was added) a 20-second ``walk`` recording is simulated into a temporary
+directory.
 """
 from __future__ import annotations
 
@@ -42,7 +43,7 @@ def simulate_into(directory: Path) -> Path:
     from hac_ros.cli import main
 
     path = directory / 'demo_walk'
-    code = main(['simulate', SIMULATED['scenario'], '-o', str(path), '--seed',
+    code = main(['simulate', str(SIMULATED['scenario']), '-o', str(path), '--seed',
                  str(SIMULATED['seed']), '--duration', str(SIMULATED['duration_s'])])
     if code != 0 or not path.exists():
         raise HacError(f'could not simulate a demo recording (hac simulate exited with {code})')

@@ -19,7 +19,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_params(parser, 'the parameters file the replay used (for the reference rows; default: '
                'the defaults in the recording\'s joint layout)')
     parser.add_argument('--no-references', action='store_true',
-                        help='skip the "no calibration" and "true scale" rows (they re-run the core)')
+                        help='skip the "no calibration" and "true scale" rows (they re-run '
+                        'the core)')
 
 
 def run(args: argparse.Namespace) -> int:

@@ -44,7 +44,7 @@ class Alignment:
     levelled: bool = False
 
     @classmethod
-    def identity(cls) -> 'Alignment':
+    def identity(cls) -> Alignment:
         return cls(np.eye(3), np.zeros(3), np.zeros(3))
 
     def point(self, p_slam: np.ndarray, scale: float) -> np.ndarray:
@@ -57,12 +57,14 @@ class Alignment:
         centre (3,) metres)."""
         return self.rotation @ R_wc, self.point(c_map, scale)
 
-    def moved_from(self, other: 'Alignment', scale: float, at_slam: np.ndarray) -> tuple[float, float]:
+    def moved_from(self, other: Alignment, scale: float,
+                   at_slam: np.ndarray) -> tuple[float, float]:
         """How far this alignment is from ``other``: (rotation angle, degrees; metres the point
         ``at_slam`` (SLAM units) moves in the metric frame at ``scale``)."""
         cos = (np.trace(self.rotation.T @ other.rotation) - 1.0) * 0.5
         angle = math.degrees(math.acos(min(max(cos, -1.0), 1.0)))
-        return angle, float(np.linalg.norm(self.point(at_slam, scale) - other.point(at_slam, scale)))
+        shift = self.point(at_slam, scale) - other.point(at_slam, scale)
+        return angle, float(np.linalg.norm(shift))
 
 
 def gravity_rotation(normal_down: np.ndarray, R_wc: np.ndarray) -> np.ndarray | None:
@@ -104,7 +106,9 @@ def heading(R_metric: np.ndarray) -> float:
     """The heading (rad, about z) of a camera's view (R_metric: camera to a levelled metric frame);
     0 when it looks straight up or down."""
     view = np.asarray(R_metric)[:, 2]
-    return math.atan2(float(view[1]), float(view[0])) if math.hypot(view[0], view[1]) > 1e-9 else 0.0
+    if math.hypot(view[0], view[1]) <= 1e-9:
+        return 0.0
+    return math.atan2(float(view[1]), float(view[0]))
 
 
 def slam_continuing(last_rotation: np.ndarray, last_position: np.ndarray, R_wc: np.ndarray,

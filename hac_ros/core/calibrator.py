@@ -112,7 +112,8 @@ class Calibrator:
                                   RootFilter(self.layout) if p.human_filter == 'smooth' else None)
 
     # ================================================================== inputs
-    def add_camera_info(self, K: np.ndarray, width: int, height: int, frame_id: str = '') -> list[Output]:
+    def add_camera_info(self, K: np.ndarray, width: int, height: int,
+                        frame_id: str = '') -> list[Output]:
         """Intrinsics of the camera: joints projecting outside the image go to the ground plane."""
         K = np.asarray(K, dtype=float)
         if K.shape != (3, 3) or not np.all(np.isfinite(K)) or K[0, 0] <= 0 or K[1, 1] <= 0 \
@@ -124,7 +125,8 @@ class Calibrator:
 
     def add_pose(self, stamp_ns: int, R_wc: np.ndarray, c_map: np.ndarray, frame_id: str = '',
                  child_frame_id: str = '') -> list[Output]:
-        """A SLAM pose: camera-to-map rotation (3, 3) and camera centre (3,), SLAM units, map frame."""
+        """A SLAM pose: camera-to-map rotation (3, 3) and camera centre (3,), SLAM units, map
+        frame."""
         out: list[Output] = []
         R_wc = self.conventions.pose(np.asarray(R_wc, dtype=float))
         c_map = np.asarray(c_map, dtype=float)
@@ -228,7 +230,8 @@ class Calibrator:
         return out
 
     def flush(self) -> list[Output]:
-        """End of input: process the frames still waiting (matched within the slop, else dropped)."""
+        """End of input: process the frames still waiting (matched within the slop, else
+        dropped)."""
         out: list[Output] = []
         if self.track.suspects:  # an unconfirmed jump at the very end: its poses are outliers
             for pose in self.track.suspects:
@@ -363,7 +366,8 @@ class Calibrator:
         stale = [f for f in self._pending if f.stamp_ns < first_pose.stamp_ns]
         self._pending = [f for f in self._pending if f.stamp_ns >= first_pose.stamp_ns]
         out += [ResetOut(first_pose.stamp_ns, cause),
-                NoticeOut(first_pose.stamp_ns, 'reset', f'estimator reset ({cause}): {text}', 'warn')]
+                NoticeOut(first_pose.stamp_ns, 'reset', f'estimator reset ({cause}): {text}',
+                          'warn')]
         for frame in stale:
             out += self.reject('no_pose', frame.stamp_ns)
         return out
@@ -391,7 +395,8 @@ class Calibrator:
             return out
         chosen = chosen.composed(self.map if self.params.cloud_mode == 'accumulate' else None,
                                  self.params.cloud_max_points, self.params.index_max_points)
-        if (self.map is not None and not self._expect_new_map and self.params.cloud_mode == 'replace'
+        if (self.map is not None and not self._expect_new_map
+                and self.params.cloud_mode == 'replace'
                 and self.params.map_overlap_min > 0
                 and chosen.overlap_fraction(self.map) < self.params.map_overlap_min
                 and self.map.overlap_fraction(chosen) < self.params.map_overlap_min):
@@ -414,7 +419,7 @@ class Calibrator:
         handed over is kept until the recording ends."""
         last = self._map_handed_ns
         if (not self._map_unhanded or self.map is None or not self.params.publish_cloud
-                or last is not None and stamp_ns - last < self.params.cloud_min_period_s * NS):
+                or (last is not None and stamp_ns - last < self.params.cloud_min_period_s * NS)):
             return []
         self._map_unhanded, self._map_handed_ns = False, stamp_ns
         return self._metric(PendingMap(stamp_ns, self.segment,
@@ -486,7 +491,8 @@ class Calibrator:
 
     # ================================================================== outputs
     def _odometry(self, pose: Pose) -> list[Output]:
-        """Every accepted pose (the odometry integrates them all, also while a segment converges)."""
+        """Every accepted pose (the odometry integrates them all, also while a segment
+        converges)."""
         # the position's uncertainty comes from the scale's standard error (MetricStage)
         n = max(self.estimator.samples, 1)
         sigma_scale = MEDIAN_STD_ERROR * self.estimator.spread() / math.sqrt(n)

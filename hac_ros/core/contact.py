@@ -1,11 +1,12 @@
 """Contact joint selection (SPEC, method step 1).
 
 The paper takes the lowest joint along the camera's y axis (y points down): ``argmax_i J_i.y``.
-That rule breaks when the camera rolls or pitches, so ``lowest_gravity`` takes the lowest joint along
-the ground normal once one is known. The authors' code instead computes a scale for every joint and
-keeps the per-frame maximum ratio (``max_ratio``): a joint can never lie behind the surface its ray
-hits, so every ratio is at most the true scale and the largest is the contact. ``feet``,
-``pelvis`` and ``head`` are the paper's fixed-joint ablations (Tab. 1). Which joint is which is the
+That rule breaks when the camera rolls or pitches, so ``lowest_gravity`` takes the lowest joint
+along the ground normal once one is known. The authors' code instead computes a scale for every
+joint and keeps the per-frame maximum ratio (``max_ratio``): a joint can never lie behind the
+surface its ray hits, so every ratio is at most the true scale and the largest is the contact.
+``feet``, ``pelvis`` and ``head`` are the paper's fixed-joint ablations (Tab. 1). Which joint is
+which is the
 :class:`~hac_ros.core.layouts.JointLayout`'s (``joint_layout``).
 """
 from __future__ import annotations
@@ -40,7 +41,8 @@ def candidate_joints(mode: str, layout: JointLayout, joints_cam: np.ndarray, R_w
         height_down = joints_cam[:, 1].tolist()
     best, lowest = -1, -math.inf
     for j in allowed:
-        if depth[j] > 0.0 and (best < 0 or height_down[j] > lowest):  # the first of equals, as argmax
+        # the first of equals, as argmax
+        if depth[j] > 0.0 and (best < 0 or height_down[j] > lowest):
             best, lowest = j, height_down[j]
     return [best] if best >= 0 else []
 
@@ -75,7 +77,8 @@ def leg_length(layout: JointLayout, joints: np.ndarray) -> float:
 def combine_ratios(mode: str, ratios: list[float]) -> float:
     """One person's scale from the per-joint ratios d_A / d_S (metres per SLAM unit, NaN: none).
 
-    max_ratio: the maximum (authors' code); fixed multi-joint sets (feet): the median; one joint: it.
+    max_ratio: the maximum (authors' code); fixed multi-joint sets (feet): the median; one joint:
+    it.
     """
     if len(ratios) == 1:
         return float(ratios[0])

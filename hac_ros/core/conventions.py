@@ -10,7 +10,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from hac_ros.core.layouts import JointLayout
-from hac_ros.core.outputs import NoticeOut
+from hac_ros.core.outputs import NoticeOut, Output
 
 
 def optical_rotation(pose_to_optical: list[float]) -> np.ndarray | None:
@@ -74,13 +74,13 @@ class Conventions:
         """The SLAM pose's rotation (3, 3) -> the optical frame's in the map."""
         return to_optical(R_map_child, self.R_child_optical)
 
-    def camera_info_notes(self, stamp_ns: int, K: np.ndarray) -> list[NoticeOut]:
+    def camera_info_notes(self, stamp_ns: int, K: np.ndarray) -> list[Output]:
         """The first CameraInfo: one line saying which focal length the HMR depth is taken at."""
         return [NoticeOut(stamp_ns, 'hmr_focal', focal_note(float(K[0, 0]), self.hmr_focal_px),
                           'info')]
 
     def joints(self, stamp_ns: int, joints_cam: np.ndarray, K: np.ndarray | None
-               ) -> tuple[np.ndarray, list[NoticeOut]]:
+               ) -> tuple[np.ndarray, list[Output]]:
         """(P, J, 3) metres, optical frame -> at the camera's focal length (with a warning, once,
         while hmr_focal_px is set and no CameraInfo has come)."""
         if not self.hmr_focal_px:

@@ -1,4 +1,5 @@
-"""Exception types of the core. Catch :class:`HacError` for anything the package raises on purpose."""
+"""Exception types of the core. Catch :class:`HacError` for anything the package raises on
+purpose."""
 
 
 class HacError(Exception):

@@ -1,4 +1,5 @@
-"""The scale estimator: a rolling window in stamp time with a streaming median (SPEC, method step 5).
+"""The scale estimator: a rolling window in stamp time with a streaming median (SPEC, method step
+5).
 
 The paper takes one median over a whole video. Online we keep the per-frame scales of the last
 ``window_s`` stamp seconds (at most ``window_max_samples``) in a sorted numpy buffer
@@ -22,8 +23,8 @@ trend in log-scale evaluated at the newest stamp (:func:`log_trend`: Theil–Sen
 of TREND_BINS time bins; only once the samples span a third of the window, so not right after a
 reset). The window drifts when the trend's slope is DRIFT_Z standard errors
 from zero (the error from the bin medians' scatter about the trend) and moves the scale by more
-than DRIFT_MIN_REL over the window: a trend is twice as noisy as a median at the window's end, so it is used only
-when the drift is real. The trend is re-fitted every TREND_REFRESH_NS of stamp time.
+than DRIFT_MIN_REL over the window: a trend is twice as noisy as a median at the window's end, so it
+is used only when the drift is real. The trend is re-fitted every TREND_REFRESH_NS of stamp time.
 """
 from __future__ import annotations
 
@@ -120,7 +121,8 @@ class RollingScale:
             self._trend_ns = self._now_ns
             stamps = np.fromiter((s for s, _ in self._fifo), np.int64, len(self._fifo))
             values = np.fromiter((v for _, v in self._fifo), float, len(self._fifo))
-            long_enough = len(stamps) and stamps[-1] - stamps[0] >= TREND_MIN_SPAN_REL * self.window_ns
+            long_enough = (len(stamps)
+                           and stamps[-1] - stamps[0] >= TREND_MIN_SPAN_REL * self.window_ns)
             self._trend = log_trend(stamps, values) if long_enough else None
         if self._trend is None:
             return self.median()

@@ -32,7 +32,8 @@ CONTACT_MIN_POINTS = 30  # contact joints needed before refining the normal
 CONTACT_REFIT_EVERY = 30  # refit the contact plane every this many new contacts
 CONTACT_BUFFER = 3000  # contact joints kept for the refinement
 RANSAC_SAMPLE = 500  # contact joints a RANSAC hypothesis is scored on
-CONTACT_MAX_TILT_DEG = 10.0  # a contact plane tilted further than this from the body normal is refused
+# a contact plane tilted further than this from the body normal is refused
+CONTACT_MAX_TILT_DEG = 10.0
 CONTACT_LINE_RATIO = 0.15  # second/first singular value below this: the contacts form a line
 LARGEST_PLANE_INLIER_REL = 0.005  # largest_plane: inlier distance as a fraction of the map extent
 LARGEST_PLANE_SAMPLE = 5000  # map points used by the largest_plane RANSAC
@@ -158,7 +159,8 @@ class GroundModel:
         self._contacts[self._contact_count % CONTACT_BUFFER] = contact_map
         self._contact_count += 1
         self._contacts_since_fit += 1
-        if self._contact_count >= CONTACT_MIN_POINTS and self._contacts_since_fit >= CONTACT_REFIT_EVERY:
+        if (self._contact_count >= CONTACT_MIN_POINTS
+                and self._contacts_since_fit >= CONTACT_REFIT_EVERY):
             self._contacts_since_fit = 0
             self._refine_with_contacts(self.inlier_m / scale)
 
@@ -189,7 +191,7 @@ class GroundModel:
         cache = self._plane_cache
         if cache is not None and cache[0] is map_index and cache[1] == key:
             return cache[2]
-        if self.mode == 'largest_plane':
+        if normal is None:  # largest_plane
             plane = self._largest_plane(map_index)
         else:
             plane = Plane(normal, map_index.floor_offset(normal))
@@ -198,7 +200,8 @@ class GroundModel:
 
     # ------------------------------------------------------------------ internals
     def _orient_down(self, normal: np.ndarray) -> np.ndarray:
-        """Flip ``normal`` to point down: along the cameras' mean y axis, else against the bodies' up."""
+        """Flip ``normal`` to point down: along the cameras' mean y axis, else against the bodies'
+        up."""
         down = np.array(self._camera_down)
         if np.linalg.norm(down) > 0 and abs(normal @ down) > 0.3 * np.linalg.norm(down):
             return normal if normal @ down > 0 else -normal

@@ -31,7 +31,8 @@ GATE_M = 0.5  # a person further than this from a track's predicted root (plus..
 GATE_SPEED_M_S = 3.0  # ... this speed times the time since it was seen starts a new track
 TRACK_TIMEOUT_S = 2.0  # a track not seen for this long is dropped
 MEASUREMENT_SIGMA_M = 0.05  # the root's per-frame error (HMR depth noise)
-ACCELERATION_SIGMA_M_S2 = 3.0  # how fast a person's velocity may change (the filter's process noise)
+# how fast a person's velocity may change (the filter's process noise)
+ACCELERATION_SIGMA_M_S2 = 3.0
 SMOOTH_SIGMA_S = 0.1  # offline Gaussian, stamp seconds (3 frames at 30 fps)
 
 
@@ -64,7 +65,8 @@ class PersonTracker:
         if valid and tracks:
             cost = np.array([[np.linalg.norm(roots[p] - t.predicted(stamp_ns)) for t in tracks]
                              for p in valid])
-            gates = np.array([GATE_M + GATE_SPEED_M_S * (stamp_ns - t.last_ns) / NS for t in tracks])
+            gates = np.array([GATE_M + GATE_SPEED_M_S * (stamp_ns - t.last_ns) / NS
+                              for t in tracks])
             rows, cols = linear_sum_assignment(np.where(cost <= gates, cost, 1e9))
             for r, c in zip(rows, cols):
                 if cost[r, c] <= gates[c]:

@@ -1,4 +1,5 @@
-"""Joint layouts (SPEC, Parameters: ``joint_layout``): which joint is which in an HMR model's output.
+"""Joint layouts (SPEC, Parameters: ``joint_layout``): which joint is which in an HMR model's
+output.
 
 A :class:`JointLayout` says, for one person's K joints (metres, any frame): which joints may touch
 the scene (contact candidates), the root (the person's depth and world track), the body's up axis
@@ -105,7 +106,8 @@ def layout_from_params(params: Any) -> JointLayout:
     for name, indices in roles.items():
         bad = [i for i in indices if not 0 <= i < k]
         if bad:
-            raise ParameterError(f'{name}: indices {bad} outside 0..{k - 1} (joints_per_person {k})')
+            raise ParameterError(f'{name}: indices {bad} outside 0..{k - 1} '
+                                 f'(joints_per_person {k})')
     for name in ('root_joints', 'body_axis_lower_joints', 'body_axis_upper_joints'):
         if not roles[name]:
             raise ParameterError(f'{name}: joint_layout custom needs at least one index')

@@ -26,8 +26,8 @@ Pure numpy. Stamps are int nanoseconds; scales are metres per SLAM unit (None: n
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field, replace
-from typing import Callable, Iterable
 
 import numpy as np
 
@@ -77,7 +77,7 @@ class StageConfig:
     cloud_min_period_ns: int = 5 * NS
 
     @classmethod
-    def from_params(cls, p: HacParams) -> 'StageConfig':
+    def from_params(cls, p: HacParams) -> StageConfig:
         base = base_from_camera(p.base_to_camera) if p.base_frame else None
         return cls(p.metric_frame_alignment, base, p.orientation_variance, p.publish_cloud,
                    p.cloud_republish_rel, int(p.cloud_min_period_s * NS))
@@ -120,7 +120,7 @@ class MetricStage:
         self.final_planes: dict[int, Plane | None] | None = None
         self._warned: set[int] = set()
 
-    def fresh(self) -> 'MetricStage':
+    def fresh(self) -> MetricStage:
         """A new stage with this one's configuration, for resolving deferred outputs: without the
         online filter of the humans (offline they are smoothed over the whole recording,
         :func:`hac_ros.core.human_filter.smooth_people`)."""
@@ -159,7 +159,8 @@ class MetricStage:
             return []
         if isinstance(pending, PendingMap):
             self.cloud.points = pending.points_slam
-            self.cloud.centre = pending.points_slam.mean(axis=0) if len(pending.points_slam) else np.zeros(3)
+            points = pending.points_slam
+            self.cloud.centre = points.mean(axis=0) if len(points) else np.zeros(3)
             self.cloud.new_map = True
             return []
         if isinstance(pending, PendingStatus):
@@ -181,13 +182,14 @@ class MetricStage:
             if not pending.keeps_map:
                 self.cloud.points = None
 
-    def alignment(self, segment: int, plane: Plane | None) -> tuple[Alignment, list[Output]]:
+    def alignment(self, segment: int,
+                  plane: Plane | None) -> tuple[Alignment, list[NoticeOut]]:
         """The segment's placement with this ground plane (or its final one, offline), and a
         notice when it has to fall back to the SLAM's axes (no usable ground normal)."""
         seg = self.segments[segment]
         if self.final_planes is not None:
             plane = self.final_planes.get(segment)
-        notices: list[Output] = []
+        notices: list[NoticeOut] = []
         if not seg.slam:
             if seg.cache is not None and (plane is None or seg.cache[0] is plane):
                 return seg.cache[1], notices  # no plane now: keep the last levelled one
@@ -219,15 +221,17 @@ class MetricStage:
             self.odometry.update(pending.stamp_ns, pending.child_frame_id, pending.R_wc,
                                  pending.c_map, None, math.nan, None)
             return []
-        placed, out = self.alignment(pending.segment, pending.plane)
-        for notice in out:
+        placed, notices = self.alignment(pending.segment, pending.plane)
+        for notice in notices:
             notice.stamp_ns = pending.stamp_ns
+        out: list[Output] = list(notices)
         R_cam, p_cam = placed.camera(pending.R_wc, pending.c_map, scale)
         rel = sigma_scale / scale if math.isfinite(sigma_scale) else math.nan
         seg = self.segments[pending.segment]
         first = placed.point(seg.first_c, scale)
+        from_anchor = float(np.linalg.norm(p_cam - first))
         variance = (POSITION_VARIANCE_FLOOR + seg.anchor_variance
-                    + ((rel if math.isfinite(rel) else 0.0) * float(np.linalg.norm(p_cam - first))) ** 2)
+                    + ((rel if math.isfinite(rel) else 0.0) * from_anchor) ** 2)
         if pending.ground_share > GROUND_CARRIES:
             variance *= GROUND_INFLATION
         self.last_pose = (R_cam, p_cam, variance)
@@ -247,7 +251,8 @@ class MetricStage:
     def _frame(self, pending: PendingFrame, scale: float | None) -> list[Output]:
         if scale is None or pending.segment not in self.segments:
             return []
-        placed, out = self.alignment(pending.segment, pending.plane)
+        placed, notices = self.alignment(pending.segment, pending.plane)
+        out: list[Output] = list(notices)
         R_cam, p_cam = placed.camera(pending.R_wc, pending.c_map, scale)
         joints = np.asarray(pending.joints_cam) @ R_cam.T + p_cam
         if self.humans is not None:

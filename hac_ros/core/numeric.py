@@ -1,6 +1,6 @@
 """Small numeric helpers for the per-frame path (numpy's generic versions cost tens of µs here),
-the robust-statistics constants the estimator, the odometry covariance and the offline schedule share,
-and the nanoseconds in a second (stamps are integer nanoseconds everywhere)."""
+the robust-statistics constants the estimator, the odometry covariance and the offline schedule
+share, and the nanoseconds in a second (stamps are integer nanoseconds everywhere)."""
 from __future__ import annotations
 
 import math

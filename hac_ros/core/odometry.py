@@ -78,7 +78,8 @@ class ContinuousOdometry:
         if not self.started:
             if scale is None or start is None:
                 return None
-            self.rotation, self.position = np.array(start[0], dtype=float), np.array(start[1], dtype=float)
+            self.rotation = np.array(start[0], dtype=float)
+            self.position = np.array(start[1], dtype=float)
             self._last = pose
             return self._output(pose.stamp_ns, child_frame_id, sigma_rel, still=True)
         if self._last is None:  # the first pose of a new segment: a zero step from the last one
@@ -123,8 +124,10 @@ class ContinuousOdometry:
             linear, angular = velocities(last[1], last[2], R, p, (stamp_ns - last[0]) / 1e9)
         self._out = (stamp_ns, R, p)
         rel = math.hypot(SLAM_DRIFT_REL, sigma_rel if math.isfinite(sigma_rel) else 0.0)
+        orientation_variance = (self.orientation_variance
+                                + (ROTATION_DRIFT_REL * self.turned) ** 2)
         pose_cov = np.diag([POSITION_VARIANCE_FLOOR + (rel * self.distance) ** 2] * 3
-                           + [self.orientation_variance + (ROTATION_DRIFT_REL * self.turned) ** 2] * 3)
+                           + [orientation_variance] * 3)
         twist_cov = np.diag([TWIST_VARIANCE_FLOOR + (rel * float(np.linalg.norm(linear))) ** 2] * 3
                             + [TWIST_VARIANCE_FLOOR] * 3)
         return OdometryOut(stamp_ns, child_frame_id, R, p, pose_cov, linear, angular, twist_cov)

@@ -34,8 +34,9 @@ from __future__ import annotations
 
 import bisect
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -66,10 +67,10 @@ class SegmentScale:
     start_ns: first stamp of the segment (the reset's stamp; the first segment starts at the
     recording's beginning); samples: accepted samples in it; median: their median, metres per SLAM
     unit (NaN if fewer than min_samples); sigma: robust sigma of the samples about the local trend;
-    drift: whether the drift test fired; drift_z / drift_rel: the largest window z-score and relative
-    departure seen; knots_ns / knots_scale: the schedule (one knot = constant median); error: the
-    standard error of the published scale (of the median, or of one window's median when drifting),
-    metres per SLAM unit (the odometry's covariance uses it).
+    drift: whether the drift test fired; drift_z / drift_rel: the largest window z-score and
+    relative departure seen; knots_ns / knots_scale: the schedule (one knot = constant median);
+    error: the standard error of the published scale (of the median, or of one window's median when
+    drifting), metres per SLAM unit (the odometry's covariance uses it).
     """
 
     start_ns: int
@@ -100,7 +101,8 @@ class SegmentScale:
             lo, hi = float(np.min(self.knots_scale)), float(np.max(self.knots_scale))
             kind += f' {lo:.6g} .. {hi:.6g}'
         return (f'{self.samples} samples, median {self.median:.6g} +- {self.sigma:.2g}, {kind} '
-                f'(drift test: max z {self.drift_z:.1f}, max departure {100 * self.drift_rel:.1f} %)')
+                f'(drift test: max z {self.drift_z:.1f}, max departure '
+                f'{100 * self.drift_rel:.1f} %)')
 
 
 class OfflineScale:
@@ -172,13 +174,14 @@ def offline_scale(sample_stamps_ns: np.ndarray, sample_scales: np.ndarray,
     edges = [0, *bounds.tolist(), len(stamps)]
     starts = [int(stamps[0]) if len(stamps) else 0, *resets]
     segments = [
-        segment_scale(stamps[a:b], scales[a:b], start, window_s, min_samples, drift_z, drift_min_rel)
+        segment_scale(stamps[a:b], scales[a:b], start, window_s, min_samples, drift_z,
+                      drift_min_rel)
         for start, a, b in zip(starts, edges[:-1], edges[1:])]
     return OfflineScale(segments)
 
 
-def resolve_offline(stage: 'MetricStage', params: 'HacParams', batches: Sequence[list[Output]],
-                    scale_at: 'ScaleAt | None' = None
+def resolve_offline(stage: MetricStage, params: HacParams, batches: Sequence[list[Output]],
+                    scale_at: ScaleAt | None = None
                     ) -> tuple[list[list[Output]], OfflineScale | None]:
     """A deferred run's outputs resolved as the offline replay resolves them: with the offline
     schedule of the run's own accepted samples and resets, or with ``scale_at`` (stamp -> metres
@@ -203,7 +206,7 @@ def resolve_offline(stage: 'MetricStage', params: 'HacParams', batches: Sequence
     return [stage.resolve(batch, scale_at, error_at, planes) for batch in batches], schedule
 
 
-def final_planes(batches: Sequence[list[Output]]) -> 'dict[int, Plane | None]':
+def final_planes(batches: Sequence[list[Output]]) -> dict[int, Plane | None]:
     """Segment -> its last ground plane (SLAM map frame) in a deferred run's outputs: offline, each
     segment has one final alignment (SPEC, the metric frame)."""
     planes: dict[int, Plane | None] = {}
@@ -278,9 +281,9 @@ def centred_medians(stamps_ns: np.ndarray, scales: np.ndarray, query_ns: np.ndar
     """Median of the samples in a window centred on each query stamp.
 
     The window is ±half_ns, shrunk symmetrically near the samples' ends so that it stays centred
-    (never below :data:`EDGE_MIN_HALF_FRACTION` of half_ns), and widened to ±half_ns if it then holds
-    fewer than ``min_samples`` samples. stamps_ns: (n,) sorted int; scales: (n,); query_ns: (M,) int.
-    Returns (M,) float, metres per SLAM unit.
+    (never below :data:`EDGE_MIN_HALF_FRACTION` of half_ns), and widened to ±half_ns if it then
+    holds fewer than ``min_samples`` samples. stamps_ns: (n,) sorted int; scales: (n,); query_ns:
+    (M,) int. Returns (M,) float, metres per SLAM unit.
     """
     query = np.asarray(query_ns, dtype=np.int64)
     if len(stamps_ns) == 0:

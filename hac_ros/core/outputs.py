@@ -1,12 +1,13 @@
 """What the :class:`~hac_ros.core.calibrator.Calibrator` hands back: plain numpy results.
 
 The node turns them into messages and publishes them; the replay turns them into the same messages
-and writes them at their ``stamp_ns``. Every ``stamp_ns`` is an input header stamp (int nanoseconds).
+and writes them at their ``stamp_ns``. Every ``stamp_ns`` is an input header stamp (int
+nanoseconds).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Union
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -16,8 +17,8 @@ if TYPE_CHECKING:
 
 @dataclass(slots=True)
 class OdometryOut:
-    """/hac/odometry: the continuous metric odometry of the camera (or of ``base_frame``) at one SLAM
-    pose stamp (hac_ros.core.odometry).
+    """/hac/odometry: the continuous metric odometry of the camera (or of ``base_frame``) at one
+    SLAM pose stamp (hac_ros.core.odometry).
 
     rotation_metric: (3, 3) float64, child frame to ``odom_frame``.
     position_metric: (3,) float64, metres, ``odom_frame``.
@@ -61,7 +62,8 @@ class CloudOut:
 
 @dataclass(slots=True)
 class HumanJointsOut:
-    """The frame's joints in the metric world. joints_metric: (P, K, 3) float64, metres, metric_frame."""
+    """The frame's joints in the metric world. joints_metric: (P, K, 3) float64, metres,
+    metric_frame."""
 
     stamp_ns: int
     joints_metric: np.ndarray
@@ -109,7 +111,8 @@ class Status:
     ground_normal_map: np.ndarray | None = None  # (3,) unit, SLAM map frame, points down
     ground_offset_slam: float = float('nan')  # plane n·p = b, SLAM units
     ground_normal_metric: np.ndarray | None = None  # (3,) unit, metric frame, points down
-    ground_point_metric: np.ndarray | None = None  # (3,) metres, metric frame: the plane below the camera
+    # (3,) metres, metric frame: the plane below the camera
+    ground_point_metric: np.ndarray | None = None
     drifting: bool = False  # the estimate follows a drift trend (hac_ros.core.estimator)
     frozen: bool = False  # the scale is held (~/freeze)
     alignment: str = ''  # the metric frame of the current segment: 'gravity' or 'slam'
@@ -131,7 +134,8 @@ class DiagnosticsOut:
 
 @dataclass(slots=True)
 class ResetOut:
-    """The estimator was reset (SLAM re-initialisation). cause: 'pose_jump', 'pose_frame', 'map_frame', 'map_overlap'."""
+    """The estimator was reset (SLAM re-initialisation). cause: 'pose_jump', 'pose_frame',
+    'map_frame', 'map_overlap'."""
 
     stamp_ns: int
     cause: str
@@ -167,7 +171,8 @@ REASONS = {
     'joints_lost': 'joints message lost in transport (best-effort input_qos)',
     'camera_info_lost': 'CameraInfo lost in transport (best-effort input_qos)',
     'cloud_lost': 'map cloud lost in transport',
-    # counted by hac_node from the middleware's incompatible-type events (a publisher of another type)
+    # counted by hac_node from the middleware's incompatible-type events (a publisher of another
+    # type)
     'pose_wrong_type': 'a publisher on the pose topic has another type than pose_type',
     'joints_wrong_type': 'a publisher on the joints topic is not PoseArray',
     'camera_info_wrong_type': 'a publisher on the CameraInfo topic is not CameraInfo',
@@ -210,8 +215,8 @@ class PendingSegment:
 @dataclass(slots=True)
 class PendingMap:
     """A new map used by the frames from ``stamp_ns`` on (handed over at most once per
-    ``cloud_min_period_s``): points_slam (N, 3) float32, SLAM units, segment ``segment``'s map frame,
-    already thinned to ``cloud_out_max_points``."""
+    ``cloud_min_period_s``): points_slam (N, 3) float32, SLAM units, segment ``segment``'s map
+    frame, already thinned to ``cloud_out_max_points``."""
 
     stamp_ns: int
     segment: int
@@ -273,6 +278,6 @@ class PendingStatus:
 
 PENDING = (PendingSegment, PendingMap, PendingOdometry, PendingFrame, PendingStatus)
 
-Output = Union[OdometryOut, PoseOut, CloudOut, HumanJointsOut, ScaleOut, SampleOut, DiagnosticsOut,
-               ResetOut, NoticeOut, PendingSegment, PendingMap, PendingOdometry, PendingFrame,
-               PendingStatus]
+Output = (OdometryOut | PoseOut | CloudOut | HumanJointsOut | ScaleOut | SampleOut | DiagnosticsOut
+          | ResetOut | NoticeOut | PendingSegment | PendingMap | PendingOdometry | PendingFrame
+          | PendingStatus)

@@ -9,9 +9,10 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 from hac_ros.core.errors import ParameterError
 
@@ -23,7 +24,8 @@ GROUND_MODES = ('hmr', 'slam_y', 'largest_plane', 'none')
 POSE_TYPES = ('PoseStamped', 'Odometry')
 ALIGNMENTS = ('gravity', 'slam')
 # pose_type -> the ROS message type of pose_topic
-POSE_MSGTYPES = {'PoseStamped': 'geometry_msgs/msg/PoseStamped', 'Odometry': 'nav_msgs/msg/Odometry'}
+POSE_MSGTYPES = {'PoseStamped': 'geometry_msgs/msg/PoseStamped',
+                 'Odometry': 'nav_msgs/msg/Odometry'}
 CLOUD_MODES = ('replace', 'accumulate')
 HUMAN_FILTERS = ('none', 'smooth')
 JOINT_LAYOUTS = ('smpl24', 'coco17', 'h36m17', 'custom')
@@ -50,19 +52,21 @@ class HacParams:
     # --- topics and types (SPEC: ROS 2 interface)
     pose_topic: str = _p('slam/pose', 'SLAM camera pose input (map frame, unknown scale)')
     cloud_topic: str = _p('slam/cloud', 'SLAM map points input (PointCloud2, map frame)')
-    joints_topic: str = _p('hmr/joints', 'HMR joints input (PoseArray, camera optical frame, metres)')
+    joints_topic: str = _p('hmr/joints',
+                           'HMR joints input (PoseArray, camera optical frame, metres)')
     camera_info_topic: str = _p('camera/camera_info',
                                 'CameraInfo of the camera; "" turns it off')
     pose_type: str = _p('PoseStamped', 'message type of pose_topic', choices=POSE_TYPES)
     metric_frame: str = _p('map_metric', 'frame_id of /hac/pose, /hac/human_joints, /hac/cloud')
     camera_frame: str = _p('', 'camera optical frame; "" = from the inputs')
     odom_frame: str = _p('hac_odom', 'frame_id of /hac/odometry (continuous)')
-    metric_frame_alignment: str = _p('gravity', 'metric_frame: gravity (z up, floor at z = 0, x the '
-                                     'first view) or slam (the SLAM map\'s axes, scaled)',
+    metric_frame_alignment: str = _p('gravity', 'metric_frame: gravity (z up, floor at z = 0, x '
+                                     'the first view) or slam (the SLAM map\'s axes, scaled)',
                                      choices=ALIGNMENTS)
 
     # --- method (SPEC: the method)
-    contact_mode: str = _p('lowest_gravity', 'how the contact joint is chosen', choices=CONTACT_MODES)
+    contact_mode: str = _p('lowest_gravity', 'how the contact joint is chosen',
+                           choices=CONTACT_MODES)
     reference_mode: str = _p('cone_plane', 'map ray query', choices=REFERENCE_MODES)
     sole_correction: bool = _p(True, 'cast the contact joint\'s ray from the surface it touches: '
                                'the joint moved down by its height above the sole (a fraction of '
@@ -99,7 +103,8 @@ class HacParams:
     pose_buffer: int = _p(600, 'SLAM poses kept for matching', low=2, high=1_000_000)
 
     # --- map
-    cloud_mode: str = _p('replace', 'each cloud replaces the map or adds to it', choices=CLOUD_MODES)
+    cloud_mode: str = _p('replace', 'each cloud replaces the map or adds to it',
+                         choices=CLOUD_MODES)
     cloud_max_points: int = _p(2_000_000, 'cap of map points (oldest leave first)',
                                low=1, high=1_000_000_000)
 
@@ -116,9 +121,9 @@ class HacParams:
                                    'seconds', low=0.0, high=1e6)
     cloud_out_max_points: int = _p(200_000, 'points of /hac/cloud at most (the map thinned evenly)',
                                    low=1, high=100_000_000)
-    publish_obstacles: bool = _p(False, 'publish /hac/obstacles with /hac/cloud: its points between '
-                                 'obstacle_min_height and obstacle_max_height above the floor '
-                                 '(gravity alignment only), for costmaps')
+    publish_obstacles: bool = _p(False, 'publish /hac/obstacles with /hac/cloud: its points '
+                                 'between obstacle_min_height and obstacle_max_height above the '
+                                 'floor (gravity alignment only), for costmaps')
     obstacle_min_height: float = _p(0.1, 'lowest obstacle point above the floor, metres',
                                     low=-10.0, high=100.0)
     obstacle_max_height: float = _p(2.0, 'highest obstacle point above the floor, metres',
@@ -152,17 +157,19 @@ class HacParams:
     reset_confirm_poses: int = _p(3, 'poses after a jump that must continue from it to make it '
                                   'a SLAM re-initialisation', low=1, high=1000)
     map_overlap_min: float = _p(0.1, 'a new map overlapping the previous one less than this '
-                                'fraction is a SLAM re-initialisation (0 disables)', low=0.0, high=1.0)
+                                'fraction is a SLAM re-initialisation (0 disables)',
+                                low=0.0, high=1.0)
     index_max_points: int = _p(262_144, 'maps larger than this are thinned uniformly at random '
                                'before indexing (bounds the per-frame cost)', low=1000,
                                high=1_000_000_000)
     seed: int = _p(0, 'seed of the RANSAC sampling (reproducible output)', low=0, high=2**31 - 1)
-    base_frame: str = _p('', 'if set, /hac/odometry and /hac/pose describe this frame instead of the camera')
+    base_frame: str = _p('', 'if set, /hac/odometry and /hac/pose describe this frame instead of '
+                         'the camera')
     base_to_camera: list = _p([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0],
                               'camera pose in base_frame: x y z qx qy qz qw (metres)', length=7)
     pose_to_optical: list = _p([0.0, 0.0, 0.0, 1.0], 'rotation (x y z w) of the camera optical '
-                               'frame in the SLAM pose\'s child frame; [-0.5, 0.5, -0.5, 0.5] for an '
-                               'x-forward, z-up camera body frame', length=4)
+                               'frame in the SLAM pose\'s child frame; [-0.5, 0.5, -0.5, 0.5] for '
+                               'an x-forward, z-up camera body frame', length=4)
     hmr_focal_px: float = _p(0.0, 'focal length (pixels, CameraInfo\'s resolution) the HMR model '
                              'assumed when placing people in depth; 0 = the camera\'s own '
                              '(needs CameraInfo)', low=0.0, high=1e6)
@@ -195,7 +202,7 @@ class HacParams:
         if abs(math.sqrt(sum(x * x for x in q)) - 1.0) > 1e-3:
             raise ParameterError('base_to_camera: the quaternion (last 4 values) must be unit')
 
-    def replace(self, **changes: Any) -> 'HacParams':
+    def replace(self, **changes: Any) -> HacParams:
         """A validated copy with ``changes`` applied (all or nothing)."""
         unknown = set(changes) - set(names())
         if unknown:
@@ -208,12 +215,12 @@ class HacParams:
 
     # ------------------------------------------------------------------ loading
     @classmethod
-    def from_dict(cls, values: Mapping[str, Any]) -> 'HacParams':
+    def from_dict(cls, values: Mapping[str, Any]) -> HacParams:
         """Parameters from a flat mapping; unknown names are an error (typos must not pass)."""
         return cls().replace(**dict(values))
 
     @classmethod
-    def from_yaml(cls, path: str | Path, node_name: str = NODE_NAME) -> 'HacParams':
+    def from_yaml(cls, path: str | Path, node_name: str = NODE_NAME) -> HacParams:
         """Read the ROS 2 parameters file: ``{node_name: {ros__parameters: {...}}}``.
 
         A ``/**`` wildcard section is honoured too; a plain flat mapping is accepted.
@@ -244,7 +251,7 @@ class HacParams:
 
     @classmethod
     def load(cls, params_file: str | Path | None, overrides: Mapping[str, Any] | None = None
-             ) -> 'HacParams':
+             ) -> HacParams:
         """The parameters file (or the defaults when None), then ``overrides`` (a command line's
         flags; None values are flags not given)."""
         params = cls.from_yaml(params_file) if params_file else cls()
@@ -261,8 +268,7 @@ def describe(name: str) -> dict[str, Any]:
     """The description, default and range of one parameter (for ParameterDescriptors, docs)."""
     for f in dataclasses.fields(HacParams):
         if f.name == name:
-            default = f.default_factory() if f.default is dataclasses.MISSING else f.default
-            return {'name': name, 'default': default, **f.metadata}
+            return {'name': name, 'default': _default(f), **f.metadata}
     raise ParameterError(f'unknown parameter: {name}')
 
 
@@ -273,7 +279,7 @@ def _coerce(name: str, value: Any) -> Any:
         return value
     if isinstance(ref, float) and isinstance(value, int) and not isinstance(value, bool):
         return float(value)
-    if isinstance(ref, list) and isinstance(value, (tuple, list)) or (
+    if (isinstance(ref, list) and isinstance(value, (tuple, list))) or (
             isinstance(ref, list) and hasattr(value, 'tolist')):
         if describe(name)['kind'] == 'indices':
             return [int(v) if isinstance(v, (int, float)) and not isinstance(v, bool)
@@ -282,9 +288,14 @@ def _coerce(name: str, value: Any) -> Any:
     return value
 
 
+def _default(f: dataclasses.Field) -> Any:
+    """A field's default value (a fresh one where a factory makes it)."""
+    return f.default_factory() if callable(f.default_factory) else f.default
+
+
 def _check(f: dataclasses.Field, value: Any) -> None:
     meta = f.metadata
-    ref = f.default_factory() if f.default is dataclasses.MISSING else f.default
+    ref = _default(f)
     name = f.name
     if isinstance(ref, bool):
         if not isinstance(value, bool):
@@ -307,12 +318,11 @@ def _check(f: dataclasses.Field, value: Any) -> None:
                 isinstance(v, (int, float)) and math.isfinite(v) for v in value):
             raise ParameterError(f'{name}: expected {meta["length"]} finite numbers, got {value!r}')
         return
-    if isinstance(ref, int):
-        if not isinstance(value, int) or isinstance(value, bool):
-            raise ParameterError(f'{name}: expected an integer, got {value!r}')
-    elif isinstance(ref, float):
-        if not isinstance(value, (int, float)) or isinstance(value, bool) or not math.isfinite(value):
-            raise ParameterError(f'{name}: expected a finite number, got {value!r}')
+    if isinstance(ref, int) and (not isinstance(value, int) or isinstance(value, bool)):
+        raise ParameterError(f'{name}: expected an integer, got {value!r}')
+    if isinstance(ref, float) and (not isinstance(value, (int, float)) or isinstance(value, bool)
+                                   or not math.isfinite(value)):
+        raise ParameterError(f'{name}: expected a finite number, got {value!r}')
     low, high = meta.get('low'), meta.get('high')
-    if low is not None and value < low or high is not None and value > high:
+    if (low is not None and value < low) or (high is not None and value > high):
         raise ParameterError(f'{name}: {value!r} is outside [{low}, {high}]')

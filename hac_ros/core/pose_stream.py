@@ -32,7 +32,8 @@ JUMP_MIN_MAP_REL = 0.01
 
 @dataclass
 class Pose:
-    """One SLAM pose: stamp (int ns), R_wc (3, 3) camera to map, c_map (3,) SLAM units, map frame."""
+    """One SLAM pose: stamp (int ns), R_wc (3, 3) camera to map, c_map (3,) SLAM units, map
+    frame."""
 
     stamp_ns: int
     R_wc: np.ndarray
@@ -157,12 +158,13 @@ class PoseTrack:
         i = bisect.bisect_left(stamps, stamp_ns)
         best = None
         for j in (i - 1, i):
-            if 0 <= j < len(stamps) and abs(stamps[j] - stamp_ns) <= self.slop_ns:
-                if best is None or abs(stamps[j] - stamp_ns) < abs(stamps[best] - stamp_ns):
-                    best = j
+            if (0 <= j < len(stamps) and abs(stamps[j] - stamp_ns) <= self.slop_ns
+                    and (best is None or abs(stamps[j] - stamp_ns) < abs(stamps[best] - stamp_ns))):
+                best = j
         if best is not None:
             return self.poses[best].R_wc, self.poses[best].c_map
         if 0 < i < len(stamps) and stamps[i] - stamps[i - 1] <= self.max_gap_ns:
             a, b = self.poses[i - 1], self.poses[i]
-            return interpolate_pose(stamp_ns, a.stamp_ns, a.R_wc, a.c_map, b.stamp_ns, b.R_wc, b.c_map)
+            return interpolate_pose(stamp_ns, a.stamp_ns, a.R_wc, a.c_map,
+                                    b.stamp_ns, b.R_wc, b.c_map)
         return None

@@ -1,10 +1,10 @@
 """The map reference distance: a ray from the camera centre through a joint, queried in the map.
 
-SPEC, method step 3 (paper Eq. 4; the authors' code): every map point whose direction from the camera
-centre ``o`` is within the cone ``cos > cos(cone_angle)`` of the ray counts; ``d_S`` is the median of
-their distances to ``o`` (``cone_median``), or the distance of the point closest in angle to the ray
-(``nearest_to_ray``, the paper's "map point nearest the ray", measured as an angle so that it does
-not depend on the SLAM unit). Only points in front of the camera count; fewer than
+SPEC, method step 3 (paper Eq. 4; the authors' code): every map point whose direction from the
+camera centre ``o`` is within the cone ``cos > cos(cone_angle)`` of the ray counts; ``d_S`` is the
+median of their distances to ``o`` (``cone_median``), or the distance of the point closest in angle
+to the ray (``nearest_to_ray``, the paper's "map point nearest the ray", measured as an angle so
+that it does not depend on the SLAM unit). Only points in front of the camera count; fewer than
 ``cone_min_points`` is "no hit".
 
 Speed: the index is a k-d tree built once per map update. Once a
@@ -56,7 +56,8 @@ OVERLAP_DISTANCE_REL = 0.02  # a point overlaps when this close (fraction of the
 
 @dataclass
 class RayHit:
-    """A map hit: distance (SLAM units) from the camera centre and the number of points in the cone."""
+    """A map hit: distance (SLAM units) from the camera centre and the number of points in the
+    cone."""
 
     distance: float
     points: int
@@ -107,8 +108,8 @@ class MapIndex:
             self.extent = 0.0
 
 
-    def composed(self, previous: 'MapIndex | None', max_points: int,
-                 max_index_points: int | None) -> 'MapIndex':
+    def composed(self, previous: MapIndex | None, max_points: int,
+                 max_index_points: int | None) -> MapIndex:
         """The map in use once this one arrives (``cloud_mode``): with ``previous`` (accumulate),
         its points then these; at most the newest ``max_points`` (``cloud_max_points``). This
         index when nothing changes, else a new one (``max_index_points``: ``index_max_points``)."""
@@ -136,7 +137,8 @@ class MapIndex:
             return 1.0
         step = max(1, self.size // OVERLAP_SAMPLE)
         sample = self.points_map[::step][:OVERLAP_SAMPLE]
-        dist, _ = old.tree.query(sample, k=1, distance_upper_bound=OVERLAP_DISTANCE_REL * old.extent)
+        radius = OVERLAP_DISTANCE_REL * old.extent
+        dist, _ = old.tree.query(sample, k=1, distance_upper_bound=radius)
         return float(np.mean(np.isfinite(dist)))
 
     def floor_offset(self, normal: np.ndarray) -> float:
@@ -317,13 +319,14 @@ def local_plane(points: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
 
 
 def lowest_segment_offset(points_map: np.ndarray, normal: np.ndarray) -> float:
-    """Offset b of the floor along the down-pointing ``normal``: the lowest dense segment of the map.
+    """Offset b of the floor along the down-pointing ``normal``: the lowest dense segment of the
+    map.
 
     A histogram of n·p over the map's robust range (0.5–99.5 %); walking up from the bottom, the
     first bin holding OFFSET_DENSE_FACTOR times the median non-empty bin (and OFFSET_MIN_COUNT
     points) belongs to the floor. Isolated points below the floor do not make a dense bin. The first
-    dense bin is the floor's lower noise tail, not its middle: climb to the segment's peak, then b is
-    the median of the points within OFFSET_WINDOW_BINS of it, re-centred once on that median (a
+    dense bin is the floor's lower noise tail, not its middle: climb to the segment's peak, then b
+    is the median of the points within OFFSET_WINDOW_BINS of it, re-centred once on that median (a
     symmetric window around a symmetric noise gives an unbiased middle). Without a dense bin: the
     0.99 quantile (the authors' code). SLAM units.
 
@@ -371,7 +374,8 @@ def literal_cone_median(points_map: np.ndarray, origin_map: np.ndarray, directio
                         cos_min: float, min_points: int) -> float:
     """The authors' method written out: every map point against the ray, no index (the baseline).
 
-    Returns d_S (SLAM units) or NaN for "no hit". Used by the speed benchmark and the equivalence test.
+    Returns d_S (SLAM units) or NaN for "no hit". Used by the speed benchmark and the equivalence
+    test.
     """
     v = np.asarray(points_map) - np.asarray(origin_map)
     dist = np.linalg.norm(v, axis=1)

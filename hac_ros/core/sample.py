@@ -125,6 +125,4 @@ def _plausible(params: HacParams, scene: Scene, d_slam: float, distance_metric: 
         # before a scale: a hit well above a trusted floor may be an occluder
         if scale is None and scene.refined and d_slam * (1.0 + tol) < plane_distance:
             return False
-    if scale is not None and abs(scale * d_slam - distance_metric) > tol * distance_metric:
-        return False
-    return True
+    return scale is None or abs(scale * d_slam - distance_metric) <= tol * distance_metric

@@ -9,7 +9,7 @@ calibrator carries out what it returns (a new segment for ``reset``, a fresh est
 from __future__ import annotations
 
 from collections import Counter
-from typing import Callable, Iterator
+from collections.abc import Callable, Iterator
 
 from hac_ros.core.outputs import NoticeOut
 

@@ -26,7 +26,8 @@ def rotation_angle(R_a: np.ndarray, R_b: np.ndarray) -> float:
 
 
 def rotation_log(R: np.ndarray) -> np.ndarray:
-    """Rotation vector (3,) rad of R (closed form; scipy beyond 3 rad where it is ill-conditioned)."""
+    """Rotation vector (3,) rad of R (closed form; scipy beyond 3 rad where it is
+    ill-conditioned)."""
     return rotation_log_entries(*np.asarray(R, dtype=float).ravel().tolist())
 
 

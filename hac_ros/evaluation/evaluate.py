@@ -12,11 +12,11 @@ The two reference rows run the core once on IN with its metric outputs deferred 
 with each reference scale as the offline replay resolves OUT
 (:func:`hac_ros.core.offline.resolve_offline`: the same final ground planes), so that resets are
 anchored and the frame aligned as in OUT.
-Metrics (SPEC, "Metrics"; implemented in :mod:`hac_ros.evaluation.metrics`): ATE and ATE-S (m, camera
-centres of ``/hac/pose``, Sim(3) / SE(3) alignment, mean), RPE (m and %, the translation of
-``/hac/odometry`` over 1 s steps: odometry is judged by its relative error), W-MPJPE and WA-MPJPE (mm, 100-frame chunks), RTE (%),
-PA-MPJPE (mm), and the scale error (%) of the final estimate and of every frame against the truth
-of that moment.
+Metrics (SPEC, "Metrics"; implemented in :mod:`hac_ros.evaluation.metrics`): ATE and ATE-S (m,
+camera centres of ``/hac/pose``, Sim(3) / SE(3) alignment, mean), RPE (m and %, the translation of
+``/hac/odometry`` over 1 s steps: odometry is judged by its relative error), W-MPJPE and WA-MPJPE
+(mm, 100-frame chunks), RTE (%), PA-MPJPE (mm), and the scale error (%) of the final estimate and of
+every frame against the truth of that moment.
 """
 from __future__ import annotations
 
@@ -126,7 +126,8 @@ def reference_runs(gt_path: str | Path, params: HacParams, truth: Truth) -> dict
 # ============================================================================ metrics
 def match(a_ns: np.ndarray, b_ns: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Indices (ia, ib) of stamps that agree within :data:`MATCH_TOLERANCE_NS`."""
-    ia, ib = metrics.associate_stamps(np.asarray(a_ns, dtype=np.int64), np.asarray(b_ns, dtype=np.int64),
+    ia, ib = metrics.associate_stamps(np.asarray(a_ns, dtype=np.int64),
+                                      np.asarray(b_ns, dtype=np.int64),
                               MATCH_TOLERANCE_NS)
     return np.asarray(ia, dtype=int), np.asarray(ib, dtype=int)
 
@@ -162,7 +163,7 @@ def row_metrics(run: Replayed, truth: Truth) -> dict[str, float]:
             est, gt = run.camera.positions[ie], truth.camera.positions[ig]
             out['ate_m'] = float(metrics.ate(est, gt))
             out['ate_s_m'] = float(metrics.ate_s(est, gt))
-            out['camera_frames'] = int(len(ie))
+            out['camera_frames'] = len(ie)
     if truth.camera is not None and len(run.odometry) >= 2:
         ie, ig = match(run.odometry.stamps_ns, truth.camera.stamps_ns)
         if len(ie) >= 2:
@@ -218,7 +219,8 @@ class Evaluation:
         if self.frames:
             info.append('  matched: ' + ', '.join(f'{k} {v}' for k, v in self.frames.items()))
         if self.true_scale:
-            info.append('  true scale: ' + ', '.join(f'{k} {v:.6g}' for k, v in self.true_scale.items()))
+            info.append('  true scale: ' + ', '.join(f'{k} {v:.6g}'
+                                                     for k, v in self.true_scale.items()))
         return '\n'.join(info) + '\n\n' + self.markdown()
 
 

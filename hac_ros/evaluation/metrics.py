@@ -18,7 +18,8 @@ M_TO_MM = 1000.0
 CHUNK_FRAMES = 100  # TRAM/WHAM: W-MPJPE and WA-MPJPE over 100-frame chunks
 
 
-def umeyama(src: np.ndarray, dst: np.ndarray, with_scale: bool = True) -> tuple[float, np.ndarray, np.ndarray]:
+def umeyama(src: np.ndarray, dst: np.ndarray,
+            with_scale: bool = True) -> tuple[float, np.ndarray, np.ndarray]:
     """The similarity (s, R, t) minimising ‖dst − (s R src + t)‖² (Umeyama 1991).
 
     src, dst: (N, 3) corresponding points. Without scale, s = 1 (an SE(3) fit).
@@ -50,7 +51,8 @@ def apply_sim3(s: float, R: np.ndarray, t: np.ndarray, points: np.ndarray) -> np
     return s * np.asarray(points) @ np.asarray(R).T + t
 
 
-def associate_stamps(stamps_a: np.ndarray, stamps_b: np.ndarray, max_diff_ns: int) -> tuple[np.ndarray, np.ndarray]:
+def associate_stamps(stamps_a: np.ndarray, stamps_b: np.ndarray,
+                     max_diff_ns: int) -> tuple[np.ndarray, np.ndarray]:
     """Indices (idx_a, idx_b) pairing each stamp of ``a`` with the nearest of ``b`` within max_diff.
 
     Like evo's ``sync.associate_trajectories`` for the common case of a sparse estimate against a
@@ -81,7 +83,8 @@ def ate_s(est_positions: np.ndarray, gt_positions: np.ndarray) -> float:
 
 
 def rpe(est_positions: np.ndarray, est_rotations: np.ndarray, gt_positions: np.ndarray,
-        gt_rotations: np.ndarray, stamps_ns: np.ndarray, delta_s: float = 1.0) -> tuple[float, float]:
+        gt_rotations: np.ndarray, stamps_ns: np.ndarray,
+        delta_s: float = 1.0) -> tuple[float, float]:
     """Relative pose error of the translation (evo's RPE, delta in time): for every pose i and the
     first pose j at least ``delta_s`` later, the step R_iᵀ (p_j − p_i) of the estimate against the
     truth's, both in the camera frame of pose i (no alignment needed: it is frame-invariant).
@@ -132,7 +135,8 @@ def _check_joints(pred: np.ndarray, gt: np.ndarray) -> tuple[np.ndarray, np.ndar
     pred = np.asarray(pred, dtype=float)
     gt = np.asarray(gt, dtype=float)
     if pred.shape != gt.shape or pred.ndim != 3 or pred.shape[2] != 3:
-        raise InputError(f'expected two (T, J, 3) arrays of one person, got {pred.shape} and {gt.shape}')
+        raise InputError(f'expected two (T, J, 3) arrays of one person, got {pred.shape} and '
+                         f'{gt.shape}')
     return pred, gt
 
 

@@ -10,8 +10,8 @@
   lowest joint over time; gravity-aligned, z is the height above the floor (z = 0).
 
 "Top-down" needs an up direction that no frame here states: it is the mean body up axis (pelvis to
-neck) of the reference joints (the ground truth's, else the replay's), the same cue the core uses for
-its ground normal. With ground truth the replay is brought into its frame by one SE(3) fit
+neck) of the reference joints (the ground truth's, else the replay's), the same cue the core uses
+for its ground normal. With ground truth the replay is brought into its frame by one SE(3) fit
 (Umeyama without scale) of its camera centres and joints to the truth's, so a wrong scale stays
 visible; the raw SLAM track gets the same placement (the metric frame is the SLAM frame scaled).
 """
@@ -145,12 +145,12 @@ def plot_trajectories(path: Path, run: Replayed, truth: Truth | None,
         xy = _apply(fit, slam.positions) @ basis.T
         ax.plot(xy[:, 0], xy[:, 1], color=COLOURS['slam'], lw=1.2, ls='--', zorder=5,
                 label='camera, raw SLAM (units as metres)')
-    for k, (stamps, roots) in enumerate(_roots(run.joints, run.layout)):
+    for k, (_, roots) in enumerate(_roots(run.joints, run.layout)):
         xy = _apply(fit, roots) @ basis.T
         ax.plot(xy[:, 0], xy[:, 1], color='tab:green', lw=1.2, alpha=0.8,
                 label='people, calibrated' if k == 0 else None)
     if reference_joints is not None:
-        for k, (stamps, roots) in enumerate(_roots(reference_joints, run.layout)):
+        for k, (_, roots) in enumerate(_roots(reference_joints, run.layout)):
             xy = roots @ basis.T
             ax.plot(xy[:, 0], xy[:, 1], color=COLOURS['gt'], lw=1.0, ls=':',
                     label='people, ground truth' if k == 0 else None)
@@ -178,7 +178,8 @@ def _roots(joints: JointsTrack, layout: JointLayout) -> list[tuple[np.ndarray, n
     people = max((len(j) for j in joints.joints), default=0)
     out = []
     for k in range(people):
-        rows = [(s, layout.root_of(j[k])) for s, j in zip(joints.stamps_ns, joints.joints) if len(j) > k]
+        rows = [(s, layout.root_of(j[k]))
+                for s, j in zip(joints.stamps_ns, joints.joints) if len(j) > k]
         if rows:
             out.append((np.array([s for s, _ in rows]), np.array([p for _, p in rows])))
     return out
@@ -196,9 +197,10 @@ def _resets(run: Replayed) -> list[int]:
 
 
 def _t0(run: Replayed, truth: Truth | None) -> int:
-    candidates = [a[0] for a in (run.camera.stamps_ns, run.scale.stamps_ns,
-                                 run.samples.stamps_ns if run.samples is not None else [])
-                  if len(a)]
+    tracks: tuple[np.ndarray, ...] = (run.camera.stamps_ns, run.scale.stamps_ns,
+                                      run.samples.stamps_ns if run.samples is not None
+                                      else np.zeros(0, dtype=np.int64))
+    candidates = [a[0] for a in tracks if len(a)]
     candidates += [s for s, _ in run.diagnostics[:1]]
     if truth is not None and truth.camera is not None and len(truth.camera):
         candidates.append(truth.camera.stamps_ns[0])
@@ -234,7 +236,8 @@ def plot_scale(path: Path, run: Replayed, truth: Truth | None) -> None:
         ax.plot((run.scale.stamps_ns - t0) / NS, run.scale.values, color=COLOURS['scale'], lw=1.8,
                 label='published scale (/hac/scale)')
     if truth is not None and truth.scale is not None and len(truth.scale):
-        end = max([truth.scale.stamps_ns[-1]] + ([run.scale.stamps_ns[-1]] if len(run.scale) else []))
+        ends = [truth.scale.stamps_ns[-1]] + ([run.scale.stamps_ns[-1]] if len(run.scale) else [])
+        end = max(ends)
         ts = np.append(truth.scale.stamps_ns, end)
         vs = np.append(truth.scale.values, truth.scale.values[-1])
         ax.step((ts - t0) / NS, vs, where='post', color=COLOURS['gt'], lw=1.5, ls='--',
@@ -305,7 +308,7 @@ def plot_fallback(path: Path, run: Replayed, truth: Truth | None) -> None:
     bottom.set_ylabel('rejected / s')
     bottom.set_xlabel('stamp time (s)')
     for ax in (top, bottom):
-        handles, labels = ax.get_legend_handles_labels()
+        handles, _labels = ax.get_legend_handles_labels()
         if handles:
             ax.legend(loc='upper right', fontsize=8)
     fig.savefig(path, dpi=DPI)
@@ -336,8 +339,9 @@ def plot_heights(path: Path, run: Replayed, truth: Truth | None) -> None:
                 label='people: lowest joint z (/hac/human_joints)')
     alignment = next((v.get('alignment') for _, v in reversed(run.diagnostics)
                       if v.get('alignment')), None)
-    _finish(fig, ax, path, 'Metric frame heights' + (f' (alignment {alignment})' if alignment
-                                                      else '') + ': z up, floor at 0 when gravity-aligned',
+    title = ('Metric frame heights' + (f' (alignment {alignment})' if alignment else '')
+             + ': z up, floor at 0 when gravity-aligned')
+    _finish(fig, ax, path, title,
             'stamp time (s)', 'z (m)')
 
 

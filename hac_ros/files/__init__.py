@@ -1,1 +1,2 @@
-"""Plain files: TUM trajectories, maps and joints in (``hac import``), arrays out (``hac export``)."""
+"""Plain files: TUM trajectories, maps and joints in (``hac import``), arrays out (``hac
+export``)."""

@@ -135,7 +135,7 @@ def export(output: str | Path, npz_path: str | Path, joint_layout: str | None = 
     fd, tmp = tempfile.mkstemp(prefix=f'.{target.name}.', suffix='.partial', dir=target.parent)
     try:
         with os.fdopen(fd, 'wb') as handle:
-            np.savez(handle, **arrays)
+            np.savez(handle, **arrays)  # type: ignore[arg-type]  # numpy's stub: allow_pickle
         if target.exists():
             raise HacError(f'{target} appeared while writing it: not overwritten')
         os.replace(tmp, target)

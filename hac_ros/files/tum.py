@@ -5,8 +5,9 @@ nanoseconds in memory and seconds with 9 decimals in the file.
 """
 from __future__ import annotations
 
+from collections.abc import Iterator
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -70,12 +71,14 @@ def quats_to_rotations(q: np.ndarray) -> np.ndarray:
 TUM_FILES = {'metric': 'camera_metric.tum', 'slam': 'camera_slam.tum', 'gt': 'camera_gt.tum'}
 
 
-def write_tum_exports(directory: Path, metric: list, poses: list[tuple[int, np.ndarray, np.ndarray]],
+def write_tum_exports(directory: Path, metric: list,
+                      poses: list[tuple[int, np.ndarray, np.ndarray]],
                       recording: Any) -> dict[str, Path]:
     """A replay's trajectories as TUM files for evo, into ``directory``: camera_metric.tum (the
-    metric camera: ``metric``, a list of PoseOut (/hac/pose), metres, metric_frame), camera_slam.tum (``poses``, the raw
-    SLAM poses: (stamp ns, R_wc (3, 3), c (3,) SLAM units)) and, when the recording has it,
-    camera_gt.tum (/gt/camera_pose, metres). Returns kind -> path of the files written."""
+    metric camera: ``metric``, a list of PoseOut (/hac/pose), metres, metric_frame), camera_slam.tum
+    (``poses``, the raw SLAM poses: (stamp ns, R_wc (3, 3), c (3,) SLAM units)) and, when the
+    recording has it, camera_gt.tum (/gt/camera_pose, metres). Returns kind -> path of the files
+    written."""
     from hac_ros.recording.reader import GT_CAMERA
     from hac_ros.recording.tracks import read_camera
 

@@ -20,7 +20,8 @@ def messages_by_topic(path: str | Path) -> dict[str, tuple[str | None, list[tupl
 
 
 def recording_differences(a: str | Path, b: str | Path) -> list[str]:
-    """How two recordings differ, topic by topic (types, counts, log times, bytes); [] when equal."""
+    """How two recordings differ, topic by topic (types, counts, log times, bytes); [] when
+    equal."""
     ma, mb = messages_by_topic(a), messages_by_topic(b)
     differences = []
     for topic in sorted(set(ma) | set(mb)):

@@ -2,9 +2,10 @@
 from __future__ import annotations
 
 import json
+from collections.abc import Iterable, Iterator
 from functools import cached_property
 from pathlib import Path
-from typing import Any, Iterable, Iterator
+from typing import Any
 
 from hac_ros.core.errors import HacError
 from hac_ros.core.layouts import BUILT_IN, SMPL24, JointLayout
@@ -61,8 +62,8 @@ class Recording:
                            f'bag): {_reason(exc)}') from exc
         self.is_ros2 = self.reader.is2
         self.jazzy = get_typestore(Stores.ROS2_JAZZY)
-        self.topics: dict[str, str | None] = {name: info.msgtype
-                                              for name, info in self.reader.topics.items()}
+        self.topics: dict[str, str] = {name: info.msgtype or ''
+                                       for name, info in self.reader.topics.items()}
         self.counts: dict[str, int] = {name: info.msgcount
                                        for name, info in self.reader.topics.items()}
 
@@ -115,7 +116,7 @@ class Recording:
         if self.reader.stack is not None:
             self.reader.close()
 
-    def __enter__(self) -> 'Recording':
+    def __enter__(self) -> Recording:
         return self
 
     def __exit__(self, *exc: Any) -> None:
@@ -146,7 +147,8 @@ class Recording:
             raise HacError(f'{what} topic {topic} has type {self.topics[topic]}, expected '
                            f'{" or ".join(msgtypes)}{hint}')
         if self.counts.get(topic, 0) == 0:
-            raise HacError(f'{what} topic {topic} in {self.path} has no messages (empty recording?)')
+            raise HacError(f'{what} topic {topic} in {self.path} has no messages (empty '
+                           'recording?)')
 
     def messages(self, topics: Iterable[str]) -> Iterator[tuple[str, int, Any]]:
         """(topic, log time ns, raw bytes) of ``topics`` in log-time order."""
@@ -188,7 +190,7 @@ class Recording:
         None when they do not deserialize (a malformed message: the caller counts it)."""
         try:
             return self.typestore.deserialize_cdr(data, self.topics[topic])
-        except Exception:  # noqa: BLE001 - rosbags raises several types for malformed bytes
+        except Exception:
             return None
 
     @property

@@ -52,7 +52,8 @@ class ScaleTrack(_Track):
         """As a step function (the latest value at or before each stamp; the first before it)."""
         if not len(self.stamps_ns):
             return np.full(len(stamps_ns), np.nan)
-        idx = np.searchsorted(self.stamps_ns, np.asarray(stamps_ns, dtype=np.int64), side='right') - 1
+        at = np.asarray(stamps_ns, dtype=np.int64)
+        idx = np.searchsorted(self.stamps_ns, at, side='right') - 1
         return self.values[np.clip(idx, 0, len(self.values) - 1)]
 
 

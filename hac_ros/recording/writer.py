@@ -59,7 +59,7 @@ class OutputWriter:
             self._connections[topic] = conn
         return conn
 
-    def write(self, topic: str, msgtype: str, log_ns: int, data: bytes) -> None:
+    def write(self, topic: str, msgtype: str, log_ns: int, data: bytes | memoryview) -> None:
         """One message's CDR bytes on ``topic``, logged at ``log_ns``."""
         self.write_raw(self.connection(topic, msgtype), log_ns, data)
 

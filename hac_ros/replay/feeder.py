@@ -2,15 +2,16 @@
 
 :class:`CoreFeeder` feeds every input message of a :class:`~hac_ros.recording.reader.Recording` to a
 :class:`~hac_ros.core.calibrator.Calibrator` in log-time order with its header stamp (SPEC,
-processing order), exactly as ``hac_node`` does (:mod:`hac_ros.bridge.inputs`: the same decoders and the
-same map builder). The replay, the evaluation and the tests share it.
+processing order), exactly as ``hac_node`` does (:mod:`hac_ros.bridge.inputs`: the same decoders and
+the same map builder). The replay, the evaluation and the tests share it.
 """
 from __future__ import annotations
 
 from collections import deque
+from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import Future
 from dataclasses import dataclass
-from typing import Any, Callable, Iterable, Iterator
+from typing import Any
 
 import numpy as np
 
@@ -50,7 +51,7 @@ class InputTopics:
 
     @classmethod
     def check(cls, recording: Recording, params: HacParams,
-              pose_type: str | None = None) -> 'InputTopics':
+              pose_type: str | None = None) -> InputTopics:
         """The parameters' topics, checked against what the recording holds.
 
         The SLAM pose type is the recording's own (SPEC: PoseStamped or Odometry, so recordings of

@@ -1,8 +1,9 @@
 """The replay: a recording's inputs through the node's core, its outputs into a new recording.
 
 :func:`replay` reads a recording (:mod:`hac_ros.recording`), feeds every input message to a
-:class:`~hac_ros.core.calibrator.Calibrator` as ``hac_node`` does (:mod:`hac_ros.replay.feeder`), converts the outputs with the node's :class:`~hac_ros.bridge.messages.OutputMessages`
-and writes them, each logged at its header stamp.
+:class:`~hac_ros.core.calibrator.Calibrator` as ``hac_node`` does (:mod:`hac_ros.replay.feeder`),
+converts the outputs with the node's :class:`~hac_ros.bridge.messages.OutputMessages` and writes
+them, each logged at its header stamp.
 
 Modes (docs/replay.md):
 
@@ -14,8 +15,8 @@ Modes (docs/replay.md):
   that schedule and written (what a second run with that schedule would publish, without reading
   the recording or indexing its maps again).
 
-OUT appears atomically (:class:`~hac_ros.recording.writer.staged_output`) and IN is only ever read. Besides
-SPEC's output topics the replay writes ``/hac/samples`` (per-frame scale samples, for
+OUT appears atomically (:class:`~hac_ros.recording.writer.staged_output`) and IN is only ever read.
+Besides SPEC's output topics the replay writes ``/hac/samples`` (per-frame scale samples, for
 ``hac plot``; see :data:`~hac_ros.bridge.messages.SAMPLES`).
 """
 from __future__ import annotations
@@ -24,9 +25,10 @@ import math
 import sys
 import time
 from collections import Counter
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 from hac_ros.bridge.messages import (
     CLOUD,
@@ -59,7 +61,7 @@ MODES = ('offline', 'online')
 class OutputHandler:
     """Writes the messages of the calibrator's outputs and keeps what the summary needs."""
 
-    def __init__(self, params: HacParams, writer: OutputWriter | None, printer: 'NoticePrinter',
+    def __init__(self, params: HacParams, writer: OutputWriter | None, printer: NoticePrinter,
                  keep_poses: bool = False) -> None:
         self.messages = OutputMessages(params)
         self.writer = writer
@@ -91,14 +93,16 @@ class OutputHandler:
 
     def _write(self, message: Message) -> None:
         if self.writer is not None:
-            self.writer.write(in_root(message.topic), message.msgtype, message.stamp_ns, message.msg)
+            self.writer.write(in_root(message.topic), message.msgtype, message.stamp_ns,
+                              message.msg)
 
     def _write_samples(self, samples: list[SampleOut]) -> None:
         self._write(Message(*SAMPLES, samples_message(samples), samples[0].stamp_ns))
 
 
 class NoticePrinter:
-    """Prints each NoticeOut once to stderr (a notice repeated with the same stamp and text is not)."""
+    """Prints each NoticeOut once to stderr (a notice repeated with the same stamp and text is
+    not)."""
 
     def __init__(self, stream: Any = None, start_ns: int = 0) -> None:
         self.stream = stream
@@ -246,7 +250,8 @@ def _offline(feeder: CoreFeeder, handler: OutputHandler,
              n_pass: int) -> tuple[Status, OfflineScale]:
     """The offline mode: one run of the calibrator with its metric outputs deferred, the schedule
     from its accepted samples and resets, then the deferred outputs resolved with the schedule and
-    written (hac_ros.core.metric_stage: the same outputs as a second run with that schedule would give).
+    written (hac_ros.core.metric_stage: the same outputs as a second run with that schedule would
+    give).
 
     Memory: the run's outputs are kept until the schedule is known (about 1.9 kB per frame of one
     person, docs/replay.md).

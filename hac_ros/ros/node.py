@@ -2,8 +2,8 @@
 
 It subscribes to the SLAM pose, the SLAM map cloud, the HMR joints and (optionally) the CameraInfo,
 forwards every message to the calibrator with its header stamp, and publishes exactly the messages
-:class:`~hac_ros.bridge.messages.OutputMessages` makes of the calibrator's outputs (the same messages
-``hac replay`` writes). It has no estimation logic of its own; SPEC, "ROS 2 interface" and
+:class:`~hac_ros.bridge.messages.OutputMessages` makes of the calibrator's outputs (the same
+messages ``hac replay`` writes). It has no estimation logic of its own; SPEC, "ROS 2 interface" and
 "Processing order", and ``docs/node.md``.
 
 Threads. Everything that touches the calibrator runs on the executor's thread. The only other
@@ -26,12 +26,14 @@ Run: ``ros2 run hac_ros hac_node --ros-args --params-file config/hac.yaml`` or
 """
 from __future__ import annotations
 
+import functools
 import signal
 import sys
 import traceback
 from collections import Counter, deque
+from collections.abc import Callable, Sequence
 from concurrent.futures import Future
-from typing import Any, Callable, Sequence
+from typing import TYPE_CHECKING, Any
 
 import rclpy
 from rcl_interfaces.msg import SetParametersResult
@@ -77,7 +79,13 @@ GRAPH_CHECK_S = 2.0  # wall seconds between checks of the input topics' publishe
 
 
 # ---------------------------------------------------------------------------------------- the shell
-class HacShell:
+if TYPE_CHECKING:  # HacShell is mixed into an rclpy Node (HacNode, HacLifecycleNode)
+    from rclpy.node import Node as _NodeMixinBase
+else:
+    _NodeMixinBase = object
+
+
+class HacShell(_NodeMixinBase):
     """Everything ``hac_node`` does, shared by :class:`HacNode` and the managed
     :class:`hac_ros.ros.lifecycle_node.HacLifecycleNode`; mixed into an rclpy ``Node``.
 
@@ -91,6 +99,13 @@ class HacShell:
     params: HacParams
     calibrator: Calibrator | None = None
     active = False
+
+    @property
+    def core(self) -> Calibrator:
+        """The calibrator; callbacks run only between configure and cleanup, when it exists."""
+        if self.calibrator is None:
+            raise RuntimeError('hac_node is not configured')
+        return self.calibrator
 
     # ------------------------------------------------------------------ life
     def _declare(self) -> None:
@@ -187,9 +202,8 @@ class HacShell:
         callback = {'pose': self._on_pose, 'joints': self._on_joints,
                     'camera_info': self._on_camera_info, 'cloud': self._on_cloud}[kind]
         events = SubscriptionEventCallbacks(
-            incompatible_qos=lambda info, kind=kind, topic=topic: self._on_incompatible_qos(
-                kind, topic, info),
-            message_lost=lambda info, kind=kind: self._on_message_lost(kind, info))
+            incompatible_qos=functools.partial(self._on_incompatible_qos, kind, topic),
+            message_lost=functools.partial(self._on_message_lost, kind))
         self._subscriptions_by_kind[kind] = self.create_subscription(
             msg_type, topic, self._guarded(kind, callback), qos, event_callbacks=events, raw=raw)
 
@@ -221,8 +235,9 @@ class HacShell:
                 hint = (f'set pose_type to {info.topic_type.rsplit("/", 1)[-1]!r}'
                         if kind == 'pose' and info.topic_type in POSE_MSGTYPES.values() else
                         f'{kind}_topic may name the wrong topic')
-                outputs = self.calibrator.reject(f'{kind}_wrong_type', -1)
+                outputs = self.core.reject(f'{kind}_wrong_type', -1)
                 for notice in outputs:  # the first time: say what to change
+                    assert isinstance(notice, NoticeOut)
                     notice.text = (f'type mismatch on {topic}: {info.node_name} publishes '
                                    f'{info.topic_type}, the node subscribes {expected}, so none of '
                                    f'its messages arrive; {hint}')
@@ -232,15 +247,15 @@ class HacShell:
         """The middleware saw messages that never reached this subscription (best-effort input
         under load): counted as ``<kind>_lost`` in /diagnostics, logged once."""
         for _ in range(max(int(info.total_count_change), 0)):
-            self._emit(self.calibrator.reject(f'{kind}_lost', -1))
+            self._emit(self.core.reject(f'{kind}_lost', -1))
 
     def _guarded(self, kind: str, callback: Callable[[Any], None]) -> Callable[[Any], None]:
         """The node never dies on input: an unexpected error is logged once and counted."""
         def run(msg: Any) -> None:
             try:
                 callback(msg)
-            except Exception:  # noqa: BLE001 - the node must stay up; the error is reported
-                self._emit(self.calibrator.reject('internal_error', -1))
+            except Exception:
+                self._emit(self.core.reject('internal_error', -1))
                 if kind not in self._failed_callbacks:
                     self._failed_callbacks.add(kind)
                     self.get_logger().error(f'error handling a {kind} message (further ones are '
@@ -256,14 +271,14 @@ class HacShell:
     # exception in the executor.
     def _on_pose(self, data: bytes) -> None:
         msg = _deserialize(data, TYPES.get(POSE_MSGTYPES[self.params.pose_type]))
-        self._emit(add_pose_msg(self.calibrator, msg)[0])
+        self._emit(add_pose_msg(self.core, msg)[0])
 
     def _on_joints(self, data: bytes) -> None:
         msg = _deserialize(data, TYPES.get('geometry_msgs/msg/PoseArray'))
-        self._emit(add_joints_msg(self.calibrator, msg))
+        self._emit(add_joints_msg(self.core, msg))
 
     def _on_camera_info(self, msg: Any) -> None:
-        outputs, intrinsics = add_camera_info_msg(self.calibrator, msg)
+        outputs, intrinsics = add_camera_info_msg(self.core, msg)
         if intrinsics is not None:
             self._camera_info = intrinsics
         self._emit(outputs)
@@ -275,14 +290,14 @@ class HacShell:
             cloud = parse_cloud_cdr(data)
         except MessageError:
             self._clouds_rejected += 1
-            self._emit(self.calibrator.reject('cloud_malformed', -1))
+            self._emit(self.core.reject('cloud_malformed', -1))
             return
         self._last_cloud = cloud
         self._submit(cloud)
 
     def _build_index(self, stamp_ns: int, points_map: Any, frame_id: str) -> MapIndex:
         """The builder thread's index, with the current calibrator's parameters."""
-        return self.calibrator.build_index(stamp_ns, points_map, frame_id)
+        return self.core.build_index(stamp_ns, points_map, frame_id)
 
     def _submit(self, cloud: RawCloud) -> None:
         """Queue a cloud for the builder. In ``replace`` mode a cloud still waiting is superseded
@@ -310,7 +325,7 @@ class HacShell:
             else:
                 self.maps_indexed += 1
                 self._map_index = built.index
-            self._emit(built.hand_to(self.calibrator))
+            self._emit(built.hand_to(self.core))
 
     @property
     def clouds_done(self) -> int:
@@ -341,14 +356,14 @@ class HacShell:
     # ------------------------------------------------------------------ services
     def _on_reset(self, request: Any, response: Any) -> Any:
         """``~/reset`` (Trigger): a new segment at the next SLAM pose (SPEC, Services)."""
-        self.calibrator.request_reset()
+        self.core.request_reset()
         response.success = True
         response.message = 'a new segment starts at the next SLAM pose (map and ground normal kept)'
         return response
 
     def _on_freeze(self, request: Any, response: Any) -> Any:
         """``~/freeze`` (SetBool): hold the scale (true) or resume with a fresh window (false)."""
-        self.calibrator.request_freeze(bool(request.data))
+        self.core.request_freeze(bool(request.data))
         response.success = True
         response.message = ('the scale is held from the next SLAM pose' if request.data else
                             'the scale is released at the next SLAM pose: a fresh window converges')
@@ -402,7 +417,7 @@ class HacShell:
         accumulated), else the last one the node handed to it. When the thinning
         (``index_max_points``) changed, the last cloud received is indexed again as well.
         """
-        old = self.calibrator
+        old = self.core
         self.calibrator = Calibrator(self.params)
         if self._camera_info is not None:
             self._emit(self.calibrator.add_camera_info(*self._camera_info))
@@ -414,7 +429,8 @@ class HacShell:
         self.notices.clear()
         self.get_logger().warning(
             f'estimator parameter(s) {", ".join(changed)} changed: the estimator was rebuilt and '
-            f'its estimate restarts (metric outputs resume after {self.params.min_samples} samples)')
+            f'its estimate restarts (metric outputs resume after {self.params.min_samples} '
+            'samples)')
 
     def _update_tf(self) -> None:
         """TF when publish_tf or publish_odom_tf is set and tf2_ros is importable (a warning
@@ -442,7 +458,7 @@ def _deserialize(data: bytes, msg_type: type) -> Any:
     """rclpy's message of ``data``, or None when the bytes do not deserialize as ``msg_type``."""
     try:
         return deserialize_message(data, msg_type)
-    except Exception:  # noqa: BLE001 - rclpy raises several types for bytes it cannot read
+    except Exception:
         return None
 
 

@@ -1,8 +1,8 @@
 """An rclpy executor spun on a background thread, stopped before it is shut down.
 
 For a Python process that runs ROS nodes beside other work: the tests, the benchmarks, or a user
-embedding :class:`hac_ros.ros.node.HacNode` in a program of their own (``hac_node`` itself spins on its
-main thread).
+embedding :class:`hac_ros.ros.node.HacNode` in a program of their own (``hac_node`` itself spins on
+its main thread).
 
 Why not ``threading.Thread(target=executor.spin)`` and ``executor.shutdown()`` from another
 thread: with rclpy Jazzy, shutting a SingleThreadedExecutor down while another thread is inside

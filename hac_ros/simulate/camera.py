@@ -36,7 +36,8 @@ def _smooth(x: np.ndarray, window: int) -> np.ndarray:
 
 
 def follow(root: np.ndarray, t: np.ndarray, rng: np.random.Generator, distance: float = 3.5,
-           height: float = 1.5, side_deg: float = 35.0, jitter: float = 0.02) -> tuple[np.ndarray, np.ndarray]:
+           height: float = 1.5, side_deg: float = 35.0,
+           jitter: float = 0.02) -> tuple[np.ndarray, np.ndarray]:
     """A handheld camera behind and beside a walker, looking at the body's middle.
 
     root: (T, 3) the person's pelvis, world metres; t: (T,) seconds.
@@ -70,7 +71,8 @@ def head_mounted(partner_root: np.ndarray, t: np.ndarray, rng: np.random.Generat
         target = np.r_[partner_root[i, :2], height]  # eye level: level gaze
         base = look_at(centre[i], target)
         c, s = np.cos(pitch[i]), np.sin(pitch[i])
-        out[i] = base @ np.array([[1.0, 0.0, 0.0], [0.0, c, s], [0.0, -s, c]])  # z tilts to +y: down
+        # z tilts to +y: down
+        out[i] = base @ np.array([[1.0, 0.0, 0.0], [0.0, c, s], [0.0, -s, c]])
     return out, centre
 
 
@@ -86,7 +88,8 @@ def side(root: np.ndarray, t: np.ndarray, offset_y: float, height: float = 1.5,
     return R, centre
 
 
-def static(target: np.ndarray, t: np.ndarray, position: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def static(target: np.ndarray, t: np.ndarray,
+           position: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """A camera that does not move, looking at ``target``."""
     R = look_at(np.asarray(position, float), np.asarray(target, float))
     return np.repeat(R[None], len(t), 0), np.repeat(np.asarray(position, float)[None], len(t), 0)

@@ -5,7 +5,8 @@ The order is the recording's: by stamp; at one stamp the map first, then the pos
 """
 from __future__ import annotations
 
-from typing import Any, Iterable, Iterator
+from collections.abc import Iterable, Iterator
+from typing import Any
 
 from hac_ros.core.calibrator import Calibrator
 from hac_ros.core.outputs import Output
@@ -16,7 +17,8 @@ ORDER = {'map': 0, 'pose': 1, 'joints': 2}
 def scenario_events(sc: Any) -> Iterator[tuple[int, str, tuple]]:
     """(stamp_ns, kind, payload) in processing order. Payloads: map (points_slam, frame_id);
     pose (R_wc, c, frame_id); joints (joints_cam (P, 24, 3), camera frame_id)."""
-    events = [(m.stamp_ns, 'map', (m.points_slam, m.frame_id)) for m in sc.maps]
+    events: list[tuple[int, str, tuple]] = [(m.stamp_ns, 'map', (m.points_slam, m.frame_id))
+                                            for m in sc.maps]
     events += [(int(s), 'pose', (sc.slam_R_wc[i], sc.slam_c[i], sc.slam_frame_ids[i]))
                for i, s in enumerate(sc.pose_stamps_ns)]
     events += [(int(s), 'joints', (sc.joints_cam[k], sc.camera_frame))

@@ -69,7 +69,8 @@ def in_view(joints_cam: np.ndarray, K: np.ndarray, width: int, height: int,
 
 def predict(joints_world: np.ndarray, R_wc: np.ndarray, c: np.ndarray, bias: float,
             rng: np.random.Generator, layout: JointLayout) -> tuple[np.ndarray, bool]:
-    """One person's predicted joints (K, 3), metres, camera optical frame; and whether it is an outlier.
+    """One person's predicted joints (K, 3), metres, camera optical frame; and whether it is an
+    outlier.
 
     joints_world: (K, 3) true joints, world frame; R_wc, c: the true camera (camera-to-world);
     bias: this frame's relative depth bias (:class:`DepthBias`). The person's root is moved along

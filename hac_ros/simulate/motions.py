@@ -7,8 +7,8 @@ two-bone inverse kinematics (thigh 0.41 m, shank 0.39 m), and the pelvis bobs 2 
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
@@ -36,7 +36,8 @@ UPPER = [3, 6, 9, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23]
 Path2D = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]  # t (T,) -> xy (T, 2), heading (T,)
 
 
-def circle_path(centre: tuple[float, float], radius: float, speed: float, phase: float = 0.0) -> Path2D:
+def circle_path(centre: tuple[float, float], radius: float, speed: float,
+                phase: float = 0.0) -> Path2D:
     """Walking a circle counter-clockwise at ``speed`` m/s."""
     def path(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         angle = phase + speed * np.asarray(t) / radius
@@ -129,7 +130,8 @@ def skate(t: np.ndarray, path: Path2D) -> np.ndarray:
 
 
 def handstand(t: np.ndarray, path: Path2D, world: World) -> np.ndarray:
-    """Walking on the hands: the hands take the feet's footprints, the body upside down above them."""
+    """Walking on the hands: the hands take the feet's footprints, the body upside down above
+    them."""
     walker = gait(t, path, world)
     xy, heading = path(np.asarray(t, dtype=float))
     arms_up = STANDING.copy()

@@ -6,8 +6,8 @@ recording writer and the benchmarks use the same :class:`Scenario`.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 
@@ -154,7 +154,8 @@ def make_scenario(name: str, seed: int = 0, duration: float | None = None, rate:
     elif name == 'crowd':
         people = [motions.gait(t, motions.circle_path((0.0, 0.0), 3.0, 1.1), world),
                   motions.gait(t, motions.circle_path((0.0, 0.0), 1.8, 0.9, phase=2.0), world, 0.2),
-                  motions.gait(t, motions.shuttle_path((-4.0, -4.0), (4.0, -1.0), 1.2), world, 0.35)]
+                  motions.gait(t, motions.shuttle_path((-4.0, -4.0), (4.0, -1.0), 1.2), world,
+                               0.35)]
     elif name == 'ego':
         world.floor_texture = 0.08  # a plain floor: sparsely mapped
         people = [motions.gait(t, motions.circle_path((0.0, 0.0), 3.2, 1.0), world)]
@@ -203,7 +204,7 @@ def make_scenario(name: str, seed: int = 0, duration: float | None = None, rate:
                     (rigs.WIDTH, rigs.HEIGHT), scale_fn, segments, rng)
 
     # --- HMR: the same bodies, in the HMR model's joint layout
-    layout = BUILT_IN[joint_layout] if joint_layout in BUILT_IN else None
+    layout = BUILT_IN.get(joint_layout)
     if layout is None:
         raise HacError(f'joint layout must be one of {", ".join(BUILT_IN)}, not {joint_layout!r}')
     people = [to_layout(person, joint_layout) for person in people]

@@ -13,6 +13,7 @@
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -56,8 +57,9 @@ def _rot(axis_angle: np.ndarray) -> np.ndarray:
 
 
 def run_slam(world: World, landmarks: np.ndarray, stamps_ns: np.ndarray, R_world: np.ndarray,
-             c_world: np.ndarray, people_world: list[np.ndarray], K: np.ndarray, size: tuple[int, int],
-             scale_fn, segments: list[int], rng: np.random.Generator,
+             c_world: np.ndarray, people_world: list[np.ndarray], K: np.ndarray,
+             size: tuple[int, int],
+             scale_fn: Callable[[int], float], segments: list[int], rng: np.random.Generator,
              map_period_s: float = 2.0) -> SlamOutput:
     """Simulate the SLAM outputs.
 
@@ -134,7 +136,8 @@ def _frame_id(segment: int) -> str:
 
 def _visible(world: World, landmarks: np.ndarray, R: np.ndarray, c: np.ndarray,
              people: np.ndarray, K: np.ndarray, width: int, height: int) -> np.ndarray:
-    """(L,) bool: landmarks this camera sees (in the image, in range, unoccluded, not behind a person)."""
+    """(L,) bool: landmarks this camera sees (in the image, in range, unoccluded, not behind a
+    person)."""
     cam = (landmarks - c) @ R
     px, front = project(cam, K)
     dist = np.linalg.norm(landmarks - c, axis=1)
@@ -152,6 +155,7 @@ def _visible(world: World, landmarks: np.ndarray, R: np.ndarray, c: np.ndarray,
             continue
         lo = ppx[pfront].min(axis=0) - PERSON_MASK_PAD_PX
         hi = ppx[pfront].max(axis=0) + PERSON_MASK_PAD_PX
-        inside = (px[:, 0] >= lo[0]) & (px[:, 0] <= hi[0]) & (px[:, 1] >= lo[1]) & (px[:, 1] <= hi[1])
+        inside = ((px[:, 0] >= lo[0]) & (px[:, 0] <= hi[0])
+                  & (px[:, 1] >= lo[1]) & (px[:, 1] <= hi[1]))
         ok &= ~(inside & (cam[:, 2] > pj[pfront, 2].min() - 0.3))
     return ok

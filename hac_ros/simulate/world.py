@@ -16,7 +16,8 @@ TEXTURE_CELL_M = 0.6  # size of the textured / blank patches of the floor
 
 @dataclass
 class Box:
-    """An axis-aligned box: lo (3,), hi (3,) metres, world frame; texture: landmark density factor."""
+    """An axis-aligned box: lo (3,), hi (3,) metres, world frame; texture: landmark density
+    factor."""
 
     lo: np.ndarray
     hi: np.ndarray
@@ -25,14 +26,16 @@ class Box:
 
 @dataclass
 class World:
-    """The floor z = 0 over ``extent`` (xmin, xmax, ymin, ymax) and boxes standing on or above it."""
+    """The floor z = 0 over ``extent`` (xmin, xmax, ymin, ymax) and boxes standing on or above
+    it."""
 
     extent: tuple[float, float, float, float]
     boxes: list[Box] = field(default_factory=list)
     floor_texture: float = FLOOR_TEXTURE
 
     def height_at(self, xy: np.ndarray) -> np.ndarray:
-        """Walkable surface height (metres) at points xy (..., 2): the floor or a box top below 1 m."""
+        """Walkable surface height (metres) at points xy (..., 2): the floor or a box top below 1
+        m."""
         xy = np.asarray(xy, dtype=float)
         h = np.zeros(xy.shape[:-1])
         for b in self.boxes:

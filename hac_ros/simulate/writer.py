@@ -50,11 +50,11 @@ def write_recording(sc: Any, out_path: str | Path, storage: str = 'mcap',
     pose_msgtype = POSE_MSGTYPES[pose_type]
     messages: list[tuple[int, int, str, str, Any]] = []
 
-    def add(stamp: int, topic: str, msgtype: str, msg: Any) -> None:
-        messages.append((int(stamp), ORDER[topic], topic, msgtype, msg))
+    def add(stamp: int, topic: str, msg: Any) -> None:
+        messages.append((int(stamp), ORDER[topic], topic, TOPICS[topic] or pose_msgtype, msg))
 
     for m in sc.maps:
-        add(m.stamp_ns, '/slam/cloud', TOPICS['/slam/cloud'],
+        add(m.stamp_ns, '/slam/cloud',
             xyz_to_cloud(m.points_slam, m.stamp_ns, m.frame_id, types))
     last_scale = None
     for i, stamp in enumerate(sc.pose_stamps_ns):
@@ -64,21 +64,21 @@ def write_recording(sc: Any, out_path: str | Path, storage: str = 'mcap',
             msg = rt_to_odometry(R, c, stamp, frame, sc.camera_frame, types)
         else:
             msg = rt_to_pose_stamped(R, c, stamp, frame, types)
-        add(stamp, '/slam/pose', pose_msgtype, msg)
-        add(stamp, '/camera/camera_info', TOPICS['/camera/camera_info'],
+        add(stamp, '/slam/pose', msg)
+        add(stamp, '/camera/camera_info',
             intrinsics_to_camera_info(sc.K, sc.width, sc.height, stamp, sc.camera_frame, types))
-        add(stamp, '/gt/camera_pose', TOPICS['/gt/camera_pose'],
+        add(stamp, '/gt/camera_pose',
             rt_to_pose_stamped(sc.gt_R_wc[i], sc.gt_c[i], stamp, sc.world_frame, types))
         scale = float(sc.true_scale[i])
         if last_scale is None or scale != last_scale:
-            add(stamp, '/gt/scale', TOPICS['/gt/scale'],
+            add(stamp, '/gt/scale',
                 types.get('std_msgs/msg/Float64')(data=scale))
             last_scale = scale
     for k, stamp in enumerate(sc.joints_stamps_ns):
         stamp = int(stamp)
-        add(stamp, '/hmr/joints', TOPICS['/hmr/joints'],
+        add(stamp, '/hmr/joints',
             joints_to_pose_array(sc.joints_cam[k], stamp, sc.camera_frame, types))
-        add(stamp, '/gt/human_joints', TOPICS['/gt/human_joints'],
+        add(stamp, '/gt/human_joints',
             joints_to_pose_array(sc.gt_joints_world[k], stamp, sc.world_frame, types))
     messages.sort(key=lambda m: (m[0], m[1]))
 

@@ -16,6 +16,6 @@ class TransformBroadcaster:
             TransformStamped, '/tf_standin',
             QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE))
 
-    def sendTransform(self, transform: Any) -> None:  # noqa: N802 (tf2_ros' name)
+    def sendTransform(self, transform: Any) -> None:
         for t in transform if isinstance(transform, list) else [transform]:
             self._publisher.publish(t)
