@@ -107,20 +107,26 @@ def client():
     c.close()
 
 
-def test_node_process_converges_warns_and_exits_cleanly_on_sigint(tmp_path, client):
+def test_node_process_driven_by_hac_play_converges_warns_and_exits_cleanly_on_sigint(
+        tmp_path, client):
+    """hac_node and ``hac play`` as users run them: two processes, a recording played at twice
+    real time into the node (maps latched, frames paced by their stamps)."""
+    from hac_ros.simulate import make_scenario, write_recording
+
     walk = scenario_recording('walk', duration=10.0)
+    recording = write_recording(make_scenario('walk', seed=0, duration=10.0, hmr_bias=0.0),
+                                tmp_path / 'walk')
     node = start_node(tmp_path, {'publish_tf': True, 'min_samples': 10})
     try:
         assert wait_for(client.node_is_up, STARTUP_S), 'hac_node did not come up'
         # a volatile map publisher against the default cloud_qos transient_local
         client.io.create_publisher(TYPES.get('sensor_msgs/msg/PointCloud2'), '/slam/cloud',
                                    VOLATILE)
-        for event in walk.events:
-            client.publishers[event.kind].publish(event.msg)
-            if event.kind == 'cloud':
-                time.sleep(0.5)  # indexed off the executor thread; frames would use no map yet
-            elif event.kind == 'joints':
-                time.sleep(FRAME_PERIOD_S)
+        play = subprocess.run([sys.executable, '-m', 'hac_ros.cli', 'play', str(recording),
+                               '--rate', '2', '--wait', str(STARTUP_S)], cwd=REPO,
+                              capture_output=True, text=True, timeout=120)
+        assert play.returncode == 0, play.stdout + play.stderr
+        assert 'published /camera/camera_info' in play.stdout
         last_joints = int(walk.joints_stamps[-1])
         assert wait_for(lambda: client.received['/hac/human_joints'] and
                         client.received['/hac/human_joints'][-1].header.stamp.sec * 10**9 +

@@ -1,4 +1,4 @@
-"""The ``hac`` command: ``simulate | replay | batch | eval | plot | demo | import | export``.
+"""The ``hac`` command: ``simulate | replay | batch | eval | plot | demo | import | export | play``.
 
 Thin: each sub-command is a module of this package with ``add_arguments(parser)`` and
 ``run(args) -> int``, and only argument parsing in it; the work is done by the library modules
@@ -27,6 +27,7 @@ COMMANDS = {
     'demo': ('demo', 'replay, evaluate and plot the bundled sample recording'),
     'import': ('import_files', 'make a recording from SLAM and HMR files (TUM, PLY, npz)'),
     'export': ('export', 'a replayed recording as numpy arrays (.npz)'),
+    'play': ('play', 'publish a recording\'s input topics over DDS (drives hac_node)'),
 }
 
 

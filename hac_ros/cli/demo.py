@@ -1,5 +1,9 @@
 """``hac demo`` (``make demo``): replay, evaluate and plot the bundled sample recording.
 
+``hac demo --live``: the node instead of the replay. ``hac_node`` runs as a process of its own,
+``hac play`` feeds it the same recording over DDS, and the summary ``hac replay --mode online``
+prints is made from what comes back (:mod:`hac_ros.ros.live`).
+
 The recording ``bags/demo_walk`` is only read. Its results go to ``out/`` (``out/replay`` the
 calibrated recording, ``out/eval.md`` and ``out/eval.json`` the metrics, ``out/*.png`` the
 figures, ``out/tum/`` the trajectories for evo); results of an earlier demo there are replaced,
@@ -89,12 +93,40 @@ def demo(out_dir: Path, recording: str | None = None) -> int:
     return 0
 
 
+def live_demo(recording: str | None, rate: float, params_file: str | None) -> int:
+    """``hac demo --live``: the recording played into hac_node, its summary from DDS."""
+    from hac_ros.ros.live import live_run
+
+    with tempfile.TemporaryDirectory(prefix='hac_demo_') as tmp:
+        source = find_recording(recording)
+        if source is None:
+            print(f'{DEMO_RECORDING} not found: simulating a {SIMULATED["duration_s"]:.0f} s '
+                  f'"{SIMULATED["scenario"]}" recording instead')
+            source = simulate_into(Path(tmp))
+        print(f'starting hac_node and playing {source} into it at {rate:g}x real time '
+              '(hac play) ...', flush=True)
+        summary = live_run(source, rate, params_file)
+    print(summary.text())
+    return 0
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--recording', metavar='IN',
                         help=f'recording to use instead of {DEMO_RECORDING}')
+    parser.add_argument('--live', action='store_true',
+                        help='run hac_node and feed it the recording with hac play over DDS '
+                        '(localhost); print the summary from what comes back')
+    parser.add_argument('--rate', type=float, default=1.0,
+                        help='--live: playback speed, a factor of real time (default 1)')
+    parser.add_argument('--params', metavar='FILE',
+                        help='--live: the node\'s parameters file (default: its defaults)')
     parser.add_argument('-o', '--out-dir', metavar='DIR', default='out',
                         help='where the results go (default out/; earlier demo results replaced)')
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.live:
+        if not args.rate > 0:
+            raise HacError(f'--rate {args.rate}: must be > 0')
+        return live_demo(args.recording, args.rate, args.params)
     return demo(Path(args.out_dir), args.recording)

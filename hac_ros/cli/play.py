@@ -1,0 +1,104 @@
+"""``hac play IN``: publish a recording's input topics over DDS, to drive ``hac_node``.
+
+The work is :class:`hac_ros.ros.player.Player`'s; this module parses the arguments, starts rclpy
+without its signal handlers, and turns SIGINT, SIGTERM and SIGHUP into a stop between two messages
+(exit 128 + the signal's number, one line).
+"""
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+import threading
+from collections.abc import Sequence
+
+from hac_ros.core.errors import HacError
+
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+
+
+def parse_remap(items: Sequence[str] | None) -> dict[str, str]:
+    """``OLD:=NEW`` pairs (ROS's remapping syntax) -> {'/OLD': '/NEW'}; HacError naming --remap."""
+    remap: dict[str, str] = {}
+    for item in items or []:
+        old, sep, new = item.partition(':=')
+        if not sep or not old.strip() or not new.strip():
+            raise HacError(f'--remap {item!r}: expected OLD:=NEW (e.g. /orb/pose:=/slam/pose)')
+        old, new = old.strip(), new.strip()
+        remap[old if old.startswith('/') else '/' + old] = new if new.startswith('/') else '/' + new
+    return remap
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.description = (
+        'Publish a recording\'s input topics over DDS in log-time order, at real time or --rate, '
+        'with the QoS hac_node expects (reliable; maps and /tf_static transient local): the way '
+        'to drive hac_node without a ROS install. Default topics: /slam/pose, /slam/cloud, '
+        '/hmr/joints, /camera/camera_info, /tf, /tf_static (those the recording holds).')
+    parser.add_argument('input', metavar='IN', help='recording (rosbag2 directory, .mcap, .db3, '
+                        'or ROS 1 .bag); only read')
+    parser.add_argument('--rate', type=float, default=1.0,
+                        help='playback speed, a factor of real time (default 1)')
+    parser.add_argument('--loop', action='store_true',
+                        help='play again from the start at the end, until interrupted')
+    parser.add_argument('--clock', type=float, nargs='?', const=40.0, default=0.0, metavar='HZ',
+                        help='publish /clock with the playback time (at HZ between messages, '
+                        'default 40), for nodes run with use_sim_time')
+    parser.add_argument('--topics', nargs='+', metavar='TOPIC',
+                        help='play these topics of IN instead of the input topics')
+    parser.add_argument('--remap', nargs='+', metavar='OLD:=NEW', default=[],
+                        help='publish topic OLD of IN as NEW (e.g. /orb/pose:=/slam/pose)')
+    parser.add_argument('--wait', type=float, default=0.0, metavar='S',
+                        help='wait up to S seconds for a subscriber on every topic before playing '
+                        '(default 0: start at once)')
+
+
+def run(args: argparse.Namespace) -> int:
+    if not args.rate > 0:
+        raise HacError(f'--rate {args.rate}: must be > 0')
+    if not args.clock >= 0:
+        raise HacError(f'--clock {args.clock}: must be >= 0')
+    if not args.wait >= 0:
+        raise HacError(f'--wait {args.wait}: must be >= 0')
+    remap = parse_remap(args.remap)
+    stop = threading.Event()
+    caught: list[int] = []
+
+    def on_signal(number: int, _frame: object) -> None:
+        caught.append(number)
+        stop.set()
+
+    previous = {s: signal.signal(s, on_signal) for s in STOP_SIGNALS}
+    try:
+        return _play(args, remap, stop, caught)
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+
+
+def _play(args: argparse.Namespace, remap: dict[str, str], stop: threading.Event,
+          caught: list[int]) -> int:
+    import rclpy
+    from rclpy.signals import SignalHandlerOptions
+
+    from hac_ros.ros.player import Player
+
+    rclpy.init(args=[], signal_handler_options=SignalHandlerOptions.NO)
+    try:
+        with Player(args.input, rate=args.rate, loop=args.loop, clock_hz=args.clock,
+                    topics=args.topics, remap=remap, wait_s=args.wait) as player:
+            for reason in player.skipped:
+                print(f'hac play: warning: not played: {reason}', file=sys.stderr)
+            names = ', '.join(f'{t.name} -> {t.published_as}' if t.name != t.published_as
+                              else t.name for t in player.plan)
+            print(f'hac play: {args.input}: {names} at {args.rate:g}x'
+                  + (' (loop)' if args.loop else ''), flush=True)
+            stats = player.run(stop)
+    finally:
+        rclpy.try_shutdown()
+    if caught:
+        name = signal.Signals(caught[0]).name
+        print(f'hac play: interrupted ({name}): {stats.text()}', file=sys.stderr)
+        return 128 + caught[0]
+    print(f'hac play: {stats.text()}')
+    return 0
