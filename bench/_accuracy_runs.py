@@ -122,19 +122,21 @@ def run_ours(scene: Scene, params: HacParams, literal: World, online: bool = Fal
              ) -> dict[str, float]:
     """Our offline figures (and the online ones when asked) for one configuration; ``literal``:
     the literal method's world joints, for W-MPJPE on the frames both publish."""
-    cal = Calibrator(params, defer_metric=True)
-    return figures(scene, params, cal, feed(cal, scene), literal, online)
+    cal = Calibrator(params, offline=True)
+    feed(cal, scene)
+    return figures(scene, params, cal, literal, online)
 
 
-def figures(scene: Scene, params: HacParams, cal: Calibrator, deferred: list[Any], literal: World,
+def figures(scene: Scene, params: HacParams, cal: Calibrator, literal: World,
             online: bool = False) -> dict[str, float]:
-    """:func:`run_ours`' figures of a deferred run (``deferred``: the outputs of ``cal``, made
-    with ``defer_metric``) of ``scene``'s inputs, however they were fed."""
-    samples = [o for o in deferred if isinstance(o, SampleOut) and o.accepted]
+    """:func:`run_ours`' figures of an offline calibrator ``cal`` fed ``scene``'s inputs,
+    however they were fed."""
+    samples = [o for o in cal.journal or [] if isinstance(o, SampleOut) and o.accepted]
     out: dict[str, float] = {'samples': len(samples)}
     if len(samples) < params.min_samples:
         return {**out, 'scale_err': math.nan, 'scale_bias': math.nan, 'w_mpjpe': math.nan}
-    (resolved,), _ = resolve_offline(cal.metric.fresh(), params, [deferred])  # as the replay
+    # as the replay, the humans smoothed below (W-MPJPE is measured on both)
+    resolved = resolve_offline(cal, smooth_humans=False).outputs
     frames = [o for o in resolved if isinstance(o, ScaleOut)]
     signed = _signed_errors(scene, frames)
     humans = [o for o in resolved if isinstance(o, HumanJointsOut)]

@@ -67,13 +67,13 @@ def _body_frame(events: list) -> list:
 
 def _imported(sc: Any, scene: Any, params: Any, directory: Path) -> dict[str, float]:
     """The scenario through files and ``hac import``, then the replay's own input path
-    (``hac_ros.replay.feeder.deferred_run``): its figures."""
+    (``hac_ros.replay.feeder.offline_run``): its figures."""
     from _accuracy_runs import figures
 
     from hac_ros.files.importer import import_files
     from hac_ros.files.tum import rotations_to_quats, write_tum
     from hac_ros.recording.reader import Recording
-    from hac_ros.replay.feeder import deferred_run
+    from hac_ros.replay.feeder import offline_run
 
     write_tum(directory / 'slam.tum', sc.pose_stamps_ns, sc.slam_c, rotations_to_quats(sc.slam_R_wc))
     np.save(directory / 'map.npy', sc.maps[-1].points_slam.astype(float))
@@ -87,8 +87,8 @@ def _imported(sc: Any, scene: Any, params: Any, directory: Path) -> dict[str, fl
                  directory / 'joints.npz', camera=f'{fx},{fy},{cx},{cy},{sc.width},{sc.height}',
                  joint_layout='smpl24')
     with Recording(directory / 'rec') as rec:
-        cal, deferred = deferred_run(rec, params)
-    return figures(scene, params, cal, deferred, {})
+        cal = offline_run(rec, params)
+    return figures(scene, params, cal, {})
 
 
 def run_task(task: tuple[str, int]) -> dict[str, Any]:

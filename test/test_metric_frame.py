@@ -4,13 +4,11 @@ services' semantics. Pure core, no ROS."""
 from __future__ import annotations
 
 import itertools
-from collections.abc import Callable
 
 import numpy as np
 import pytest
 
 from hac_ros.core.calibrator import Calibrator
-from hac_ros.core.metric_stage import finite_scale
 from hac_ros.core.outputs import CloudOut, HumanJointsOut, NoticeOut, OdometryOut, PoseOut, ScaleOut
 from hac_ros.core.params import HacParams
 from hac_ros.simulate import make_scenario
@@ -19,17 +17,6 @@ from hac_ros.simulate.feed import scenario_events
 NS = 1_000_000_000
 STEP = 0.1  # SLAM units per pose, along the camera's optical axis
 Q = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])  # the new map's rotation
-
-
-class Scheduled(Calibrator):
-    """A calibrator that publishes a given schedule (stamp ns -> scale or None)."""
-
-    def __init__(self, params: HacParams, schedule: Callable[[int], float | None]) -> None:
-        super().__init__(params)
-        self.schedule = schedule
-
-    def published_scale(self, stamp_ns: int) -> float | None:
-        return finite_scale(self.schedule(stamp_ns))
 
 
 def stamp(i: int) -> int:
@@ -64,7 +51,7 @@ def test_a_5pct_step_at_50_m_moves_the_pose_and_leaves_every_odometry_step_exact
             return 1.05
         return None if t < stamp(converged_at) else 1.2
 
-    cal = Scheduled(HacParams(metric_frame_alignment='slam'), schedule)
+    cal = Calibrator(HacParams(metric_frame_alignment='slam'), schedule=schedule)
     out = straight_run(cal, 0, reset_at, np.eye(3), 'map')
     out += straight_run(cal, reset_at, end, Q, 'map2', start_units=3.0)  # re-initialised
     odom, pose = by_stamp(out, OdometryOut), by_stamp(out, PoseOut)
@@ -95,7 +82,7 @@ def test_a_5pct_step_at_50_m_moves_the_pose_and_leaves_every_odometry_step_exact
 
 
 def test_covariances_grow_with_distance_and_are_inflated_after_a_reset():
-    cal = Scheduled(HacParams(metric_frame_alignment='slam'), lambda t: 2.0)
+    cal = Calibrator(HacParams(metric_frame_alignment='slam'), schedule=lambda t: 2.0)
     out = straight_run(cal, 0, 200, np.eye(3), 'map')
     out += straight_run(cal, 200, 260, Q, 'map2')
     odom = [by_stamp(out, OdometryOut)[k] for k in sorted(by_stamp(out, OdometryOut))]
@@ -156,8 +143,7 @@ def test_slam_alignment_keeps_the_slam_axes():
 def test_the_cloud_is_the_map_in_metres_sent_on_a_new_map_and_on_a_scale_change_rate_limited():
     sc = make_scenario('walk', seed=0, hmr_bias=0.0, duration=20.0)
     state = {'scale': 2.0}
-    cal = Scheduled(HacParams(metric_frame_alignment='slam', cloud_min_period_s=2.0),
-                    lambda t: state['scale'])
+    cal = Calibrator(HacParams(metric_frame_alignment='slam', cloud_min_period_s=2.0), schedule=lambda t: state['scale'])
     cal.add_camera_info(sc.K, sc.width, sc.height, sc.camera_frame)
     clouds: list[CloudOut] = []
     switch = int(sc.pose_stamps_ns[len(sc.pose_stamps_ns) // 2])

@@ -648,37 +648,29 @@ def test_deferred_outputs_resolved_with_the_schedule_equal_a_run_with_that_sched
     from dataclasses import fields
 
     from hac_ros.core.calibrator import Calibrator
-    from hac_ros.core.metric_stage import finite_scale
+    from hac_ros.core.metric_stage import MetricStage
     from hac_ros.core.outputs import ResetOut, SampleOut
     from hac_ros.recording.reader import Recording
-    from hac_ros.replay.feeder import CoreFeeder, InputTopics, deferred_run
-
-    class Scheduled(Calibrator):
-        """A calibrator whose metric outputs use a given scale schedule (stamp -> scale)."""
-
-        def __init__(self, params: HacParams, schedule: Callable[[int], float]) -> None:
-            super().__init__(params)
-            self.schedule = schedule
-
-        def published_scale(self, stamp_ns: int) -> float | None:
-            return finite_scale(self.schedule(stamp_ns))
+    from hac_ros.replay.feeder import CoreFeeder, InputTopics, offline_run
 
     params = HacParams(human_filter='none')  # offline, the humans are smoothed after resolving
     if base:
         params = params.replace(base_frame='base_link',
                                 base_to_camera=[0.1, 0.0, 0.5, 0.5, -0.5, 0.5, -0.5])
     with Recording(BAGS / 'reset_short') as recording:
-        calibrator, deferred = deferred_run(recording, params)
-        samples = [o for o in deferred if isinstance(o, SampleOut) and o.accepted]
-        resets = [o.stamp_ns for o in deferred if isinstance(o, ResetOut)]
+        calibrator = offline_run(recording, params)
+        records = calibrator.journal
+        samples = [o for o in records if isinstance(o, SampleOut) and o.accepted]
+        resets = [o.stamp_ns for o in records if isinstance(o, ResetOut)]
         assert resets, 'the recording has a SLAM reset'
         schedule = offline_scale(np.array([s.stamp_ns for s in samples]),
                                  np.array([s.scale for s in samples]), resets, params.window_s,
                                  params.min_samples)
-        resolved = calibrator.metric.fresh().resolve(deferred, schedule)
+        # without the final planes: the direct run below aligns with the planes of the moment
+        resolved = MetricStage(calibrator.metric.config).resolve(records, schedule)
         direct: list = []
         CoreFeeder(recording, InputTopics.check(recording, params),
-                   Scheduled(params, schedule)).run(direct.extend)
+                   Calibrator(params, schedule=schedule)).run(direct.extend)
     assert [type(o).__name__ for o in resolved] == [type(o).__name__ for o in direct]
     assert sum(type(o).__name__ == 'OdometryOut' for o in direct) > 100
 

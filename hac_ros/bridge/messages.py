@@ -23,7 +23,6 @@ from hac_ros.core.outputs import (
     HumanJointsOut,
     OdometryOut,
     Output,
-    PendingStatus,
     PoseOut,
     SampleOut,
     ScaleOut,
@@ -120,7 +119,7 @@ class OutputMessages:
     def convert(self, output: Output) -> list[Message]:
         """The messages of one calibrator output (none for samples, notices and resets)."""
         frame = self.params.metric_frame
-        stamp = (output.status.stamp_ns if isinstance(output, (DiagnosticsOut, PendingStatus))
+        stamp = (output.status.stamp_ns if isinstance(output, DiagnosticsOut)
                  else output.stamp_ns)
         if isinstance(output, PoseOut):
             self._path[self._path_count % PATH_LENGTH] = output.position_metric

@@ -19,9 +19,12 @@ Every rejection is counted by reason and announced once per cause with a :class:
 from __future__ import annotations
 
 import bisect
+import functools
 import math
 from collections import Counter, deque
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Concatenate, ParamSpec
 
 import numpy as np
 
@@ -31,22 +34,20 @@ from hac_ros.core.estimator import RollingScale
 from hac_ros.core.ground import GroundModel
 from hac_ros.core.human_filter import RootFilter
 from hac_ros.core.layouts import layout_from_params
-from hac_ros.core.metric_stage import MetricStage, StageConfig
+from hac_ros.core.metric_stage import MetricStage, ScaleAt, StageConfig, finite_scale
 from hac_ros.core.numeric import MEDIAN_STD_ERROR, NS
-from hac_ros.core.outputs import (
-    REASONS,
-    NoticeOut,
-    Output,
+from hac_ros.core.outputs import REASONS, NoticeOut, Output, ResetOut, SampleOut, Status
+from hac_ros.core.params import HacParams
+from hac_ros.core.pending import (
+    Pending,
     PendingFrame,
     PendingMap,
     PendingOdometry,
     PendingSegment,
     PendingStatus,
-    ResetOut,
-    SampleOut,
-    Status,
+    Record,
+    outputs_only,
 )
-from hac_ros.core.params import HacParams
 from hac_ros.core.pose_stream import Pose, PoseTrack
 from hac_ros.core.reference import MapIndex
 from hac_ros.core.sample import Scene, person_sample
@@ -58,6 +59,22 @@ GROUND_SHARE_SAMPLES = 30  # recent samples whose sources say whether the ground
 BODY_SPAN_MAX_M = 4.0  # a person's joints spread wider than this (box diagonal) are not metres
 
 
+_P = ParamSpec('_P')
+
+
+def _public(method: Callable[Concatenate[Calibrator, _P], list[Record]]
+            ) -> Callable[Concatenate[Calibrator, _P], list[Output]]:
+    """A public call: its outputs go to the caller; offline, the records it made (outputs and
+    metric records, in order) also go to the journal. Public methods never call each other."""
+    @functools.wraps(method)
+    def call(self: Calibrator, *args: _P.args, **kwargs: _P.kwargs) -> list[Output]:
+        records = method(self, *args, **kwargs)
+        if self.journal is not None:
+            self.journal.extend(records)
+        return outputs_only(records)
+    return call
+
+
 @dataclass
 class _Frame:
     stamp_ns: int
@@ -67,14 +84,19 @@ class _Frame:
 class Calibrator:
     """Feed it inputs with ``add_*``; each call returns the outputs it produced, in order.
 
-    defer_metric: the metric outputs (odometry, world joints, scale, diagnostics) come back as the
-    ``Pending*`` records of :mod:`hac_ros.core.outputs`, resolved once the scale of every stamp is
-    known (:func:`hac_ros.core.offline.resolve_offline`); every other output is the same.
+    schedule: stamp ns -> the scale (metres per SLAM unit; None: nothing metric) the metric
+    outputs use, instead of the online estimate; the samples still use the online estimate.
+    offline: the metric outputs (odometry and pose, world joints, scale, cloud, diagnostics) are
+    held back: each call returns the others, and :attr:`journal` keeps every record in order until
+    :func:`hac_ros.core.offline.resolve_offline` resolves the run with the whole recording's
+    schedule.
     """
 
-    def __init__(self, params: HacParams | None = None, defer_metric: bool = False) -> None:
+    def __init__(self, params: HacParams | None = None, schedule: ScaleAt | None = None,
+                 offline: bool = False) -> None:
         self.params = params or HacParams()
-        self.defer_metric = defer_metric
+        self.schedule = schedule
+        self.journal: list[Record] | None = [] if offline else None
         p = self.params
         self.estimator = RollingScale(p.window_s, p.window_max_samples, p.min_samples,
                                       p.gate_k, p.gate_min_rel)
@@ -112,29 +134,31 @@ class Calibrator:
                                   RootFilter(self.layout) if p.human_filter == 'smooth' else None)
 
     # ================================================================== inputs
+    @_public
     def add_camera_info(self, K: np.ndarray, width: int, height: int,
-                        frame_id: str = '') -> list[Output]:
+                        frame_id: str = '') -> list[Record]:
         """Intrinsics of the camera: joints projecting outside the image go to the ground plane."""
         K = np.asarray(K, dtype=float)
         if K.shape != (3, 3) or not np.all(np.isfinite(K)) or K[0, 0] <= 0 or K[1, 1] <= 0 \
                 or not 0 < width < 2**31 or not 0 < height < 2**31:  # also NaN
-            return self.reject('camera_info_invalid', self._last_frame_ns)
+            return self._reject('camera_info_invalid', self._last_frame_ns)
         first = self._K is None
         self._K, self._image_size = K, (int(width), int(height))
-        return self.conventions.camera_info_notes(self._last_frame_ns, K) if first else []
+        return [*self.conventions.camera_info_notes(self._last_frame_ns, K)] if first else []
 
+    @_public
     def add_pose(self, stamp_ns: int, R_wc: np.ndarray, c_map: np.ndarray, frame_id: str = '',
-                 child_frame_id: str = '') -> list[Output]:
+                 child_frame_id: str = '') -> list[Record]:
         """A SLAM pose: camera-to-map rotation (3, 3) and camera centre (3,), SLAM units, map
         frame."""
-        out: list[Output] = []
+        out: list[Record] = []
         R_wc = self.conventions.pose(np.asarray(R_wc, dtype=float))
         c_map = np.asarray(c_map, dtype=float)
         if not (is_rotation(R_wc, 1e-3) and c_map.shape == (3,) and np.all(np.isfinite(c_map))):
-            return self.reject('pose_nonfinite', stamp_ns)
+            return self._reject('pose_nonfinite', stamp_ns)
         newest = self.track.newest_stamp_ns
         if newest is not None and stamp_ns <= newest:
-            return self.reject('pose_out_of_order', stamp_ns)
+            return self._reject('pose_out_of_order', stamp_ns)
         if child_frame_id and not self.params.camera_frame and self.conventions.optical_poses:
             self._child_frame = child_frame_id
         pose = Pose(int(stamp_ns), R_wc, c_map)
@@ -151,7 +175,7 @@ class Calibrator:
         elif self.track.suspects:
             verdict = self.track.follow(pose)
             for bad in verdict.outliers:
-                out += self.reject('pose_outlier', bad.stamp_ns)
+                out += self._reject('pose_outlier', bad.stamp_ns)
             if verdict.reset is not None:
                 out += self._reset(verdict.reset, 'pose_jump',
                                    'SLAM pose jumped and stayed: SLAM re-initialised')
@@ -168,23 +192,28 @@ class Calibrator:
         out += self._accept_pose(pose, move)
         return out + self._diagnostics(stamp_ns)
 
-    def add_map(self, stamp_ns: int, points_map: np.ndarray, frame_id: str = '') -> list[Output]:
+    @_public
+    def add_map(self, stamp_ns: int, points_map: np.ndarray, frame_id: str = '') -> list[Record]:
         """A map cloud, (N, 3) SLAM units, map frame (else InputError): indexed, then handed on."""
-        return self.add_map_index(self.build_index(stamp_ns, points_map, frame_id))
+        return self._add_map_index(self.build_index(stamp_ns, points_map, frame_id))
 
     def build_index(self, stamp_ns: int, points_map: np.ndarray, frame_id: str = '') -> MapIndex:
         """The map index with this calibrator's parameters (thread-safe: touches no state)."""
         return MapIndex(points_map, frame_id, stamp_ns, self.params.index_max_points)
 
-    def add_map_index(self, index: MapIndex) -> list[Output]:
+    @_public
+    def add_map_index(self, index: MapIndex) -> list[Record]:
         """A map already indexed (the node builds the index off the executor's thread)."""
+        return self._add_map_index(index)
+
+    def _add_map_index(self, index: MapIndex) -> list[Record]:
         if len(index) == 0:
-            return self.reject('cloud_empty', index.stamp_ns)
+            return self._reject('cloud_empty', index.stamp_ns)
         if self._map_frame is not None and index.frame_id != self._map_frame:
             self._foreign_map = index
-            return self.reject('cloud_wrong_frame', index.stamp_ns)
+            return self._reject('cloud_wrong_frame', index.stamp_ns)
         if self.map is not None and index.stamp_ns <= self.map.stamp_ns:
-            return self.reject('map_late', index.stamp_ns)
+            return self._reject('map_late', index.stamp_ns)
         stamps = [m.stamp_ns for m in self._maps]
         pos = bisect.bisect_right(stamps, index.stamp_ns)
         if pos and stamps[pos - 1] == index.stamp_ns:
@@ -195,7 +224,9 @@ class Calibrator:
             self._maps.pop(0)
         return []
 
-    def add_joints(self, stamp_ns: int, joints_cam: np.ndarray, frame_id: str = '') -> list[Output]:
+    @_public
+    def add_joints(self, stamp_ns: int, joints_cam: np.ndarray,
+                   frame_id: str = '') -> list[Record]:
         """HMR joints of one image: (P, K, 3) metres in the camera optical frame (or (P*K, 3)),
         K the layout's joints per person."""
         joints_cam = np.asarray(joints_cam, dtype=float)
@@ -204,17 +235,18 @@ class Calibrator:
             joints_cam = joints_cam.reshape(-1, k, 3)
         if joints_cam.ndim != 3 or joints_cam.shape[1:] != (k, 3):
             wrong_k = joints_cam.ndim in (2, 3) and joints_cam.shape[-1] == 3
-            return self.reject('joints_wrong_layout' if wrong_k else 'joints_malformed', stamp_ns)
+            return self._reject('joints_wrong_layout' if wrong_k else 'joints_malformed', stamp_ns)
         if frame_id:
             if not self._camera_frame:
                 self._camera_frame = frame_id
                 if not self._child_frame:
                     self._child_frame = frame_id
             elif frame_id != self._camera_frame:
-                return self.reject('joints_wrong_frame', stamp_ns)
+                return self._reject('joints_wrong_frame', stamp_ns)
         if stamp_ns <= self._last_frame_ns:
-            return self.reject('late_frame', stamp_ns)
-        joints_cam, out = self.conventions.joints(stamp_ns, joints_cam, self._K)
+            return self._reject('late_frame', stamp_ns)
+        joints_cam, notices = self.conventions.joints(stamp_ns, joints_cam, self._K)
+        out: list[Record] = [*notices]
         frame = _Frame(int(stamp_ns), joints_cam)
         last = self.track.last
         if last is not None and last.stamp_ns >= stamp_ns and not self.track.suspects:
@@ -222,27 +254,32 @@ class Calibrator:
         stamps = [f.stamp_ns for f in self._pending]
         pos = bisect.bisect_right(stamps, frame.stamp_ns)
         if pos and stamps[pos - 1] == frame.stamp_ns:
-            return self.reject('late_frame', stamp_ns)  # a repeated stamp
+            return self._reject('late_frame', stamp_ns)  # a repeated stamp
         self._pending.insert(pos, frame)
         while len(self._pending) > self.params.pose_buffer:
             dropped = self._pending.pop(0)
-            out += self.reject('pending_overflow', dropped.stamp_ns)
+            out += self._reject('pending_overflow', dropped.stamp_ns)
         return out
 
-    def flush(self) -> list[Output]:
+    @_public
+    def flush(self) -> list[Record]:
         """End of input: process the frames still waiting (matched within the slop, else
         dropped)."""
-        out: list[Output] = []
+        out: list[Record] = []
         if self.track.suspects:  # an unconfirmed jump at the very end: its poses are outliers
             for pose in self.track.suspects:
-                out += self.reject('pose_outlier', pose.stamp_ns)
+                out += self._reject('pose_outlier', pose.stamp_ns)
             self.track.suspects = []
         while self._pending:
             out += self._process(self._pending.pop(0))
         return out
 
-    def reject(self, reason: str, stamp_ns: int = -1) -> list[Output]:
+    @_public
+    def reject(self, reason: str, stamp_ns: int = -1) -> list[Record]:
         """Count a rejected input (shells use it for messages they could not decode)."""
+        return self._reject(reason, stamp_ns)
+
+    def _reject(self, reason: str, stamp_ns: int = -1) -> list[Record]:
         self.rejected[reason] += 1
         if reason in self._noticed:
             return []
@@ -264,13 +301,15 @@ class Calibrator:
 
     def published_scale(self, stamp_ns: int) -> float | None:
         """The scale the metric outputs use at ``stamp_ns``, metres per SLAM unit (None: nothing
-        metric yet): the online estimate once converged, the held one while frozen (and after,
-        until the fresh window converges)."""
-        return self._working_scale()
+        metric yet): the ``schedule``'s if one was given, else the online one."""
+        if self.schedule is not None:
+            return finite_scale(self.schedule(stamp_ns))
+        return self.online_scale()
 
-    def _working_scale(self) -> float | None:
-        """The online scale the samples use (the map distance bound, the contacts' ground): the
-        same as ``published_scale`` unless a subclass publishes another schedule."""
+    def online_scale(self) -> float | None:
+        """The online scale, which the samples use (the map distance bound, the contacts' ground):
+        the estimate once converged, the held one while frozen (and after, until the fresh window
+        converges)."""
         return self.services.scale(self.scale if self.converged else None)
 
     # ================================================================== services
@@ -285,8 +324,8 @@ class Calibrator:
         window (the held scale stays published until it converges)."""
         self.services.request('freeze', frozen)
 
-    def _take_requests(self, pose: Pose) -> list[Output]:
-        out: list[Output] = []
+    def _take_requests(self, pose: Pose) -> list[Record]:
+        out: list[Record] = []
         for action, notice in self.services.take(pose.stamp_ns,
                                                  lambda: self.published_scale(pose.stamp_ns)):
             if action == 'reset':
@@ -322,9 +361,9 @@ class Calibrator:
         return self.params.base_frame or self._child_frame
 
     # ================================================================== poses
-    def _accept_pose(self, pose: Pose, move: tuple[float, float] | None = None) -> list[Output]:
+    def _accept_pose(self, pose: Pose, move: tuple[float, float] | None = None) -> list[Record]:
         """Take ``pose`` as the camera's next one; ``move``: its step, if computed."""
-        out: list[Output] = self._take_requests(pose) if self.services.queue else []
+        out: list[Record] = self._take_requests(pose) if self.services.queue else []
         if self.segment < 0:  # the very first pose starts the first segment
             out += self._new_segment(pose, '')
         self.track.append(pose, self.track.step(pose) if move is None else move)
@@ -338,7 +377,7 @@ class Calibrator:
         return out
 
     # ================================================================== reset
-    def _new_segment(self, first_pose: Pose, cause: str) -> list[Output]:
+    def _new_segment(self, first_pose: Pose, cause: str) -> list[Record]:
         self.segment += 1
         keeps_map = cause in ('map_overlap', 'service')
         out = self._metric(PendingSegment(first_pose.stamp_ns, self.segment, first_pose.R_wc,
@@ -347,7 +386,7 @@ class Calibrator:
             self._map_unhanded = True  # the kept map, placed by the new segment
         return out
 
-    def _reset(self, first_pose: Pose, cause: str, text: str) -> list[Output]:
+    def _reset(self, first_pose: Pose, cause: str, text: str) -> list[Record]:
         """Forget the old map's scale and anchor the new map at ``first_pose``; a ``service`` reset
         keeps the map and the ground model (the same map, only a new estimate)."""
         self.estimator.reset()
@@ -356,7 +395,7 @@ class Calibrator:
         self.resets += 1
         self._sources.clear()
         self.services.clear()  # a held scale belongs to the old segment
-        out: list[Output] = self._new_segment(first_pose, cause)
+        out: list[Record] = self._new_segment(first_pose, cause)
         self.track.clear()
         if cause not in ('map_overlap', 'service'):
             self.map = None
@@ -369,25 +408,25 @@ class Calibrator:
                 NoticeOut(first_pose.stamp_ns, 'reset', f'estimator reset ({cause}): {text}',
                           'warn')]
         for frame in stale:
-            out += self.reject('no_pose', frame.stamp_ns)
+            out += self._reject('no_pose', frame.stamp_ns)
         return out
 
-    def _refuse_foreign_maps(self) -> list[Output]:
+    def _refuse_foreign_maps(self) -> list[Record]:
         """Maps that came before the first pose fixed the map frame, in another frame: refused."""
         foreign = [m for m in self._maps if m.frame_id != self._map_frame]
         self._maps = [m for m in self._maps if m.frame_id == self._map_frame]
         self._foreign_map = foreign[-1] if foreign else self._foreign_map
-        return [o for m in foreign for o in self.reject('cloud_wrong_frame', m.stamp_ns)]
+        return [o for m in foreign for o in self._reject('cloud_wrong_frame', m.stamp_ns)]
 
-    def _adopt_foreign_map(self, out: list[Output]) -> None:
+    def _adopt_foreign_map(self, out: list[Record]) -> None:
         if self._foreign_map is not None and self._foreign_map.frame_id == self._map_frame:
-            out += self.add_map_index(self._foreign_map)
+            out += self._add_map_index(self._foreign_map)
         self._foreign_map = None
 
     # ================================================================== frames
-    def _activate_map(self, stamp_ns: int) -> list[Output]:
+    def _activate_map(self, stamp_ns: int) -> list[Record]:
         """Make the latest map not after ``stamp_ns`` the current one (SPEC processing order)."""
-        out: list[Output] = []
+        out: list[Record] = []
         chosen = None
         while self._maps and self._maps[0].stamp_ns <= stamp_ns:
             chosen = self._maps.pop(0)
@@ -413,7 +452,7 @@ class Calibrator:
         self._map_unhanded = True
         return out
 
-    def _hand_map(self, stamp_ns: int) -> list[Output]:
+    def _hand_map(self, stamp_ns: int) -> list[Record]:
         """The map in use to the metric stage (for /hac/cloud), at most once per
         ``cloud_min_period_s``: the cloud cannot be published more often, and offline every map
         handed over is kept until the recording ends."""
@@ -425,13 +464,13 @@ class Calibrator:
         return self._metric(PendingMap(stamp_ns, self.segment,
                                        self.map.thinned(self.params.cloud_out_max_points)))
 
-    def _process(self, frame: _Frame) -> list[Output]:
+    def _process(self, frame: _Frame) -> list[Record]:
         """One frame (SPEC steps 1–6) for every person in it."""
-        out: list[Output] = []
+        out: list[Record] = []
         stamp = frame.stamp_ns
         pose = self.track.at(stamp)
         if pose is None:
-            return self.reject('no_pose', stamp)
+            return self._reject('no_pose', stamp)
         out += self._activate_map(stamp)
         out += self._hand_map(stamp)
         R_wc, c_map = pose
@@ -443,14 +482,14 @@ class Calibrator:
         for person, joints in enumerate(frame.joints_cam):
             out += self._person(stamp, person, R_wc, c_map, joints)
         out += self.check.notices(stamp)
-        if self.defer_metric or self.published_scale(stamp) is not None:
+        if self.journal is not None or self.published_scale(stamp) is not None:
             plane = self.ground.plane(self.map)
             out += self._metric(PendingFrame(stamp, self.segment, R_wc, c_map, frame.joints_cam,
                                              self.estimator.spread(), plane))
         return out
 
     def _person(self, stamp: int, person: int, R_wc: np.ndarray, c_map: np.ndarray,
-                joints: np.ndarray) -> list[Output]:
+                joints: np.ndarray) -> list[Record]:
         """One person's scale sample (SPEC steps 1–5, hac_ros.core.sample) and its bookkeeping."""
         self.people += 1
         if not np.isfinite(joints).all():
@@ -462,7 +501,7 @@ class Calibrator:
         up_cam = self.layout.up_axis(joints)
         self.ground.add_body(R_wc, up_cam)
         self.check.add_person(self.layout, R_wc, joints, up_cam, self._K, self._image_size)
-        scale_now = self._working_scale()
+        scale_now = self.online_scale()
         scene = Scene(self.map, self.ground.plane(self.map), self.ground.normal(),
                       self.ground.refined, self._K, self._image_size, scale_now, self._cos_min)
         sample = person_sample(self.params, self.layout, scene, R_wc, c_map, joints)
@@ -476,9 +515,9 @@ class Calibrator:
             self.services.samples += 1
             return [SampleOut(stamp, person, sample.scale, sample.source, False)]
         accepted = self.estimator.add(stamp, sample.scale)
-        out: list[Output] = [SampleOut(stamp, person, sample.scale, sample.source, accepted)]
+        out: list[Record] = [SampleOut(stamp, person, sample.scale, sample.source, accepted)]
         if not accepted:
-            out += self.reject('gated', stamp)
+            out += self._reject('gated', stamp)
         else:
             self._sources.append(sample.source == 'ground')
             if sample.source == 'map' and scale_now is not None:
@@ -486,11 +525,11 @@ class Calibrator:
                 self.ground.add_contact(contact_map, scale_now)
         return out
 
-    def _rejected_sample(self, stamp: int, person: int, reason: str) -> list[Output]:
-        return [SampleOut(stamp, person, float('nan'), reason, False), *self.reject(reason, stamp)]
+    def _rejected_sample(self, stamp: int, person: int, reason: str) -> list[Record]:
+        return [SampleOut(stamp, person, float('nan'), reason, False), *self._reject(reason, stamp)]
 
     # ================================================================== outputs
-    def _odometry(self, pose: Pose) -> list[Output]:
+    def _odometry(self, pose: Pose) -> list[Record]:
         """Every accepted pose (the odometry integrates them all, also while a segment
         converges)."""
         # the position's uncertainty comes from the scale's standard error (MetricStage)
@@ -501,14 +540,13 @@ class Calibrator:
         return self._metric(PendingOdometry(pose.stamp_ns, self.child_frame_id, self.segment,
                                             pose.R_wc, pose.c_map, sigma_scale, plane, share))
 
-    def _metric(self, pending: PendingOdometry | PendingFrame | PendingSegment | PendingMap
-                | PendingStatus) -> list[Output]:
-        """A pending metric output: returned as is when deferred, else resolved at once."""
-        if self.defer_metric:
+    def _metric(self, pending: Pending) -> list[Record]:
+        """A metric record: kept as it is offline (resolved at the end), else resolved at once."""
+        if self.journal is not None:
             return [pending]
-        return self.metric.apply(pending, self.published_scale)
+        return list(self.metric.apply(pending, self.published_scale))
 
-    def _diagnostics(self, stamp_ns: int) -> list[Output]:
+    def _diagnostics(self, stamp_ns: int) -> list[Record]:
         second = stamp_ns // NS
         if self._diag_second is not None and second <= self._diag_second:
             return []

@@ -14,12 +14,13 @@ depends on the published scale:
   map is used, when the estimate moved by more than ``cloud_republish_rel`` or the alignment by
   more than 1° or 1 cm since the last one, at most once per ``cloud_min_period_s`` of stamp time.
 
-The calibrator hands it ``Pending*`` records that hold the SLAM-unit quantities of an output.
-Online (``hac_node``, ``hac replay --mode online``) each record is resolved at once with the
-current estimate and the current ground plane. Offline (the replay's default mode) the calibrator
-*defers*: once the whole recording's schedule is known :meth:`MetricStage.resolve` turns the
-records, in their order, into the outputs a second run with that schedule would give; each
-segment then has one final alignment (its last ground plane, ``final_planes``).
+The calibrator hands it metric records (:mod:`hac_ros.core.pending`) that hold the SLAM-unit
+quantities of an output. Online (``hac_node``, ``hac replay --mode online``) each record is
+resolved at once with the current estimate and the current ground plane. Offline (the replay's
+default mode) the calibrator keeps them in its journal: once the whole recording's schedule is
+known :meth:`MetricStage.resolve` turns the records, in their order, into the outputs a second run
+with that schedule would give; each segment then has one final alignment (its last ground plane,
+``final_planes``).
 
 Pure numpy. Stamps are int nanoseconds; scales are metres per SLAM unit (None: nothing metric).
 """
@@ -38,22 +39,26 @@ from hac_ros.core.human_filter import RootFilter
 from hac_ros.core.numeric import NS
 from hac_ros.core.odometry import POSITION_VARIANCE_FLOOR, ContinuousOdometry
 from hac_ros.core.outputs import (
-    PENDING,
     CloudOut,
     DiagnosticsOut,
     HumanJointsOut,
     NoticeOut,
     Output,
-    PendingFrame,
-    PendingMap,
-    PendingOdometry,
-    PendingSegment,
-    PendingStatus,
     PoseOut,
     ScaleOut,
     Status,
 )
 from hac_ros.core.params import HacParams
+from hac_ros.core.pending import (
+    PENDING,
+    Pending,
+    PendingFrame,
+    PendingMap,
+    PendingOdometry,
+    PendingSegment,
+    PendingStatus,
+    Record,
+)
 from hac_ros.core.transforms import base_from_camera
 
 CLOUD_MOVE_DEG = 1.0  # the alignment moved this much since the last cloud: republish it
@@ -120,17 +125,11 @@ class MetricStage:
         self.final_planes: dict[int, Plane | None] | None = None
         self._warned: set[int] = set()
 
-    def fresh(self) -> MetricStage:
-        """A new stage with this one's configuration, for resolving deferred outputs: without the
-        online filter of the humans (offline they are smoothed over the whole recording,
-        :func:`hac_ros.core.human_filter.smooth_people`)."""
-        return MetricStage(self.config)
-
     # ------------------------------------------------------------------ resolving
-    def resolve(self, outputs: Iterable[Output], scale_at: ScaleAt,
+    def resolve(self, records: Iterable[Record], scale_at: ScaleAt,
                 error_at: Callable[[int], float] | None = None,
                 final_planes: dict[int, Plane | None] | None = None) -> list[Output]:
-        """Outputs with every pending record replaced by its metric output(s), in order.
+        """The outputs of ``records``, each metric record replaced by its output(s), in order.
 
         error_at: stamp -> standard error of that scale (metres per SLAM unit), for the
         covariances; None: the online estimate's, recorded in each pending odometry.
@@ -139,14 +138,14 @@ class MetricStage:
         if final_planes is not None:
             self.final_planes = final_planes
         out: list[Output] = []
-        for output in outputs:
-            if isinstance(output, PENDING):
-                out += self.apply(output, scale_at, error_at)
+        for record in records:
+            if isinstance(record, PENDING):
+                out += self.apply(record, scale_at, error_at)
             else:
-                out.append(output)
+                out.append(record)
         return out
 
-    def apply(self, pending: object, scale_at: ScaleAt,
+    def apply(self, pending: Pending, scale_at: ScaleAt,
               error_at: Callable[[int], float] | None = None) -> list[Output]:
         """One pending record -> its outputs with the scale ``scale_at`` gives at its stamp."""
         if isinstance(pending, PendingOdometry):

@@ -40,13 +40,16 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from hac_ros.core.errors import InputError
+from hac_ros.core.human_filter import smooth_outputs
+from hac_ros.core.metric_stage import MetricStage, ScaleAt, finite_scale
 from hac_ros.core.numeric import MAD_TO_SIGMA, MEDIAN_STD_ERROR, NS
-from hac_ros.core.outputs import Output, PendingFrame, PendingOdometry, ResetOut, SampleOut
+from hac_ros.core.outputs import Output, ResetOut, SampleOut, Status
+from hac_ros.core.pending import PendingFrame, PendingOdometry, Record
 
 if TYPE_CHECKING:
+    from hac_ros.core.calibrator import Calibrator
     from hac_ros.core.ground import Plane
-    from hac_ros.core.metric_stage import MetricStage, ScaleAt
-    from hac_ros.core.params import HacParams
 
 # A window median this many standard errors from the segment median is not noise. With one window
 # per half window over a long recording (hundreds of windows), 5 sigma keeps false alarms rare.
@@ -108,8 +111,9 @@ class SegmentScale:
 class OfflineScale:
     """stamp_ns -> scale for a whole recording: the segment of the stamp, then its schedule.
 
-    Callable, as :attr:`Calibrator.output_scale` expects. A stamp at or after a reset stamp belongs
-    to the new segment (the calibrator resets before it accepts the pose of that stamp).
+    Callable, as the ``schedule`` of a :class:`~hac_ros.core.calibrator.Calibrator`. A stamp at or
+    after a reset stamp belongs to the new segment (the calibrator resets before it accepts the pose
+    of that stamp).
     """
 
     def __init__(self, segments: list[SegmentScale]) -> None:
@@ -180,40 +184,57 @@ def offline_scale(sample_stamps_ns: np.ndarray, sample_scales: np.ndarray,
     return OfflineScale(segments)
 
 
-def resolve_offline(stage: MetricStage, params: HacParams, batches: Sequence[list[Output]],
-                    scale_at: ScaleAt | None = None
-                    ) -> tuple[list[list[Output]], OfflineScale | None]:
-    """A deferred run's outputs resolved as the offline replay resolves them: with the offline
-    schedule of the run's own accepted samples and resets, or with ``scale_at`` (stamp -> metres
-    per SLAM unit) when given, and each segment aligned with its final ground plane (SPEC, the
-    metric frame).
+@dataclass
+class OfflineRun:
+    """An offline run, resolved: ``outputs`` every output in order (metric ones with the schedule),
+    ``schedule`` the offline schedule (None when a ``scale_at`` was given), ``status`` the final
+    /diagnostics status."""
 
-    stage: a fresh stage of the run's calibrator (``calibrator.metric.fresh()``; it keeps the
-    segments for :meth:`~hac_ros.core.metric_stage.MetricStage.status`); batches: the calibrator's
-    outputs (made with ``defer_metric``) in the lists its calls returned. Returns the resolved
-    lists and the schedule (None with ``scale_at``).
+    outputs: list[Output]
+    schedule: OfflineScale | None
+    status: Status
+
+
+def resolve_offline(calibrator: Calibrator, scale_at: ScaleAt | None = None,
+                    smooth_humans: bool | None = None) -> OfflineRun:
+    """The run of an offline calibrator (``Calibrator(offline=True)``, fed a whole recording)
+    resolved as the offline replay resolves it: the metric records of its journal turned into
+    outputs with the offline schedule of the run's own accepted samples and resets, or with
+    ``scale_at`` (stamp -> metres per SLAM unit) when given; each segment aligned with its final
+    ground plane; the world humans smoothed over the whole recording when ``human_filter`` is
+    ``smooth`` (``smooth_humans`` overrides it). The journal is only read: a run can be resolved
+    with several schedules.
     """
+    records = calibrator.journal
+    if records is None:
+        raise InputError('resolve_offline needs a calibrator made with offline=True')
+    params = calibrator.params
     schedule = None
     error_at = None
     if scale_at is None:
-        samples = [o for batch in batches for o in batch if isinstance(o, SampleOut) and o.accepted]
-        resets = [o.stamp_ns for batch in batches for o in batch if isinstance(o, ResetOut)]
+        samples = [r for r in records if isinstance(r, SampleOut) and r.accepted]
+        resets = [r.stamp_ns for r in records if isinstance(r, ResetOut)]
         schedule = offline_scale(np.array([s.stamp_ns for s in samples], dtype=np.int64),
                                  np.array([s.scale for s in samples]), resets, params.window_s,
                                  params.min_samples)
         scale_at, error_at = schedule, schedule.error
-    planes = final_planes(batches)
-    return [stage.resolve(batch, scale_at, error_at, planes) for batch in batches], schedule
+    # a stage of its own, without the online filter of the humans (smoothed below instead)
+    stage = MetricStage(calibrator.metric.config)
+    outputs = stage.resolve(records, scale_at, error_at, final_planes(records))
+    if params.human_filter == 'smooth' if smooth_humans is None else smooth_humans:
+        smooth_outputs(outputs, calibrator.layout)
+    pending = calibrator.pending_status()
+    status = stage.status(pending, finite_scale(scale_at(pending.status.stamp_ns)))
+    return OfflineRun(outputs, schedule, status)
 
 
-def final_planes(batches: Sequence[list[Output]]) -> dict[int, Plane | None]:
-    """Segment -> its last ground plane (SLAM map frame) in a deferred run's outputs: offline, each
-    segment has one final alignment (SPEC, the metric frame)."""
+def final_planes(records: Sequence[Record]) -> dict[int, Plane | None]:
+    """Segment -> its last ground plane (SLAM map frame) among an offline run's records: offline,
+    each segment has one final alignment (SPEC, the metric frame)."""
     planes: dict[int, Plane | None] = {}
-    for batch in batches:
-        for output in batch:
-            if isinstance(output, (PendingOdometry, PendingFrame)) and output.plane is not None:
-                planes[output.segment] = output.plane
+    for record in records:
+        if isinstance(record, (PendingOdometry, PendingFrame)) and record.plane is not None:
+            planes[record.segment] = record.plane
     return planes
 
 

@@ -27,7 +27,6 @@ from typing import Any
 
 import numpy as np
 
-from hac_ros.core.human_filter import smooth_outputs
 from hac_ros.core.layouts import BUILT_IN
 from hac_ros.core.offline import resolve_offline
 from hac_ros.core.outputs import HumanJointsOut, OdometryOut, Output, PoseOut, ScaleOut
@@ -101,24 +100,19 @@ def _track(outputs: list[PoseOut] | list[OdometryOut]) -> CameraTrack:
 
 def reference_runs(gt_path: str | Path, params: HacParams, truth: Truth) -> dict[str, Replayed]:
     """'no calibration' (scale 1) and 'true scale' (/gt/scale) through the core on IN."""
-    from hac_ros.replay.feeder import deferred_run
+    from hac_ros.replay.feeder import offline_run
 
     scales: dict[str, Any] = {'no calibration': lambda stamp_ns: 1.0}
     if truth.scale is not None and len(truth.scale):
         true_scale = truth.scale
         scales['true scale'] = lambda stamp_ns: float(true_scale.at(np.array([stamp_ns]))[0])
     with Recording(gt_path) as rec:
-        # one run with the metric outputs deferred, resolved once per reference scale
-        # (hac_ros.core.metric_stage: the same outputs as a run per scale)
-        calibrator, deferred = deferred_run(rec, params)
+        # one offline run, resolved once per reference scale (the same outputs as a run per scale)
+        calibrator = offline_run(rec, params)
     runs: dict[str, Replayed] = {}
     for name, output_scale in scales.items():
         collect = _Collector()
-        (resolved,), _ = resolve_offline(calibrator.metric.fresh(), params, [deferred],
-                                         output_scale)
-        if params.human_filter == 'smooth':  # as the replay does offline
-            smooth_outputs(resolved, calibrator.layout)
-        collect(resolved)
+        collect(resolve_offline(calibrator, output_scale).outputs)
         runs[name] = collect.as_replayed()
     return runs
 

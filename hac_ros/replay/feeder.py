@@ -196,11 +196,9 @@ def tie_ordered(messages: Iterable[tuple[str, int, Any]], kinds: dict[str, str]
     yield from sorted(group, key=lambda m: TIE_ORDER.get(kinds.get(m[0], ''), last))
 
 
-def deferred_run(recording: Recording, params: HacParams) -> tuple[Calibrator, list[Output]]:
-    """One run of the calibrator over ``recording`` with its metric outputs deferred: the
-    calibrator and every output in order, to be resolved as the offline replay does, or with any
-    scale schedule (:func:`hac_ros.core.offline.resolve_offline`)."""
-    calibrator = Calibrator(params, defer_metric=True)
-    outputs: list[Output] = []
-    CoreFeeder(recording, InputTopics.check(recording, params), calibrator).run(outputs.extend)
-    return calibrator, outputs
+def offline_run(recording: Recording, params: HacParams) -> Calibrator:
+    """An offline calibrator fed the whole ``recording``, to be resolved as the offline replay
+    does, or with any scale schedule (:func:`hac_ros.core.offline.resolve_offline`)."""
+    calibrator = Calibrator(params, offline=True)
+    CoreFeeder(recording, InputTopics.check(recording, params), calibrator).run(lambda _: None)
+    return calibrator

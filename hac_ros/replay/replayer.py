@@ -44,8 +44,6 @@ from hac_ros.bridge.messages import (
 )
 from hac_ros.core.calibrator import Calibrator
 from hac_ros.core.errors import HacError
-from hac_ros.core.human_filter import smooth_outputs
-from hac_ros.core.metric_stage import finite_scale
 from hac_ros.core.numeric import NS
 from hac_ros.core.offline import OfflineScale, resolve_offline
 from hac_ros.core.outputs import NoticeOut, Output, PoseOut, ResetOut, SampleOut, Status
@@ -55,6 +53,7 @@ from hac_ros.recording.writer import OutputWriter, check_output_path, staged_out
 from hac_ros.replay.feeder import CoreFeeder, InputTopics
 
 MODES = ('offline', 'online')
+PROGRESS_EVERY = 4096  # outputs written between two updates of the offline mode's 'write' bar
 
 
 # ============================================================================ writing outputs
@@ -69,9 +68,12 @@ class OutputHandler:
         self.resets: list[ResetOut] = []
         self.poses: list[PoseOut] | None = [] if keep_poses else None  # /hac/pose, for TUM
 
-    def __call__(self, outputs: list[Output]) -> None:
+    def __call__(self, outputs: list[Output], progress: Any = None) -> None:
+        """Write the messages of ``outputs``; ``progress``: a bar advanced as they are written."""
         frame_samples: list[SampleOut] = []
-        for output in outputs:
+        for count, output in enumerate(outputs, 1):
+            if progress is not None and count % PROGRESS_EVERY == 0:
+                progress.update(PROGRESS_EVERY)
             if isinstance(output, NoticeOut):
                 self.printer(output)
                 continue
@@ -90,6 +92,8 @@ class OutputHandler:
                 self._write(message)
         if frame_samples:
             self._write_samples(frame_samples)
+        if progress is not None:
+            progress.update(len(outputs) % PROGRESS_EVERY)
 
     def _write(self, message: Message) -> None:
         if self.writer is not None:
@@ -214,7 +218,7 @@ def replay(input_path: str | Path, output_path: str | Path, params: HacParams | 
         n_inputs = sum(recording.counts.get(t, 0) for t in topics.kinds())
         n_pass = sum(recording.counts.values()) if copy_inputs else n_inputs
         schedule = None
-        calibrator = Calibrator(params, defer_metric=mode == 'offline')
+        calibrator = Calibrator(params, offline=mode == 'offline')
         with staged_output(output_path) as staged:
             writer = OutputWriter(staged, storage, layout_data(calibrator.layout))
             try:
@@ -248,31 +252,21 @@ def replay(input_path: str | Path, output_path: str | Path, params: HacParams | 
 def _offline(feeder: CoreFeeder, handler: OutputHandler,
              on_message: Callable[[str, int, Any], None] | None, progress: bool,
              n_pass: int) -> tuple[Status, OfflineScale]:
-    """The offline mode: one run of the calibrator with its metric outputs deferred, the schedule
-    from its accepted samples and resets, then the deferred outputs resolved with the schedule and
-    written (hac_ros.core.metric_stage: the same outputs as a second run with that schedule would
-    give).
+    """The offline mode: one run of an offline calibrator (its metric outputs held back in its
+    journal), then the run resolved with the schedule of its accepted samples and resets and
+    written (:func:`hac_ros.core.offline.resolve_offline`: the same outputs as a second run with
+    that schedule would give).
 
-    Memory: the run's outputs are kept until the schedule is known (about 1.9 kB per frame of one
+    Memory: the run's records are kept until the schedule is known (about 1.9 kB per frame of one
     person, docs/replay.md).
     """
-    recorded: list[list[Output]] = []
     with _progress(progress, n_pass, 'estimate') as bar:
-        feeder.run(recorded.append, on_message=on_message, progress=bar)
-    calibrator = feeder.calibrator
-    stage = calibrator.metric.fresh()
-    resolved, schedule = resolve_offline(stage, calibrator.params, recorded)
-    assert schedule is not None
-    recorded.clear()
-    if calibrator.params.human_filter == 'smooth':
-        smooth_outputs([o for outputs in resolved for o in outputs], calibrator.layout)
-    with _progress(progress, len(resolved), 'write') as bar:
-        for outputs in resolved:
-            handler(outputs)
-            if bar is not None:
-                bar.update(1)
-    pending = calibrator.pending_status()
-    return stage.status(pending, finite_scale(schedule(pending.status.stamp_ns))), schedule
+        feeder.run(lambda _: None, on_message=on_message, progress=bar)
+    run = resolve_offline(feeder.calibrator)
+    assert run.schedule is not None
+    with _progress(progress, len(run.outputs), 'write') as bar:
+        handler(run.outputs, bar)
+    return run.status, run.schedule
 
 
 def _input_copier(recording: Recording, writer: OutputWriter) -> Callable[[str, int, Any], None]:
