@@ -503,7 +503,7 @@ class Calibrator:
         self.check.add_person(self.layout, R_wc, joints, up_cam, self._K, self._image_size)
         scale_now = self.online_scale()
         scene = Scene(self.map, self.ground.plane(self.map), self.ground.normal(),
-                      self.ground.refined, self._K, self._image_size, scale_now, self._cos_min)
+                      self.ground.trusted, self._K, self._image_size, scale_now, self._cos_min)
         sample = person_sample(self.params, self.layout, scene, R_wc, c_map, joints)
         if isinstance(sample, str):
             return self._rejected_sample(stamp, person, sample)

@@ -3,14 +3,19 @@
 A plane is ``{p : n·p = b}`` in the SLAM map frame with ``n`` a unit normal pointing *down* (along
 gravity, like the camera's y axis) and ``b`` in SLAM units; a point with ``n·p > b`` is below it.
 
-``hmr`` (ours) finds ``n`` without the scale it is used to find: the body's up axis (pelvis → neck)
-of many frames rotated into the map (the principal axis of their scatter, so a handstand still
-gives the axis; the sign from the cameras' own down axis). Once a scale exists, the contact joints
-placed in the map refine it: RANSAC (3-point samples, a metric inlier distance), then a
-least-squares refit on the inliers. A person walking a straight line leaves contacts along a line,
-which fixes the normal only across the line: then the body normal is kept, made perpendicular to
-the line. The offset ``b`` comes from the map alone: the lowest dense segment of the points along
-``n`` (a histogram, not the single lowest point; :meth:`MapIndex.floor_offset`).
+``hmr`` (ours) finds ``n`` without the scale it is used to find. First the body's up axis (pelvis
+→ neck) of many frames rotated into the map (the principal axis of their scatter, so a handstand
+still gives the axis; the sign from the cameras' own down axis): a degree or so off, as people
+lean. Then **the map's floor** (:func:`map_floor`): the lowest dense surface across that axis, a
+plane fitted robustly to its points, gives the normal to about a tenth of a degree and the offset
+``b`` to about a centimetre; the floor is then *trusted* (:attr:`GroundModel.trusted`): a map hit
+far above it is not a contact before any scale exists (a table top between the camera and the
+feet, :mod:`hac_ros.core.sample`). Where the map shows no floor, the contact joints placed in the
+map with the scale refine the body's normal: RANSAC (3-point samples, a metric inlier distance),
+then a least-squares refit on the inliers; contacts along a line (a straight walk) fix the normal
+only across the line, so the body normal is kept, made perpendicular to the line; the offset is
+the lowest dense segment of the points along ``n`` (a histogram, not the single lowest point;
+:meth:`MapIndex.floor_offset`).
 
 Ablations: ``slam_y`` (the SLAM map's y axis as the normal), ``largest_plane`` (RANSAC's largest
 plane of the map), ``none``.
@@ -22,6 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hac_ros.core.numeric import MAD_TO_SIGMA, median_1d
 from hac_ros.core.reference import MapIndex
 
 COS_MIN_RAY_PLANE = np.cos(np.deg2rad(87.0))  # rays within 3° of parallel to the plane: no answer
@@ -35,6 +41,17 @@ RANSAC_SAMPLE = 500  # contact joints a RANSAC hypothesis is scored on
 # a contact plane tilted further than this from the body normal is refused
 CONTACT_MAX_TILT_DEG = 10.0
 CONTACT_LINE_RATIO = 0.15  # second/first singular value below this: the contacts form a line
+# the map's floor (hmr): the lowest dense surface across the body normal, its plane fitted
+FLOOR_BAND_EXTENT_REL = 0.01  # half width of the floor's band, fraction of the map's extent
+FLOOR_MIN_POINTS = 30  # map points the floor's band needs
+FLOOR_ITERATIONS = 2  # band, plane fit, band again about the fitted normal
+FLOOR_LINE_RATIO = 0.05  # the band's second/first spread below this: a line (a wall's foot)
+FLOOR_MAX_TILT_DEG = 10.0  # a map floor tilted further than this from the body normal is refused
+FLOOR_MAX_BELOW = 0.10  # share of the map below the band: more, and it is not the lowest surface
+# the biweight's cut in robust sigmas: narrower than the usual 4.685, as the floor's noise is
+# symmetric while the feet of walls and furniture in its band lie on one side of it
+TUKEY_C = 2.0
+ROBUST_PLANE_ITERS = 8  # reweighting rounds of robust_plane
 LARGEST_PLANE_INLIER_REL = 0.005  # largest_plane: inlier distance as a fraction of the map extent
 LARGEST_PLANE_SAMPLE = 5000  # map points used by the largest_plane RANSAC
 
@@ -100,6 +117,74 @@ def ransac_plane(points: np.ndarray, inlier_distance: float, iterations: int,
     return best_mask
 
 
+def map_floor(map_index: MapIndex, body_normal: np.ndarray) -> Plane | None:
+    """The floor in the map: the lowest dense surface across ``body_normal`` (down, unit, map
+    frame), its plane fitted to the map's points; None when the map shows no such surface.
+
+    The map points within FLOOR_BAND_EXTENT_REL of the map's extent of the lowest dense segment
+    along the normal (:meth:`MapIndex.floor_offset`) are fitted by :func:`robust_plane`, starting
+    from that segment (the floor's many points win over the feet of walls and furniture that share
+    the band); the band is taken again about the fitted normal (FLOOR_ITERATIONS times). A floor of
+    many points gives its normal to about a tenth of a degree, where the bodies' axis is a degree
+    off (HMR's lean). Refused: too few points, points along a line, a plane tilted more than
+    FLOOR_MAX_TILT_DEG from the bodies, or a surface with more than FLOOR_MAX_BELOW of the map
+    below it (not the lowest: table tops over a floor the map missed).
+    """
+    points = map_index.sample
+    half = FLOOR_BAND_EXTENT_REL * map_index.extent
+    body = np.asarray(body_normal, dtype=np.float64)
+    normal, plane = body, None
+    for _ in range(FLOOR_ITERATIONS):
+        offset = map_index.floor_offset(normal)
+        band = points[np.abs(points @ normal - offset) <= half]
+        if len(band) < FLOOR_MIN_POINTS:
+            return None
+        fit = robust_plane(band, normal, offset)
+        if fit is None:
+            return None
+        fitted, offset, spread = fit
+        if spread[1] < FLOOR_LINE_RATIO * spread[0]:
+            return None  # a line of points (a wall's foot, a row of table edges)
+        if np.degrees(np.arccos(min(float(fitted @ body), 1.0))) > FLOOR_MAX_TILT_DEG:
+            return None
+        normal, plane = fitted, Plane(fitted, offset)
+    assert plane is not None
+    if np.mean(points @ plane.normal > plane.offset + half) > FLOOR_MAX_BELOW:
+        return None
+    return plane
+
+
+def robust_plane(points: np.ndarray, normal: np.ndarray, offset: float
+                 ) -> tuple[np.ndarray, float, np.ndarray] | None:
+    """A plane through (N, 3) points robust to the points off it: (unit normal signed like
+    ``normal``, offset, the spread's singular values (3,) largest first), or None (no plane).
+
+    Iteratively reweighted least squares with Tukey's biweight (weight (1 - (r / (c sigma))^2)^2
+    within c = TUKEY_C robust sigmas of the plane, 0 beyond; sigma 1.4826 MAD of the residuals),
+    starting from the plane (``normal``, ``offset``). The weights are continuous in the points, so
+    the plane is too: no random draw, and a rigid motion of the points moves it exactly.
+    """
+    residual = points @ normal - offset
+    for _ in range(ROBUST_PLANE_ITERS):
+        sigma = MAD_TO_SIGMA * median_1d(np.abs(residual))
+        if not sigma > 0.0:
+            weights = (residual == 0.0).astype(np.float64)
+        else:
+            u = residual / (TUKEY_C * sigma)
+            weights = np.clip(1.0 - u * u, 0.0, None) ** 2
+        total = float(weights.sum())
+        if total <= 0.0:
+            return None
+        centroid = weights @ points / total
+        centred = points - centroid
+        eigval, eigvec = np.linalg.eigh((centred * weights[:, None]).T @ centred)
+        if eigval[1] <= 1e-12 * max(eigval[2], 1e-300):
+            return None  # the weighted points are collinear
+        fitted = eigvec[:, 0] if eigvec[:, 0] @ normal >= 0 else -eigvec[:, 0]
+        residual = centred @ fitted
+    return fitted, float(fitted @ centroid), np.sqrt(np.clip(eigval[::-1], 0.0, None) / total)
+
+
 class GroundModel:
     """Owns the ground-plane state of one SLAM map (reset with the estimator)."""
 
@@ -125,6 +210,8 @@ class GroundModel:
         self._contacts_since_fit = 0
         self._contact_normal: np.ndarray | None = None
         self._plane_cache: tuple[MapIndex, bytes, Plane | None] | None = None
+        self._floor: Plane | None = None  # the map's floor, when one was found (hmr)
+        self._floor_cache: tuple[MapIndex, bytes, Plane | None] | None = None
         self._rng = np.random.default_rng(self._seed)
 
     # ------------------------------------------------------------------ evidence
@@ -170,10 +257,19 @@ class GroundModel:
         """Whether the normal comes from contact joints, not the body axis alone."""
         return self._contact_normal is not None
 
+    @property
+    def trusted(self) -> bool:
+        """Whether the floor is found in the map (its normal and offset from the map's own lowest
+        surface) or its normal refined by contacts: a plane to judge map hits against before any
+        scale exists."""
+        return self._floor is not None or self._contact_normal is not None
+
     def normal(self) -> np.ndarray | None:
         """The current down-pointing unit normal in the map frame, or None (not enough evidence)."""
         if self.mode == 'slam_y':
             return np.array([0.0, 1.0, 0.0])
+        if self.mode == 'hmr' and self._floor is not None:
+            return self._floor.normal
         if self.mode == 'hmr' and self._contact_normal is not None:
             return self._contact_normal
         if self.mode in ('hmr', 'largest_plane'):
@@ -184,6 +280,10 @@ class GroundModel:
         """The current plane for this map, cached per (map, normal)."""
         if self.mode == 'none' or map_index is None or len(map_index) < 3:
             return None
+        if self.mode == 'hmr':
+            self._floor = self._map_floor(map_index)
+            if self._floor is not None:
+                return self._floor
         normal = None if self.mode == 'largest_plane' else self.normal()
         if self.mode != 'largest_plane' and normal is None:
             return None
@@ -206,6 +306,20 @@ class GroundModel:
         if np.linalg.norm(down) > 0 and abs(normal @ down) > 0.3 * np.linalg.norm(down):
             return normal if normal @ down > 0 else -normal
         return normal if normal @ np.array(self._body_up_sum) <= 0 else -normal
+
+    def _map_floor(self, map_index: MapIndex) -> Plane | None:
+        """The map's floor (cached per map and body normal): :func:`map_floor` about the bodies'
+        normal; None before a body normal exists."""
+        body = self._body_normal()
+        if body is None:
+            return None
+        key = body.tobytes()
+        cache = self._floor_cache
+        if cache is not None and cache[0] is map_index and cache[1] == key:
+            return cache[2]
+        floor = map_floor(map_index, body)
+        self._floor_cache = (map_index, key, floor)
+        return floor
 
     def _body_normal(self) -> np.ndarray | None:
         """The bodies' axis, recomputed when the evidence grew by BODY_REFRESH_REL (so that the

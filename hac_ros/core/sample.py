@@ -33,14 +33,15 @@ class Sample:
 @dataclass
 class Scene:
     """What a sample is measured against: the map (or None), the ground plane (SLAM map frame,
-    or None) and its down normal (or None), whether that normal is refined by contacts, the
-    intrinsics (K (3, 3) pixels or None, image width and height), the estimate now (None before
-    convergence) and cos of the cone's half angle."""
+    or None) and its down normal (or None), whether that floor is trusted (found in the map, or its
+    normal refined by contacts: ``GroundModel.trusted``), the intrinsics (K (3, 3) pixels or None,
+    image width and height), the estimate now (None before convergence) and cos of the cone's half
+    angle."""
 
     map: MapIndex | None
     plane: Plane | None
     normal: np.ndarray | None
-    refined: bool
+    trusted: bool
     K: np.ndarray | None
     image_size: tuple[int, int]
     scale: float | None
@@ -111,11 +112,12 @@ def _plausible(params: HacParams, scene: Scene, d_slam: float, distance_metric: 
     2. Once a scale exists: its metric distance must agree with the joint's own distance within
        ``plausibility_rel_tol`` (an occluder in front of the foot is much nearer, a far wall
        behind a gap much further).
-    3. Before a scale exists (after a reset), once the floor's normal has been refined by
-       contact joints, a hit much nearer than the floor is suspect too (an occluder, a stair
-       step): the floor decides until rule 2 can judge. The body-axis floor alone is too rough
-       for this: a forward lean of a few degrees moves a grazing ray's floor point a lot (on the
-       real-data composite, using it here took the scale error from 4.7 % to 43 %).
+    3. Before a scale exists, once the floor is trusted (found in the map, or its normal refined
+       by contact joints), a hit much nearer than the floor is suspect too (an occluder such as
+       a table top, a stair step): the floor decides until rule 2 can judge. The body-axis floor
+       alone is too rough for this: a forward lean of a few degrees moves a grazing ray's floor
+       point a lot (on the real-data composite, using it here took the scale error from 4.7 % to
+       43 %).
     """
     tol = params.plausibility_rel_tol
     scale = scene.scale
@@ -123,6 +125,6 @@ def _plausible(params: HacParams, scene: Scene, d_slam: float, distance_metric: 
         if d_slam > plane_distance * (1.0 + tol):
             return False
         # before a scale: a hit well above a trusted floor may be an occluder
-        if scale is None and scene.refined and d_slam * (1.0 + tol) < plane_distance:
+        if scale is None and scene.trusted and d_slam * (1.0 + tol) < plane_distance:
             return False
     return scale is None or abs(scale * d_slam - distance_metric) <= tol * distance_metric
