@@ -13,20 +13,16 @@ from scenes import NS, SOLE_M, Scene, walking_scene
 
 from hac_ros.core.calibrator import Calibrator
 from hac_ros.core.errors import InputError
-from hac_ros.core.estimator import RollingScale, SortedWindow
-from hac_ros.core.ground import GroundModel, Plane
-from hac_ros.core.layouts import SMPL24
-from hac_ros.core.numeric import median_1d, quantile_1d
+from hac_ros.core.estimator import RollingScale
 from hac_ros.core.outputs import (
     HumanJointsOut,
-    NoticeOut,
     OdometryOut,
-    ResetOut,
     SampleOut,
     ScaleOut,
 )
 from hac_ros.core.params import HacParams
-from hac_ros.core.reference import MapIndex, literal_cone_median, lowest_segment_offset
+from hac_ros.core.plane import Plane, lowest_segment_offset
+from hac_ros.core.reference import MapIndex, literal_cone_median
 
 K = np.array([[500.0, 0.0, 320.0], [0.0, 500.0, 240.0], [0.0, 0.0, 1.0]])
 
@@ -344,193 +340,6 @@ def test_lowest_segment_ignores_isolated_points_below_the_floor():
     assert abs(b - 0.0) < 0.01  # n·p = -z = 0 on the floor
 
 
-def _lowest_segment_offset_with_numpy(points, normal):
-    """lowest_segment_offset written with numpy's generic quantile, histogram and median."""
-    h = points @ normal
-    lo, hi = np.quantile(h, [0.005, 0.995])
-    if not hi - lo > 1e-9 * max(abs(lo), abs(hi), 1e-300):
-        return float(np.median(h))
-    counts, edges = np.histogram(h, bins=100, range=(lo, hi))
-    nonempty = counts[counts > 0]  # none when every value is outside the range (tiny maps)
-    threshold = max(5, 4.0 * float(np.median(nonempty))) if nonempty.size else 5
-    dense = np.flatnonzero(counts >= threshold)
-    if dense.size == 0:
-        return float(np.quantile(h, 0.99))
-    k = int(dense[-1])
-    for _ in range(3):
-        if k > 0 and counts[k - 1] >= counts[k]:
-            k -= 1
-        else:
-            break
-    width = edges[1] - edges[0]
-    centre = 0.5 * (edges[k] + edges[k + 1])
-    for _ in range(2):
-        seg = h[np.abs(h - centre) <= 3 * width]
-        if seg.size == 0:
-            break
-        centre = float(np.median(seg))
-    return centre
-
-
-def test_lowest_segment_offset_equals_numpy_quantile_histogram_median():
-    """The fast floor offset (one partition per quantile, a bincount histogram) gives what numpy's
-    generic quantile, histogram and median give, on rooms, slopes, tiny and flat maps."""
-    rng = np.random.default_rng(3)
-    for trial in range(60):
-        n = int(rng.choice([1, 2, 7, 150, 201, 3000, 16384]))  # 201: hi is a value (last bin closed)
-        floor = np.c_[rng.uniform(-5, 5, (n, 2)), rng.normal(0, 0.01, n)]
-        wall = np.c_[rng.uniform(-5, 5, n // 2), np.full(n // 2, 3.0), rng.uniform(0, 2.5, n // 2)]
-        points = np.vstack([floor, wall]) if trial % 3 else floor[:, [0, 1]] @ np.eye(2, 3)
-        normal = np.array([0.0, 0.0, -1.0]) + rng.normal(0, 0.05, 3)
-        normal /= np.linalg.norm(normal)
-        assert lowest_segment_offset(points, normal) == pytest.approx(
-            _lowest_segment_offset_with_numpy(points, normal), rel=1e-12, abs=1e-12), trial
-    assert math.isnan(lowest_segment_offset(np.empty((0, 3)), np.array([0.0, 0.0, -1.0])))
-    for n in (1, 2, 3, 201, 1000, 16384):  # quantile_1d is numpy's quantile, exactly
-        values = rng.normal(size=n)
-        for q in ((0.005, 0.995), (0.99, 0.99), (0.0, 1.0), (0.3, 0.7)):
-            assert (quantile_1d(values, q[0]), quantile_1d(values, q[1])) == tuple(np.quantile(values, q))
-
-
-def test_hmr_normal_needs_no_scale_and_survives_a_handstand():
-    """The body's up axis gives the normal; upside-down bodies give the same axis."""
-    scene = walking_scene(frames=10)
-    for flip in (1.0, -1.0):
-        ground = GroundModel('hmr', 0.05, 100)
-        for t in range(10):
-            ground.add_camera(scene.R_wc_slam[t])
-            joints = scene.joints_cam[t] * [1.0, flip, 1.0]
-            ground.add_body(scene.R_wc_slam[t], SMPL24.up_axis(joints))
-        n = ground.normal()
-        true_down = scene.R0.T @ np.array([0.0, 0.0, -1.0])
-        assert n @ true_down == pytest.approx(1.0, abs=1e-3)
-
-
-def test_map_overlap_tells_a_continued_map_from_a_new_one():
-    """MapIndex.overlap_fraction (the re-initialisation test on a new map): a map that continues
-    the old one overlaps it in part, a map somewhere else not at all, and an empty one fully."""
-    rng = np.random.default_rng(0)
-    room = np.c_[rng.uniform(-5, 5, (20000, 2)), rng.normal(0, 0.01, 20000)]
-    old = MapIndex(room, 'map', 1)
-    far = MapIndex(room + [100.0, 0.0, 0.0], 'map', 2)
-    new_points = np.vstack([room[:5000] + rng.normal(0, 0.001, (5000, 3)),
-                            room[5000:8000] + [20.0, 0.0, 0.0]])
-    new = MapIndex(new_points, 'map', 3)
-    assert 0.5 < new.overlap_fraction(old) < 0.75  # 5000 of 8000 points continue the old map
-    assert new.overlap_fraction(far) == 0.0
-    assert MapIndex(np.empty((0, 3))).overlap_fraction(old) == 1.0
-
-
-# ---------------------------------------------------------------------- resets
-@pytest.mark.parametrize('second', ['grown', 'elsewhere'])
-def test_a_map_that_grew_is_the_same_map_one_elsewhere_is_a_reset(second):
-    """A small first map (5 % of the floor), then at frame 40 the whole floor: it holds every old
-    point, so it is the same map (no reset), although 95 % of its points are new. The same floor
-    rescaled and moved (a re-initialised SLAM's map) shares no point: a ``map_overlap`` reset."""
-    scene = walking_scene(frames=80, true_scale=2.0)
-    full = scene.floor_points_slam(step=0.05)
-    maps = {0: full[:len(full) // 20],
-            40: full if second == 'grown' else full * 0.5 + np.array([40.0, 0.0, 0.0])}
-    _cal, outs = run(scene, HacParams(), maps=maps.get)
-    resets = [o.cause for o in outs if isinstance(o, ResetOut)]
-    assert resets == ([] if second == 'grown' else ['map_overlap'])
-
-
-def test_a_persistent_pose_jump_resets_and_odometry_stays_continuous():
-    scene = walking_scene(frames=80, true_scale=2.0)
-    contacts = scene.to_slam(scene.contact_world())
-    # from frame 40 the SLAM re-initialises: a new map frame origin and a new scale (x3)
-    R_wc, c = scene.R_wc_slam.copy(), scene.c_slam.copy()
-    contacts2 = contacts.copy()
-    offset = np.array([7.0, -3.0, 2.0])
-    c[40:] = (c[40:] - c[40]) * (1 / 3.0) + offset
-    contacts2[40:] = (contacts[40:] - scene.c_slam[40]) * (1 / 3.0) + offset
-    params = HacParams(cone_min_points=1, map_overlap_min=0.0)
-    _, outs = run(scene, params, maps=lambda t: contacts2[t:t + 1], R_wc=R_wc, c=c)
-    resets = [o for o in outs if isinstance(o, ResetOut)]
-    assert [r.cause for r in resets] == ['pose_jump']
-    odom = [o for o in outs if isinstance(o, OdometryOut)]
-    got = scales(outs)
-    np.testing.assert_allclose(got[-1], 2.0 * 3.0, rtol=1e-9)
-    # the new map is anchored at its first pose on the last metric pose before the jump: afterwards
-    # the odometry is off the truth by at most the one step the camera made across the reset
-    truth = (scene.c_world - scene.c0) @ scene.R0
-    index = {int(s): t for t, s in enumerate(scene.stamps_ns)}
-    errors = np.array([np.linalg.norm(o.position_metric - truth[index[o.stamp_ns]]) for o in odom])
-    step_at_reset = np.linalg.norm(truth[40] - truth[39])
-    assert errors.max() <= step_at_reset * (1 + 1e-6)
-    assert any(o.stamp_ns > scene.stamps_ns[40] for o in odom)
-
-
-@pytest.mark.parametrize('unit', [1000.0, 100.0])
-def test_joints_in_millimetres_or_centimetres_are_rejected_not_calibrated(unit):
-    """HMR joints in mm (cm) would calibrate 1000x (100x) too large: each person is refused with
-    a reason that names the unit, and no scale is published."""
-    scene = walking_scene(frames=60, true_scale=2.0)
-    cal, outs = run(scene, HacParams(), maps=lambda t: scene.floor_points_slam(step=0.05)
-                    if t == 0 else None, joints_cam=scene.joints_cam * unit)
-    assert cal.rejected['joints_not_metres'] == 60 and not len(scales(outs))
-    notice, = [o for o in outs if isinstance(o, NoticeOut) and o.cause == 'joints_not_metres']
-    assert 'must be metres' in notice.text
-
-
-def test_a_camera_that_stood_still_then_moves_is_not_a_reset():
-    """Still for 20 poses (no speed, no extent to judge a jump by), then walking on from there:
-    its first step is a sliver of the map's extent, not a re-initialisation that drops the map."""
-    scene = walking_scene(frames=140, true_scale=2.0)
-    k = np.maximum(np.arange(140) - 20, 0)
-    cal, outs = run(scene, HacParams(), maps=lambda t: scene.floor_points_slam(step=0.05)
-                    if t == 0 else None, R_wc=scene.R_wc_slam[k], c=scene.c_slam[k])
-    assert not [o for o in outs if isinstance(o, ResetOut)]
-    assert cal.rejected['no_map'] == 0 and len(scales(outs)) > 50
-
-
-def test_an_isolated_outlier_pose_is_rejected_not_a_reset():
-    scene = walking_scene(frames=40)
-    contacts = scene.to_slam(scene.contact_world())
-    c = scene.c_slam.copy()
-    c[25] += 10.0
-    cal, outs = run(scene, HacParams(cone_min_points=1, map_overlap_min=0.0),
-                    maps=lambda t: contacts[t:t + 1], c=c)
-    assert not [o for o in outs if isinstance(o, ResetOut)]
-    assert cal.rejected['pose_outlier'] == 1
-    odom_stamps = {o.stamp_ns for o in outs if isinstance(o, OdometryOut)}
-    assert int(scene.stamps_ns[25]) not in odom_stamps
-    assert int(scene.stamps_ns[26]) in odom_stamps
-
-
-def test_a_new_map_frame_resets():
-    scene = walking_scene(frames=30)
-    contacts = scene.to_slam(scene.contact_world())
-    cal = Calibrator(HacParams(cone_min_points=1, map_overlap_min=0.0))
-    outs = []
-    for t, stamp in enumerate(scene.stamps_ns):
-        frame = 'map' if t < 20 else 'map_1'
-        outs += cal.add_map(int(stamp), contacts[t:t + 1], frame)
-        outs += cal.add_pose(int(stamp), scene.R_wc_slam[t], scene.c_slam[t], frame)
-        outs += cal.add_joints(int(stamp), scene.joints_cam[t][None], 'camera')
-    assert [o.cause for o in outs if isinstance(o, ResetOut)] == ['map_frame']
-    assert cal.estimator.samples == 10  # only the new map's frames
-
-
-@pytest.mark.parametrize('first', ['map', 'pose'])
-def test_a_map_in_another_frame_is_refused_also_before_the_first_pose(first):
-    """A latched map in ``odom`` usually arrives before the first pose (in ``map``) has fixed the
-    map frame: it is refused then too, not used in silence."""
-    scene = walking_scene(frames=30)
-    cal = Calibrator(HacParams())
-    outs = []
-    for t, stamp in enumerate(scene.stamps_ns):
-        if t == 0 and first == 'map':
-            outs += cal.add_map(int(stamp), scene.floor_points_slam(step=0.05), 'odom')
-        outs += cal.add_pose(int(stamp), scene.R_wc_slam[t], scene.c_slam[t], 'map')
-        if t == 0 and first == 'pose':
-            outs += cal.add_map(int(stamp), scene.floor_points_slam(step=0.05), 'odom')
-        outs += cal.add_joints(int(stamp), scene.joints_cam[t][None], 'camera')
-    assert cal.rejected['cloud_wrong_frame'] == 1 and cal.map_hits == 0
-
-
-# ---------------------------------------------------------------------- estimator
 @settings(max_examples=60, deadline=None)
 @given(values=st.lists(st.floats(0.01, 100.0), min_size=1, max_size=300),
        window=st.integers(1, 50))
@@ -542,33 +351,6 @@ def test_streaming_median_and_mad_equal_numpy(values, window):
         assert est.median() == pytest.approx(np.median(kept), rel=1e-12)
         assert est.mad() == pytest.approx(np.median(np.abs(kept - np.median(kept))), rel=1e-9,
                                           abs=1e-12)
-
-
-@settings(max_examples=60, deadline=None)
-@given(values=st.lists(st.floats(-1e6, 1e6), min_size=1, max_size=200))
-def test_sorted_window_grows_and_removes_like_a_sorted_list(values):
-    window = SortedWindow(capacity=1)  # starts at the minimum buffer and doubles
-    for v in values:
-        window.add(v)
-    assert window.values().tolist() == sorted(values)
-    for v in values[::2]:
-        window.remove(v)
-    rest = sorted(values)
-    for v in values[::2]:
-        rest.remove(v)
-    assert window.values().tolist() == rest
-    with pytest.raises(ValueError):
-        window.remove(2e6)
-
-
-@settings(max_examples=60, deadline=None)
-@given(values=st.lists(st.floats(-1e6, 1e6), min_size=0, max_size=50))
-def test_median_1d_equals_numpy(values):
-    a = np.array(values, dtype=float)
-    if a.size == 0:
-        assert math.isnan(median_1d(a))
-    else:
-        assert median_1d(a) == np.median(a)
 
 
 def test_window_evicts_by_stamp_time_and_gates_outliers_then_relocks():
@@ -670,27 +452,25 @@ def test_core_and_adapters_import_without_rclpy():
     subprocess.run([sys.executable, '-c', code], check=True)
 
 
-def test_the_odometry_twist_in_plain_floats_matches_the_matrix_formula():
-    """The odometry's twist (odometry.velocities, plain floats) against R_bᵀ(p_b − p_a)/dt and
-    log(R_aᵀ R_b)/dt in numpy, for small, moderate and near-pi relative rotations and none."""
+def test_the_odometry_twist_is_the_step_in_the_later_frame_and_the_turn_per_second():
+    """odometry.velocities: linear R_bᵀ(p_b − p_a)/dt, angular the rotation vector of R_aᵀ R_b
+    over dt, for small, moderate and near-pi turns and none."""
     from scipy.spatial.transform import Rotation
 
-    from hac_ros.core.odometry import velocities as _velocities
-    from hac_ros.core.transforms import rotation_log
+    from hac_ros.core.odometry import velocities
 
     rng = np.random.default_rng(5)
     for angle in [0.0, 1e-10, 1e-4, 0.3, 2.0, 2.99, 3.05, math.pi - 1e-6]:
         for _ in range(20):
             R_a = Rotation.random(random_state=rng).as_matrix()
             axis = rng.normal(size=3)
-            R_b = R_a @ Rotation.from_rotvec(angle * axis / np.linalg.norm(axis)).as_matrix()
-            p_a, p_b, dt = rng.normal(size=3), rng.normal(size=3), float(rng.uniform(0.01, 1.0))
-            linear, angular = _velocities(R_a, p_a, R_b, p_b, dt)
-            assert np.allclose(linear, R_b.T @ (p_b - p_a) / dt, rtol=1e-12, atol=1e-12)
-            assert np.allclose(angular, rotation_log(R_a.T @ R_b) / dt, rtol=1e-9, atol=1e-9)
-            assert np.isclose(np.linalg.norm(angular) * dt, angle, atol=1e-6)
-            # and the rotation vector itself (rotation_log's closed form and scipy's beyond 3 rad)
-            assert np.allclose(angular * dt, angle * axis / np.linalg.norm(axis), atol=1e-6)
+            axis /= np.linalg.norm(axis)
+            R_b = R_a @ Rotation.from_rotvec(angle * axis).as_matrix()
+            step_b = rng.normal(size=3)  # the step, in b's frame
+            p_a, dt = rng.normal(size=3), float(rng.uniform(0.01, 1.0))
+            linear, angular = velocities(R_a, p_a, R_b, p_a + R_b @ step_b, dt)
+            assert np.allclose(linear * dt, step_b, atol=1e-12)
+            assert np.allclose(angular * dt, angle * axis, atol=1e-6)
 
 
 def test_the_map_in_use_follows_cloud_mode_and_its_cap():

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hac_ros.core.ground import Plane
+from hac_ros.core.plane import Plane
 
 # a camera looking this close to straight down has no heading: its x axis is used instead
 MIN_HEADING_NORM = 0.1

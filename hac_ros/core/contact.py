@@ -16,7 +16,6 @@ import math
 import numpy as np
 
 from hac_ros.core.layouts import JointLayout
-from hac_ros.core.numeric import median_1d
 
 
 def candidate_joints(mode: str, layout: JointLayout, joints_cam: np.ndarray, R_wc: np.ndarray,
@@ -87,7 +86,7 @@ def combine_ratios(mode: str, ratios: list[float]) -> float:
         return float('nan')
     if mode == 'max_ratio':
         return max(finite)
-    return median_1d(np.array(finite))
+    return float(np.median(finite))
 
 
 def in_view(joints_cam: np.ndarray, K: np.ndarray | None, width: int, height: int) -> list[bool]:

@@ -30,7 +30,7 @@ import numpy as np
 
 from hac_ros.core.contact import in_view, leg_lengths
 from hac_ros.core.layouts import JointLayout
-from hac_ros.core.numeric import NS, median_1d
+from hac_ros.core.numeric import NS
 from hac_ros.core.outputs import NoticeOut
 from hac_ros.core.reference import MapIndex
 
@@ -68,7 +68,7 @@ class ConventionCheck:
         self._people = self._inverted = 0
         self._joints = self._joints_in_image = 0
         # the last LEG_HISTORY people's (mean leg m, left/right asymmetry), a ring: judged every
-        # frame (median_1d), so no list-to-array conversion on the way
+        # frame, so no list-to-array conversion on the way
         self._legs = np.empty((LEG_HISTORY, 2))
         self._legs_seen = 0
         self.suspects: dict[str, str] = {}  # check -> warning text, for /diagnostics
@@ -124,7 +124,7 @@ class ConventionCheck:
         if not self._legs_seen:  # a layout without legs: the body axis alone
             return f'{inverted:.0%} of people upside down' if inverted > INVERTED_MAX else None
         table = self._legs[:min(self._legs_seen, LEG_HISTORY)]
-        leg, asymmetry = median_1d(table[:, 0]), median_1d(table[:, 1])
+        leg, asymmetry = float(np.median(table[:, 0])), float(np.median(table[:, 1]))
         if asymmetry > LEG_ASYMMETRY_MAX:
             return f'left and right legs differ by {asymmetry:.0%}'
         if not LEG_RANGE_M[0] <= leg <= LEG_RANGE_M[1] or (inverted > INVERTED_MAX
@@ -137,7 +137,7 @@ class ConventionCheck:
         """A warning for each check that has become conclusive (once per check)."""
         found: dict[str, Any] = {}
         if len(self._map_views) == MAP_CHECKS:
-            share = median_1d(np.array(self._map_views))  # of the map's points in view
+            share = float(np.median(self._map_views))  # of the map's points in view
             if share < MAP_IN_VIEW_MIN:
                 found['pose_convention'] = share
         if self._people >= PEOPLE_MIN:

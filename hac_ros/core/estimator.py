@@ -2,14 +2,9 @@
 5).
 
 The paper takes one median over a whole video. Online we keep the per-frame scales of the last
-``window_s`` stamp seconds (at most ``window_max_samples``) in a sorted numpy buffer
-(:class:`SortedWindow`): adding or evicting a sample is a binary search and one memmove of the
-buffer's tail (the window is never re-sorted; 16 KB at the default 2000 samples, which is faster
-than a balanced tree's Python-level bookkeeping for any window this estimator holds), and the median
-is an index lookup. The robust spread is the median absolute deviation (MAD): the k+1 deviations
-nearest the median are a contiguous run of the sorted window, so the MAD is the smallest
-``max(med − v[i], v[i+k] − med)`` over the runs that straddle the median: one vectorised pass, no
-copy, no sort.
+``window_s`` stamp seconds (at most ``window_max_samples``) in arrival order; the estimate is their
+median and the robust spread their median absolute deviation (MAD), both computed when the window
+has changed and kept until it changes again.
 
 Once converged (``min_samples``), a sample further than ``gate_k`` robust sigmas from the median
 (and than ``gate_min_rel`` of it) is gated out. If gated samples keep coming in a row for a third
@@ -33,7 +28,7 @@ from collections import deque
 
 import numpy as np
 
-from hac_ros.core.numeric import MAD_TO_SIGMA, median_1d
+from hac_ros.core.numeric import MAD_TO_SIGMA
 
 TREND_BINS = 8  # time bins of the window whose medians the trend is fitted to
 TREND_MIN_PER_BIN = 3  # samples a bin needs to count
@@ -54,10 +49,9 @@ class RollingScale:
         self.gate_k = float(gate_k)
         self.gate_min_rel = float(gate_min_rel)
         self._fifo: deque[tuple[int, float]] = deque()  # (stamp_ns, scale) in arrival order
-        self._sorted = SortedWindow(min(self.max_samples, 1 << 16))
         self._gated_run: list[tuple[int, float]] = []
         self.relocks = 0
-        self._mad_cache: float | None = None  # valid until the window changes
+        self._stats: tuple[float, float] | None = None  # (median, MAD), until the window changes
         self._now_ns = -1  # the newest stamp seen (a sample or advance)
         # the drift trend: (log scale at the reference stamp, slope per ns, reference stamp) or
         # None while the window looks constant; and the stamp it was fitted at
@@ -81,8 +75,7 @@ class RollingScale:
             return False
         self._gated_run.clear()
         self._fifo.append((stamp_ns, scale))
-        self._sorted.add(scale)
-        self._mad_cache = None
+        self._stats = None
         if len(self._fifo) > self.max_samples:
             self._drop_oldest()
         return True
@@ -95,22 +88,22 @@ class RollingScale:
     def reset(self) -> None:
         """Forget everything (SLAM re-initialisation: the new map has a new scale)."""
         self._fifo.clear()
-        self._sorted.clear()
         self._gated_run.clear()
-        self._mad_cache = None
+        self._stats = None
         self._trend, self._trend_ns = None, None
 
     # ------------------------------------------------------------------ queries
     @property
     def samples(self) -> int:
-        return len(self._sorted)
+        return len(self._fifo)
 
     @property
     def converged(self) -> bool:
-        return len(self._sorted) >= self.min_samples
+        return len(self._fifo) >= self.min_samples
 
     def median(self) -> float:
-        return self._sorted.median()
+        """The window's median, metres per SLAM unit (NaN when empty)."""
+        return self._median_and_mad()[0]
 
     def current(self) -> float:
         """The scale now (metres per SLAM unit, NaN when empty): the window's median, or its drift
@@ -135,10 +128,17 @@ class RollingScale:
         return self._trend is not None
 
     def mad(self) -> float:
-        """Median absolute deviation from the median (cached until the window changes)."""
-        if self._mad_cache is None:
-            self._mad_cache = self._sorted.mad()
-        return self._mad_cache
+        """Median absolute deviation from the median, metres per SLAM unit (NaN when empty)."""
+        return self._median_and_mad()[1]
+
+    def _median_and_mad(self) -> tuple[float, float]:
+        if self._stats is None:
+            if not self._fifo:
+                return math.nan, math.nan
+            values = self.values()
+            median = float(np.median(values))
+            self._stats = median, float(np.median(np.abs(values - median)))
+        return self._stats
 
     def spread(self) -> float:
         """Robust sigma of the samples (1.4826 MAD), metres per SLAM unit."""
@@ -175,92 +175,14 @@ class RollingScale:
             self._gated_run.pop(0)
 
     def _drop_oldest(self) -> None:
-        _, value = self._fifo.popleft()
-        self._sorted.remove(value)
-        self._mad_cache = None
+        self._fifo.popleft()
+        self._stats = None
 
     def _relock(self) -> None:
         run = list(self._gated_run)
         self.reset()
         self.relocks += 1
-        for stamp_ns, value in run:
-            self._fifo.append((stamp_ns, value))
-            self._sorted.add(value)
-        self._mad_cache = None
-
-
-class SortedWindow:
-    """A multiset of floats kept sorted in a numpy buffer: insert, remove, median, MAD.
-
-    Insert and remove are a binary search plus a memmove of the tail (O(n) bytes, no Python loop);
-    median O(1); MAD one vectorised O(n) pass. The buffer doubles when full.
-    """
-
-    def __init__(self, capacity: int = 1024) -> None:
-        self._buf = np.empty(max(int(capacity), 16))
-        self._n = 0
-
-    def __len__(self) -> int:
-        return self._n
-
-    def add(self, value: float) -> None:
-        n = self._n
-        if n == self._buf.size:
-            self._buf = np.concatenate([self._buf, np.empty(n)])
-        buf = self._buf
-        pos = int(buf[:n].searchsorted(value))
-        if pos < n:
-            buf[pos + 1:n + 1] = buf[pos:n]  # overlapping: numpy copies via memmove
-        buf[pos] = value
-        self._n = n + 1
-
-    def remove(self, value: float) -> None:
-        """Remove one occurrence of ``value`` (ValueError when absent)."""
-        n = self._n
-        buf = self._buf
-        pos = int(buf[:n].searchsorted(value))
-        if pos >= n or buf[pos] != value:
-            raise ValueError(f'{value!r} is not in the window')
-        buf[pos:n - 1] = buf[pos + 1:n]
-        self._n = n - 1
-
-    def clear(self) -> None:
-        self._n = 0
-
-    def values(self) -> np.ndarray:
-        """A view of the sorted values (valid until the next change)."""
-        return self._buf[:self._n]
-
-    def median(self) -> float:
-        n, buf = self._n, self._buf
-        if n == 0:
-            return float('nan')
-        if n % 2:
-            return float(buf[n // 2])
-        return 0.5 * (float(buf[n // 2 - 1]) + float(buf[n // 2]))
-
-    def mad(self) -> float:
-        """Median absolute deviation from the median (the mean of the two middle deviations when
-        n is even, like ``np.median``)."""
-        n = self._n
-        if n == 0:
-            return float('nan')
-        v, med = self._buf[:n], self.median()
-        if n % 2:
-            return _kth_deviation(v, med, n // 2)
-        return 0.5 * (_kth_deviation(v, med, n // 2 - 1) + _kth_deviation(v, med, n // 2))
-
-
-def _kth_deviation(v: np.ndarray, med: float, k: int) -> float:
-    """The k-th smallest (0-based) of |v − med| over the sorted array ``v``.
-
-    The k+1 values nearest ``med`` are a contiguous run v[i:i+k+1]; the k-th smallest deviation is
-    the smallest, over the runs, of the run's largest deviation max(med − v[i], v[i+k] − med).
-    """
-    n = v.size
-    if k + 1 >= n:
-        return float(max(med - v[0], v[-1] - med))
-    return float(np.maximum(med - v[:n - k], v[k:] - med).min())
+        self._fifo.extend(run)
 
 
 def log_trend(stamps_ns: np.ndarray, scales: np.ndarray) -> tuple[float, float, int] | None:
@@ -282,18 +204,18 @@ def log_trend(stamps_ns: np.ndarray, scales: np.ndarray) -> tuple[float, float, 
     centres, levels = [], []
     for a, b in zip([0, *edges.tolist()], [*edges.tolist(), n]):
         if b - a >= TREND_MIN_PER_BIN:
-            centres.append(median_1d(t[a:b]))
-            levels.append(median_1d(y[a:b]))
+            centres.append(float(np.median(t[a:b])))
+            levels.append(float(np.median(y[a:b])))
     if len(centres) < 3:
         return None
     tc, yc = np.array(centres), np.array(levels)
     i, j = np.triu_indices(len(tc), 1)
-    slope = median_1d((yc[j] - yc[i]) / (tc[j] - tc[i]))  # Theil-Sen over the bin medians
-    level = median_1d(yc - slope * tc)
+    slope = float(np.median((yc[j] - yc[i]) / (tc[j] - tc[i])))  # Theil-Sen over the bin medians
+    level = float(np.median(yc - slope * tc))
     # the slope's standard error from the bin medians' scatter about the line: consecutive
     # samples are correlated (the same geometry, a slowly wandering HMR bias), bins much less so
     residual = yc - (level + slope * tc)
-    sigma = MAD_TO_SIGMA * median_1d(np.abs(residual - median_1d(residual)))
+    sigma = MAD_TO_SIGMA * float(np.median(np.abs(residual - np.median(residual))))
     error = sigma / max(math.sqrt(float(np.sum((tc - tc.mean()) ** 2))), 1e-300)
     if abs(slope) <= DRIFT_Z * error or abs(slope) * span <= DRIFT_MIN_REL:
         return None

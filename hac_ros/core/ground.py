@@ -23,14 +23,12 @@ plane of the map), ``none``.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
-from hac_ros.core.numeric import MAD_TO_SIGMA, median_1d
+from hac_ros.core.plane import Plane, fit_plane_lsq, ransac_plane, robust_plane
 from hac_ros.core.reference import MapIndex
 
-COS_MIN_RAY_PLANE = np.cos(np.deg2rad(87.0))  # rays within 3° of parallel to the plane: no answer
 BODY_MIN_FRAMES = 5  # body up axes needed before the hmr normal is trusted
 BODY_REFRESH_REL = 0.1  # the body normal is recomputed when the bodies seen grew by 10 %
 BODY_MIN_ANISOTROPY = 3.0  # largest / second eigenvalue of the up-axis scatter: a clear axis
@@ -48,73 +46,8 @@ FLOOR_ITERATIONS = 2  # band, plane fit, band again about the fitted normal
 FLOOR_LINE_RATIO = 0.05  # the band's second/first spread below this: a line (a wall's foot)
 FLOOR_MAX_TILT_DEG = 10.0  # a map floor tilted further than this from the body normal is refused
 FLOOR_MAX_BELOW = 0.10  # share of the map below the band: more, and it is not the lowest surface
-# the biweight's cut in robust sigmas: narrower than the usual 4.685, as the floor's noise is
-# symmetric while the feet of walls and furniture in its band lie on one side of it
-TUKEY_C = 2.0
-ROBUST_PLANE_ITERS = 8  # reweighting rounds of robust_plane
 LARGEST_PLANE_INLIER_REL = 0.005  # largest_plane: inlier distance as a fraction of the map extent
 LARGEST_PLANE_SAMPLE = 5000  # map points used by the largest_plane RANSAC
-
-
-@dataclass
-class Plane:
-    """normal: (3,) unit, SLAM map frame, pointing down; offset: SLAM units (n·p = offset)."""
-
-    normal: np.ndarray
-    offset: float
-
-    def ray_distance(self, origin_map: np.ndarray, direction_map: np.ndarray) -> float:
-        """Distance (SLAM units) from the camera centre to the ray's intersection, NaN if none.
-
-        None when the ray is (nearly) parallel to the plane, points away from it, or the camera is
-        below the plane (the plane would be above or behind the camera).
-        """
-        n_dot_d = float(self.normal @ direction_map)
-        height = self.offset - float(self.normal @ origin_map)  # > 0: camera above the plane
-        if n_dot_d <= COS_MIN_RAY_PLANE or height <= 0.0:
-            return float('nan')
-        return height / n_dot_d
-
-
-def fit_plane_lsq(points: np.ndarray) -> tuple[np.ndarray, float, np.ndarray]:
-    """Least-squares plane of (N, 3) points: (unit normal, offset, singular values)."""
-    centroid = points.mean(axis=0)
-    _, sing, vt = np.linalg.svd(points - centroid, full_matrices=False)
-    normal = vt[-1]
-    return normal, float(normal @ centroid), sing
-
-
-def ransac_plane(points: np.ndarray, inlier_distance: float, iterations: int,
-                 rng: np.random.Generator) -> np.ndarray | None:
-    """Inlier mask of the plane with the most inliers among 3-point samples (the authors' RANSAC).
-
-    points: (N, 3); inlier_distance in the points' unit. Vectorised over all samples at once.
-    """
-    n = len(points)
-    if n < 3:
-        return None
-    picks = rng.integers(0, n, size=(iterations, 3))
-    a, b, c = points[picks[:, 0]], points[picks[:, 1]], points[picks[:, 2]]
-    normals = np.cross(b - a, c - a)
-    norms = np.linalg.norm(normals, axis=1)
-    valid = norms > 1e-12 * max(float(np.ptp(points)), 1e-300) ** 2
-    if not valid.any():
-        return None
-    normals = normals[valid] / norms[valid, None]
-    offsets = np.einsum('ij,ij->i', normals, a[valid])
-    best_mask, best_count = None, -1
-    # chunks keep memory bounded: (chunk x N) distances at a time
-    chunk = max(1, 2_000_000 // max(n, 1))
-    for start in range(0, len(normals), chunk):
-        dist = points @ normals[start:start + chunk].T  # in place below: ~4x faster at 500 x 300
-        dist -= offsets[start:start + chunk]
-        np.abs(dist, out=dist)
-        counts = (dist <= inlier_distance).sum(axis=0)
-        k = int(np.argmax(counts))
-        if counts[k] > best_count:
-            best_count = int(counts[k])
-            best_mask = dist[:, k] <= inlier_distance
-    return best_mask
 
 
 def map_floor(map_index: MapIndex, body_normal: np.ndarray) -> Plane | None:
@@ -154,37 +87,6 @@ def map_floor(map_index: MapIndex, body_normal: np.ndarray) -> Plane | None:
     return plane
 
 
-def robust_plane(points: np.ndarray, normal: np.ndarray, offset: float
-                 ) -> tuple[np.ndarray, float, np.ndarray] | None:
-    """A plane through (N, 3) points robust to the points off it: (unit normal signed like
-    ``normal``, offset, the spread's singular values (3,) largest first), or None (no plane).
-
-    Iteratively reweighted least squares with Tukey's biweight (weight (1 - (r / (c sigma))^2)^2
-    within c = TUKEY_C robust sigmas of the plane, 0 beyond; sigma 1.4826 MAD of the residuals),
-    starting from the plane (``normal``, ``offset``). The weights are continuous in the points, so
-    the plane is too: no random draw, and a rigid motion of the points moves it exactly.
-    """
-    residual = points @ normal - offset
-    for _ in range(ROBUST_PLANE_ITERS):
-        sigma = MAD_TO_SIGMA * median_1d(np.abs(residual))
-        if not sigma > 0.0:
-            weights = (residual == 0.0).astype(np.float64)
-        else:
-            u = residual / (TUKEY_C * sigma)
-            weights = np.clip(1.0 - u * u, 0.0, None) ** 2
-        total = float(weights.sum())
-        if total <= 0.0:
-            return None
-        centroid = weights @ points / total
-        centred = points - centroid
-        eigval, eigvec = np.linalg.eigh((centred * weights[:, None]).T @ centred)
-        if eigval[1] <= 1e-12 * max(eigval[2], 1e-300):
-            return None  # the weighted points are collinear
-        fitted = eigvec[:, 0] if eigvec[:, 0] @ normal >= 0 else -eigvec[:, 0]
-        residual = centred @ fitted
-    return fitted, float(fitted @ centroid), np.sqrt(np.clip(eigval[::-1], 0.0, None) / total)
-
-
 class GroundModel:
     """Owns the ground-plane state of one SLAM map (reset with the estimator)."""
 
@@ -197,11 +99,10 @@ class GroundModel:
         self.reset()
 
     def reset(self) -> None:
-        # sums over the frames, map frame, as plain floats (one update per frame): the body up
-        # axes' scatter (3x3, row-major), the up axes, and the cameras' down (y) axes
-        self._scatter = [0.0] * 9
-        self._body_up_sum = [0.0] * 3
-        self._camera_down = [0.0] * 3
+        # sums over the frames (unit vectors, map frame)
+        self._scatter = np.zeros((3, 3))  # sum of the bodies' up axes' outer products, map frame
+        self._body_up_sum = np.zeros(3)
+        self._camera_down = np.zeros(3)  # sum of the cameras' y axes, map frame
         self._body_frames = 0
         self._body_cache: tuple[int, np.ndarray | None] = (0, None)
         # ring buffer of the last CONTACT_BUFFER contact joints, SLAM units, map frame
@@ -217,24 +118,17 @@ class GroundModel:
     # ------------------------------------------------------------------ evidence
     def add_camera(self, R_wc: np.ndarray) -> None:
         """The camera's down axis (its y axis) in the map: the sign of the normal."""
-        down = self._camera_down
-        for axis, value in enumerate(R_wc[:, 1].tolist()):
-            down[axis] += value
+        self._camera_down += R_wc[:, 1]
 
     def add_body(self, R_wc: np.ndarray, up_cam: np.ndarray) -> None:
         """One person's up axis (the layout's lower → upper joints), up_cam (3,) camera optical
         frame, any length."""
-        x, y, z = up_cam.tolist()
-        norm = math.sqrt(x * x + y * y + z * z)
+        norm = float(np.linalg.norm(up_cam))
         if not math.isfinite(norm) or norm <= 0.0:
             return
-        x, y, z = x / norm, y / norm, z / norm
-        up_map = [r0 * x + r1 * y + r2 * z for r0, r1, r2 in R_wc.tolist()]
-        scatter, total = self._scatter, self._body_up_sum
-        for i, u in enumerate(up_map):
-            total[i] += u
-            for j in range(3):
-                scatter[3 * i + j] += u * up_map[j]
+        up_map = R_wc @ (up_cam / norm)
+        self._body_up_sum += up_map
+        self._scatter += np.outer(up_map, up_map)
         self._body_frames += 1
 
     def add_contact(self, contact_map: np.ndarray, scale: float) -> None:
@@ -302,10 +196,10 @@ class GroundModel:
     def _orient_down(self, normal: np.ndarray) -> np.ndarray:
         """Flip ``normal`` to point down: along the cameras' mean y axis, else against the bodies'
         up."""
-        down = np.array(self._camera_down)
+        down = self._camera_down
         if np.linalg.norm(down) > 0 and abs(normal @ down) > 0.3 * np.linalg.norm(down):
             return normal if normal @ down > 0 else -normal
-        return normal if normal @ np.array(self._body_up_sum) <= 0 else -normal
+        return normal if normal @ self._body_up_sum <= 0 else -normal
 
     def _map_floor(self, map_index: MapIndex) -> Plane | None:
         """The map's floor (cached per map and body normal): :func:`map_floor` about the bodies'
@@ -334,7 +228,7 @@ class GroundModel:
         return normal
 
     def _compute_body_normal(self) -> np.ndarray | None:
-        eigval, eigvec = np.linalg.eigh(np.reshape(self._scatter, (3, 3)))
+        eigval, eigvec = np.linalg.eigh(self._scatter)
         if eigval[-1] < BODY_MIN_ANISOTROPY * max(eigval[-2], 1e-12):
             return None
         return self._orient_down(eigvec[:, -1])

@@ -34,7 +34,6 @@ import numpy as np
 
 from hac_ros.core import alignment as align
 from hac_ros.core.alignment import Alignment
-from hac_ros.core.ground import Plane
 from hac_ros.core.human_filter import RootFilter
 from hac_ros.core.numeric import NS
 from hac_ros.core.odometry import POSITION_VARIANCE_FLOOR, ContinuousOdometry
@@ -59,6 +58,7 @@ from hac_ros.core.pending import (
     PendingStatus,
     Record,
 )
+from hac_ros.core.plane import Plane
 from hac_ros.core.transforms import base_from_camera
 
 CLOUD_MOVE_DEG = 1.0  # the alignment moved this much since the last cloud: republish it

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from hac_ros.core.outputs import OdometryOut
-from hac_ros.core.transforms import rotation_log, rotation_log_entries
+from hac_ros.core.transforms import rotation_log
 
 POSITION_VARIANCE_FLOOR = 1e-6  # m², keeps the covariance positive definite
 SLAM_DRIFT_REL = 0.01  # a monocular SLAM's relative drift per metre travelled
@@ -138,17 +138,6 @@ def velocities(R_a: np.ndarray, p_a: np.ndarray, R_b: np.ndarray, p_b: np.ndarra
     """Twist from pose a to pose b, dt seconds apart, in b's frame: linear (3,) m/s
     ``R_bᵀ (p_b − p_a) / dt`` and angular (3,) rad/s ``log(R_aᵀ R_b) / dt``.
 
-    R_a, R_b: (3, 3) child frame to odom frame; p_a, p_b: (3,) metres. Plain Python floats: every
-    published pose pays for this, and numpy's per-call cost dominates 3x3 algebra (the same
-    values as numpy to rounding; measured in docs/benchmarks.md).
+    R_a, R_b: (3, 3) child frame to odom frame; p_a, p_b: (3,) metres.
     """
-    a0, a1, a2, a3, a4, a5, a6, a7, a8 = R_a.ravel().tolist()
-    b0, b1, b2, b3, b4, b5, b6, b7, b8 = R_b.ravel().tolist()
-    x, y, z = (p_b - p_a).tolist()
-    linear = np.array([(b0 * x + b3 * y + b6 * z) / dt, (b1 * x + b4 * y + b7 * z) / dt,
-                       (b2 * x + b5 * y + b8 * z) / dt])
-    # M = R_aᵀ R_b, row-major
-    m = [a0 * b0 + a3 * b3 + a6 * b6, a0 * b1 + a3 * b4 + a6 * b7, a0 * b2 + a3 * b5 + a6 * b8,
-         a1 * b0 + a4 * b3 + a7 * b6, a1 * b1 + a4 * b4 + a7 * b7, a1 * b2 + a4 * b5 + a7 * b8,
-         a2 * b0 + a5 * b3 + a8 * b6, a2 * b1 + a5 * b4 + a8 * b7, a2 * b2 + a5 * b5 + a8 * b8]
-    return linear, rotation_log_entries(*m) / dt
+    return R_b.T @ (p_b - p_a) / dt, rotation_log(R_a.T @ R_b) / dt

@@ -49,7 +49,7 @@ from hac_ros.core.pending import PendingFrame, PendingOdometry, Record
 
 if TYPE_CHECKING:
     from hac_ros.core.calibrator import Calibrator
-    from hac_ros.core.ground import Plane
+    from hac_ros.core.plane import Plane
 
 # A window median this many standard errors from the segment median is not noise. With one window
 # per half window over a long recording (hundreds of windows), 5 sigma keeps false alarms rare.

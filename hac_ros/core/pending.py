@@ -17,7 +17,7 @@ import numpy as np
 from hac_ros.core.outputs import Output, Status
 
 if TYPE_CHECKING:
-    from hac_ros.core.ground import Plane
+    from hac_ros.core.plane import Plane
 
 
 @dataclass(slots=True)

@@ -14,13 +14,11 @@ the SLAM map frame, ``c_map`` (3,) is the camera centre in SLAM units, map frame
 from __future__ import annotations
 
 import bisect
-import math
 from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
 
-from hac_ros.core.numeric import median_1d
 from hac_ros.core.transforms import interpolate_pose
 
 JUMP_HISTORY = 30  # recent pose speeds whose median is the "normal" speed
@@ -74,7 +72,7 @@ class PoseTrack:
         self.suspects: list[Pose] = []
         self._speeds: deque[float] = deque(maxlen=JUMP_HISTORY)
         # the camera centres' bounding box (SLAM units, map frame): lower and upper corners
-        self._bbox: tuple[list[float], list[float]] | None = None
+        self._bbox: tuple[np.ndarray, np.ndarray] | None = None  # camera centres' box, SLAM units
 
     @property
     def last(self) -> Pose | None:
@@ -101,7 +99,7 @@ class PoseTrack:
         last = self.last
         if last is None:
             return None
-        step = math.dist(pose.c_map.tolist(), last.c_map.tolist())
+        step = float(np.linalg.norm(pose.c_map - last.c_map))
         return step, step / max(pose.stamp_ns - last.stamp_ns, 1)
 
     def is_jump(self, move: tuple[float, float] | None, map_extent: float = 0.0) -> bool:
@@ -113,9 +111,9 @@ class PoseTrack:
         if move is None or len(self._speeds) < JUMP_MIN_HISTORY:
             return False
         step, speed = move
-        typical = median_1d(np.array(self._speeds))
+        typical = float(np.median(self._speeds))
         assert self._bbox is not None  # set with the first accepted pose
-        extent = math.dist(*self._bbox)
+        extent = float(np.linalg.norm(self._bbox[1] - self._bbox[0]))
         return (speed > self.jump_factor * typical and step > self.jump_min_rel * extent
                 and step > JUMP_MIN_MAP_REL * map_extent)
 
@@ -140,14 +138,11 @@ class PoseTrack:
             self._speeds.append(move[1])
         self.poses.append(pose)
         self._stamps.append(pose.stamp_ns)
-        c = pose.c_map.tolist()
         if self._bbox is None:
-            self._bbox = (c, list(c))
+            self._bbox = (pose.c_map.copy(), pose.c_map.copy())
         else:
             lo, hi = self._bbox
-            for axis in range(3):
-                lo[axis] = min(lo[axis], c[axis])
-                hi[axis] = max(hi[axis], c[axis])
+            self._bbox = (np.minimum(lo, pose.c_map), np.maximum(hi, pose.c_map))
 
     def at(self, stamp_ns: int) -> tuple[np.ndarray, np.ndarray] | None:
         """The camera pose (R_wc, c_map) at a joints stamp: the nearest accepted pose within the

@@ -24,14 +24,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from functools import lru_cache
 from itertools import chain
 
 import numpy as np
 from scipy.spatial import cKDTree
 
 from hac_ros.core.errors import InputError
-from hac_ros.core.numeric import median_1d, quantile_1d
+from hac_ros.core.plane import local_plane, lowest_segment_offset, ray_plane_distance
 
 # The chain's balls advance geometrically by (1 + 2 tan θ): each ball then covers one cone segment
 # with about twice the segment's volume, a good trade between look-ups and excess points.
@@ -39,18 +38,12 @@ _MIN_WINDOW_NEAR_REL = 1e-6  # a window never starts closer than this fraction o
 LEAF_SIZE = 32  # k-d tree leaf size: builds ~20 % faster than scipy's 16 at the same query cost
 SAMPLE_POINTS = 16384  # points of the map kept for whole-map statistics (extent, floor offset)
 EXTENT_POINTS = 4096  # points of the sample whose 1st-99th percentiles give the extent
-OFFSET_BINS = 100  # histogram bins over the map's robust range along n
-OFFSET_DENSE_FACTOR = 4.0  # a dense bin holds this many times the median non-empty bin
-OFFSET_MIN_COUNT = 5
-OFFSET_WINDOW_BINS = 3  # half width of the floor segment around its peak, in bins
 OVERLAP_SAMPLE = 256  # new-map points checked against the previous map
 # cone_plane: the local surface around the cone's hit
 PLANE_NEIGHBOURS = 12  # map points nearest the cone's hit that the local plane is fitted to
 PLANE_RADIUS_REL = 0.08  # ... within this fraction of the hit's distance from the camera
 PLANE_MIN_POINTS = 6
-PLANE_INLIER_MADS = 3.0  # a point further from the plane than this many robust sigmas is dropped
 PLANE_MAX_SHIFT_REL = 0.25  # the plane's intersection is used within this fraction of the median
-COS_MIN_RAY_SURFACE = math.cos(math.radians(87.0))  # rays nearer parallel to the surface: no answer
 OVERLAP_DISTANCE_REL = 0.02  # a point overlaps when this close (fraction of the old map's extent)
 
 
@@ -175,7 +168,7 @@ class MapIndex:
             return None
         if mode == 'nearest_to_ray':
             return RayHit(float(dist[int(np.argmax(cos))]), count)
-        median = median_1d(dist)
+        median = float(np.median(dist))
         if mode == 'cone_plane':
             exact = self.surface_distance(origin_map, direction_map, median)
             if exact is not None:
@@ -205,12 +198,8 @@ class MapIndex:
         plane = local_plane(self.points_map[idx])
         if plane is None:
             return None
-        normal, point = plane
-        along = float(normal @ d)
-        if abs(along) < COS_MIN_RAY_SURFACE:
-            return None
-        t = float(normal @ (point - o)) / along
-        if not abs(t - near_distance) <= PLANE_MAX_SHIFT_REL * near_distance:
+        t = ray_plane_distance(o, d, *plane)
+        if t is None or not abs(t - near_distance) <= PLANE_MAX_SHIFT_REL * near_distance:
             return None
         return t
 
@@ -244,8 +233,8 @@ class MapIndex:
         far = window[1]
         if not (far > near):
             return _EMPTY, _EMPTY
-        tan, log_growth = _cone_constants(cos_min)
-        count = max(1, int(math.ceil(math.log(far / near) / log_growth)))
+        tan = math.tan(math.acos(min(max(cos_min, -1.0), 1.0)))  # the cone's half angle
+        count = max(1, math.ceil(math.log(far / near) / math.log1p(2.0 * tan)))
         bounds, mids, radii = _chain_shape(count, tan)  # for a window starting at depth 1
         centres = o + (near * mids)[:, None] * d
         lists = self.tree.query_ball_point(centres, near * radii, return_sorted=False)
@@ -272,14 +261,6 @@ _EMPTY = np.empty(0)
 _EMPTY.flags.writeable = False
 
 
-@lru_cache(maxsize=64)
-def _cone_constants(cos_min: float) -> tuple[float, float]:
-    """tan of the cone's half angle and log of the chain's growth factor (1 + 2 tan)."""
-    tan = math.tan(math.acos(min(max(cos_min, -1.0), 1.0)))
-    return tan, math.log1p(2.0 * tan)
-
-
-@lru_cache(maxsize=1024)
 def _chain_shape(count: int, tan: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """A chain of ``count`` balls for a window starting at depth 1: segment bounds (count + 1,)
     (the last one open-ended: its ball reaches past the window's end), ball centres' depths and
@@ -289,85 +270,7 @@ def _chain_shape(count: int, tan: float) -> tuple[np.ndarray, np.ndarray, np.nda
     starts, ends = bounds[:-1], bounds[1:]
     mids = 0.5 * (starts + ends)
     radii = np.sqrt((0.5 * (ends - starts)) ** 2 + (ends * tan) ** 2)
-    for a in (bounds, mids, radii):
-        a.flags.writeable = False
     return bounds, mids, radii
-
-
-def local_plane(points: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
-    """A plane through (N, 3) points, robust to a few off it: (unit normal, a point on it), or None
-    when the points do not span a plane (collinear).
-
-    Least squares (the centroid and the smallest principal axis), then again on the points within
-    PLANE_INLIER_MADS robust sigmas (1.4826 MAD of the distances) of the first plane.
-    """
-    keep = np.ones(len(points), dtype=bool)
-    for _ in range(2):
-        inliers = points[keep]
-        if len(inliers) < 3:
-            return None
-        centroid = inliers.mean(axis=0)
-        centred = inliers - centroid
-        eigval, eigvec = np.linalg.eigh(centred.T @ centred)
-        if eigval[1] <= 1e-12 * max(eigval[2], 1e-300):  # collinear: no plane
-            return None
-        normal = eigvec[:, 0]
-        residual = np.abs((points - centroid) @ normal)
-        sigma = 1.4826 * median_1d(residual[keep])
-        keep = residual <= PLANE_INLIER_MADS * sigma if sigma > 0.0 else keep
-    return normal, centroid
-
-
-def lowest_segment_offset(points_map: np.ndarray, normal: np.ndarray) -> float:
-    """Offset b of the floor along the down-pointing ``normal``: the lowest dense segment of the
-    map.
-
-    A histogram of n·p over the map's robust range (0.5–99.5 %); walking up from the bottom, the
-    first bin holding OFFSET_DENSE_FACTOR times the median non-empty bin (and OFFSET_MIN_COUNT
-    points) belongs to the floor. Isolated points below the floor do not make a dense bin. The first
-    dense bin is the floor's lower noise tail, not its middle: climb to the segment's peak, then b
-    is the median of the points within OFFSET_WINDOW_BINS of it, re-centred once on that median (a
-    symmetric window around a symmetric noise gives an unbiased middle). Without a dense bin: the
-    0.99 quantile (the authors' code). SLAM units.
-
-    points_map: (N, 3) float, SLAM units, map frame; normal: (3,) unit, map frame. Written for the
-    node's frame thread (a new map or a new normal needs it): :func:`quantile_1d` for the range
-    and a ``bincount`` histogram, ~4x faster than ``np.quantile`` + ``np.histogram`` on a 16k-point
-    sample; bins are half-open ``[e_k, e_k+1)`` as numpy's (a value within rounding of an edge may
-    fall either side).
-    """
-    h = np.asarray(points_map, dtype=np.float64) @ np.asarray(normal, dtype=np.float64)
-    if h.size == 0:
-        return float('nan')
-    lo, hi = quantile_1d(h, 0.005), quantile_1d(h, 0.995)
-    if not hi - lo > 1e-9 * max(abs(lo), abs(hi), 1e-300):  # flat to rounding: one segment
-        return median_1d(h)
-    width = (hi - lo) / OFFSET_BINS
-    bins = np.floor((h - lo) * (OFFSET_BINS / (hi - lo)))
-    bins[h == hi] = OFFSET_BINS - 1  # the last bin is closed, as numpy's
-    # below the range -> bin -1, above -> OFFSET_BINS: counted apart, then dropped
-    np.clip(bins, -1, OFFSET_BINS, out=bins)
-    counts = np.bincount((bins + 1).astype(np.intp), minlength=OFFSET_BINS + 2)[1:-1]
-    nonempty = counts[counts > 0]
-    threshold = float(OFFSET_MIN_COUNT)  # also when every value is outside the range (tiny maps)
-    if nonempty.size:
-        threshold = max(threshold, OFFSET_DENSE_FACTOR * median_1d(nonempty.astype(np.float64)))
-    dense = np.flatnonzero(counts >= threshold)
-    if dense.size == 0:
-        return quantile_1d(h, 0.99)
-    k = int(dense[-1])  # n points down: the largest n·p is the lowest
-    for _ in range(OFFSET_WINDOW_BINS):  # climb to the peak of the floor's segment
-        if k > 0 and counts[k - 1] >= counts[k]:
-            k -= 1
-        else:
-            break
-    centre = lo + (k + 0.5) * width
-    for _ in range(2):
-        seg = h[np.abs(h - centre) <= OFFSET_WINDOW_BINS * width]
-        if seg.size == 0:
-            break
-        centre = median_1d(seg)
-    return float(centre)
 
 
 def literal_cone_median(points_map: np.ndarray, origin_map: np.ndarray, direction_map: np.ndarray,
@@ -383,4 +286,4 @@ def literal_cone_median(points_map: np.ndarray, origin_map: np.ndarray, directio
     inside = cos > cos_min
     if np.count_nonzero(inside) < max(min_points, 1):
         return float('nan')
-    return median_1d(dist[inside])
+    return float(np.median(dist[inside]))

@@ -14,9 +14,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from hac_ros.core.contact import candidate_joints, combine_ratios, in_view, sole_points
-from hac_ros.core.ground import Plane
 from hac_ros.core.layouts import JointLayout
 from hac_ros.core.params import HacParams
+from hac_ros.core.plane import Plane
 from hac_ros.core.reference import MapIndex
 
 
