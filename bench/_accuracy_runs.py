@@ -87,7 +87,7 @@ def scene_from_composite(data: Any, seed: int) -> Scene:
 
 
 def feed(cal: Calibrator, scene: Scene) -> list[Any]:
-    out = list(cal.add_camera_info(scene.K, scene.width, scene.height, 'camera'))
+    out = list(cal.add_camera_info(scene.K, scene.width, scene.height))
     return out + feed_events(cal, scene.events) + cal.flush()
 
 

@@ -218,7 +218,7 @@ def test_every_output_message_of_a_scenario_round_trips(name):
     messages = OutputMessages(params)
     seen: dict[str, int] = {}
     slow: dict[str, list[int]] = {'camera_path': [], 'ground_plane': []}
-    cal.add_camera_info(sc.K, sc.width, sc.height, sc.camera_frame)
+    cal.add_camera_info(sc.K, sc.width, sc.height)
     for stamp, kind, payload in scenario_events(sc):
         add = {'map': cal.add_map, 'pose': cal.add_pose, 'joints': cal.add_joints}[kind]
         for output in add(stamp, *payload):

@@ -12,7 +12,7 @@ from hac_ros.bridge.messages import OutputMessages
 from hac_ros.cli import main as hac
 from hac_ros.core.calibrator import Calibrator
 from hac_ros.core.errors import ParameterError
-from hac_ros.core.layouts import BUILT_IN, layout_from_params
+from hac_ros.core.layouts import BUILT_IN
 from hac_ros.core.outputs import HumanJointsOut, NoticeOut, ScaleOut
 from hac_ros.core.params import HacParams
 from hac_ros.recording.reader import Recording
@@ -43,7 +43,7 @@ def run(sc, params: HacParams, pose_rotation: np.ndarray | None = None, camera_i
         joints=lambda j: j) -> list:
     """Every input of ``sc`` (:func:`events`) into a fresh calibrator, flushed: its outputs."""
     cal = Calibrator(params)
-    out = list(cal.add_camera_info(sc.K, sc.width, sc.height, sc.camera_frame)) if camera_info else []
+    out = list(cal.add_camera_info(sc.K, sc.width, sc.height)) if camera_info else []
     return out + feed_events(cal, events(sc, pose_rotation, joints)) + cal.flush()
 
 
@@ -94,7 +94,7 @@ def test_a_custom_layout_equals_the_built_in_one_it_describes():
     a, b = run(sc, coco), run(sc, custom)
     scales_a = [o.scale for o in a if isinstance(o, ScaleOut)]
     assert scales_a and scales_a == [o.scale for o in b if isinstance(o, ScaleOut)]
-    assert layout_from_params(custom).edges == ((5, 7), (7, 9))
+    assert custom.layout().edges == ((5, 7), (7, 9))
 
 
 @pytest.mark.parametrize('changes, text', [
@@ -189,7 +189,7 @@ def test_joints_outside_the_optical_frame_are_caught(walk):
 def test_the_warning_stays_in_diagnostics(walk):
     R = Rotation.from_quat(BODY_FRAME_Q).as_matrix().T
     cal = Calibrator(HacParams())
-    cal.add_camera_info(walk.K, walk.width, walk.height, walk.camera_frame)
+    cal.add_camera_info(walk.K, walk.width, walk.height)
     feed_events(cal, events(walk, R))
     status = cal.status()
     assert 'pose_convention' in status.suspects

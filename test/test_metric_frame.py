@@ -98,7 +98,7 @@ def test_covariances_grow_with_distance_and_are_inflated_after_a_reset():
 def simulated_run(name: str, seed: int, **params: object) -> tuple[object, list]:
     sc = make_scenario(name, seed=seed, hmr_bias=0.0)
     cal = Calibrator(HacParams(**params))
-    cal.add_camera_info(sc.K, sc.width, sc.height, sc.camera_frame)
+    cal.add_camera_info(sc.K, sc.width, sc.height)
     out: list = []
     for t, kind, payload in scenario_events(sc):
         out += {'map': cal.add_map, 'pose': cal.add_pose, 'joints': cal.add_joints}[kind](t, *payload)
@@ -144,7 +144,7 @@ def test_the_cloud_is_the_map_in_metres_sent_on_a_new_map_and_on_a_scale_change_
     sc = make_scenario('walk', seed=0, hmr_bias=0.0, duration=20.0)
     state = {'scale': 2.0}
     cal = Calibrator(HacParams(metric_frame_alignment='slam', cloud_min_period_s=2.0), schedule=lambda t: state['scale'])
-    cal.add_camera_info(sc.K, sc.width, sc.height, sc.camera_frame)
+    cal.add_camera_info(sc.K, sc.width, sc.height)
     clouds: list[CloudOut] = []
     switch = int(sc.pose_stamps_ns[len(sc.pose_stamps_ns) // 2])
     for t, kind, payload in scenario_events(sc):
@@ -171,7 +171,7 @@ def test_the_cloud_is_the_map_in_metres_sent_on_a_new_map_and_on_a_scale_change_
 def test_freeze_holds_the_scale_and_reset_starts_a_segment_without_an_odometry_jump():
     sc = make_scenario('walk', seed=2, hmr_bias=0.0)
     cal = Calibrator(HacParams())
-    cal.add_camera_info(sc.K, sc.width, sc.height, sc.camera_frame)
+    cal.add_camera_info(sc.K, sc.width, sc.height)
     events = list(scenario_events(sc))
     third = len(events) // 3
     out: list = []
@@ -242,7 +242,7 @@ BODY_TO_OPTICAL = [-0.5, 0.5, -0.5, 0.5]  # x-forward, z-up camera body frame (S
 
 def _run(sc, params: HacParams, pose_rotation=None, joints_fn=None, camera_info: bool = True):
     cal = Calibrator(params)
-    out: list = cal.add_camera_info(sc.K, sc.width, sc.height, sc.camera_frame) if camera_info else []
+    out: list = cal.add_camera_info(sc.K, sc.width, sc.height) if camera_info else []
     for t, kind, payload in scenario_events(sc):
         if kind == 'pose' and pose_rotation is not None:
             payload = (payload[0] @ pose_rotation, *payload[1:])

@@ -77,7 +77,7 @@ def add_camera_info_msg(calibrator: Calibrator, msg: Any
         K, width, height = camera_info_to_intrinsics(msg)
     except MessageError:
         return calibrator.reject('camera_info_invalid', stamp), None
-    return calibrator.add_camera_info(K, width, height, msg.header.frame_id), (K, width, height)
+    return calibrator.add_camera_info(K, width, height), (K, width, height)
 
 
 @dataclass

@@ -16,7 +16,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hac_ros.core.layouts import layout_from_params
 from hac_ros.core.outputs import (
     CloudOut,
     DiagnosticsOut,
@@ -114,7 +113,7 @@ class OutputMessages:
         """The parameters; a new set (the node's runtime change) also renews what derives from
         them: the skeleton marker's LINE_LIST point order, the layout's bones (parent, child)."""
         self._params = params
-        self._bone_joints = np.array(layout_from_params(params).edges, dtype=int).reshape(-1)
+        self._bone_joints = np.array(params.layout().edges, dtype=int).reshape(-1)
 
     def convert(self, output: Output) -> list[Message]:
         """The messages of one calibrator output (none for samples, notices and resets)."""

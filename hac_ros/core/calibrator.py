@@ -33,7 +33,6 @@ from hac_ros.core.conventions import Conventions
 from hac_ros.core.estimator import RollingScale
 from hac_ros.core.ground import GroundModel
 from hac_ros.core.human_filter import RootFilter
-from hac_ros.core.layouts import layout_from_params
 from hac_ros.core.metric_stage import MetricStage, ScaleAt, StageConfig, finite_scale
 from hac_ros.core.numeric import MEDIAN_STD_ERROR, NS
 from hac_ros.core.outputs import REASONS, NoticeOut, Output, ResetOut, SampleOut, Status
@@ -125,7 +124,7 @@ class Calibrator:
         self._map_unhanded = False  # a map in use has not been handed to the metric stage yet
         self._sources: deque[bool] = deque(maxlen=GROUND_SHARE_SAMPLES)  # True: a ground sample
         self.services = ServiceRequests()  # ~/reset, ~/freeze
-        self.layout = layout_from_params(p)  # which joint is which (joint_layout)
+        self.layout = p.layout()  # which joint is which (joint_layout)
         self.conventions = Conventions(p.pose_to_optical, p.hmr_focal_px, self.layout)
         self.check = ConventionCheck()  # warns when the geometry says a convention is wrong
         # what depends on the published scale: the segments' placements, the continuous
@@ -135,8 +134,7 @@ class Calibrator:
 
     # ================================================================== inputs
     @_public
-    def add_camera_info(self, K: np.ndarray, width: int, height: int,
-                        frame_id: str = '') -> list[Record]:
+    def add_camera_info(self, K: np.ndarray, width: int, height: int) -> list[Record]:
         """Intrinsics of the camera: joints projecting outside the image go to the ground plane."""
         K = np.asarray(K, dtype=float)
         if K.shape != (3, 3) or not np.all(np.isfinite(K)) or K[0, 0] <= 0 or K[1, 1] <= 0 \
@@ -505,8 +503,8 @@ class Calibrator:
         scene = Scene(self.map, self.ground.plane(self.map), self.ground.normal(),
                       self.ground.trusted, self._K, self._image_size, scale_now, self._cos_min)
         sample = person_sample(self.params, self.layout, scene, R_wc, c_map, joints)
-        if isinstance(sample, str):
-            return self._rejected_sample(stamp, person, sample)
+        if sample.reason:
+            return self._rejected_sample(stamp, person, sample.reason)
         if sample.source == 'map':
             self.map_hits += 1
         else:

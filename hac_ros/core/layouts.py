@@ -9,8 +9,8 @@ Several indices in one role mean their mean (COCO-17's root is the mid-hips). Pu
 """
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 
@@ -89,20 +89,19 @@ H36M17 = JointLayout(
 BUILT_IN = {layout.name: layout for layout in (SMPL24, COCO17, H36M17)}
 
 
-def layout_from_params(params: Any) -> JointLayout:
-    """The layout ``params`` (a :class:`~hac_ros.core.params.HacParams`) select. ``custom`` is
-    built from ``joints_per_person``, ``contact_joints`` (also the ``feet`` mode's joints; empty:
-    every joint), ``root_joints`` (also ``pelvis``), ``body_axis_lower_joints``,
+CUSTOM_ROLES = ('contact_joints', 'root_joints', 'body_axis_lower_joints',
+                'body_axis_upper_joints', 'skeleton_edges')
+
+
+def custom_layout(k: int, index_lists: Mapping[str, Sequence[int]]) -> JointLayout:
+    """``joint_layout: custom``: K = ``joints_per_person`` joints and the index list of each of
+    :data:`CUSTOM_ROLES`: ``contact_joints`` (also the ``feet`` mode's joints; empty: every
+    joint), ``root_joints`` (also ``pelvis``), ``body_axis_lower_joints``,
     ``body_axis_upper_joints`` (also ``head``) and ``skeleton_edges``; its contact joints are taken
     to be on the surface (no sole height). Raises :class:`ParameterError` on bad indices."""
-    if params.joint_layout != 'custom':
-        return BUILT_IN[params.joint_layout]
-    k = params.joints_per_person
     if k < 1:
         raise ParameterError('joints_per_person: joint_layout custom needs it (>= 1)')
-    roles = {name: tuple(getattr(params, name)) for name in (
-        'contact_joints', 'root_joints', 'body_axis_lower_joints', 'body_axis_upper_joints',
-        'skeleton_edges')}
+    roles = {name: tuple(index_lists.get(name, ())) for name in CUSTOM_ROLES}
     for name, indices in roles.items():
         bad = [i for i in indices if not 0 <= i < k]
         if bad:

@@ -130,8 +130,8 @@ class DiagnosticsOut:
 
 @dataclass(slots=True)
 class ResetOut:
-    """The estimator was reset (SLAM re-initialisation). cause: 'pose_jump', 'pose_frame',
-    'map_frame', 'map_overlap'."""
+    """The estimator was reset (SLAM re-initialisation). cause: 'pose_jump', 'map_frame',
+    'map_overlap', or 'service' (``~/reset``)."""
 
     stamp_ns: int
     cause: str

@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from hac_ros.core.errors import ParameterError
+from hac_ros.core.layouts import BUILT_IN, CUSTOM_ROLES, LAYOUTS, JointLayout, custom_layout
 
 NODE_NAME = 'hac_node'
 
@@ -28,7 +29,6 @@ POSE_MSGTYPES = {'PoseStamped': 'geometry_msgs/msg/PoseStamped',
                  'Odometry': 'nav_msgs/msg/Odometry'}
 CLOUD_MODES = ('replace', 'accumulate')
 HUMAN_FILTERS = ('none', 'smooth')
-JOINT_LAYOUTS = ('smpl24', 'coco17', 'h36m17', 'custom')
 INPUT_QOS = ('best_effort', 'reliable')
 CLOUD_QOS = ('transient_local', 'volatile')
 
@@ -78,7 +78,7 @@ class HacParams:
 
     # --- the HMR model's joints (core/layouts.py); the index lists are for joint_layout custom
     joint_layout: str = _p('smpl24', 'joint order of each person in the joints message',
-                           choices=JOINT_LAYOUTS)
+                           choices=LAYOUTS)
     joints_per_person: int = _p(0, 'custom: joints per person (ignored by the built-in layouts)',
                                 low=0, high=10_000)
     contact_joints: list = _p([], 'custom: joints that may touch the scene (empty: all); also '
@@ -195,12 +195,18 @@ class HacParams:
             raise ParameterError('obstacle_min_height: must be below obstacle_max_height')
         if abs(math.sqrt(sum(x * x for x in self.pose_to_optical)) - 1.0) > 1e-3:
             raise ParameterError('pose_to_optical: the quaternion (x y z w) must be unit')
-        if self.joint_layout == 'custom':
-            from hac_ros.core.layouts import layout_from_params
-            layout_from_params(self)  # raises on missing roles or indices outside the person
+        self.layout()  # a custom layout raises on missing roles or indices outside the person
         q = self.base_to_camera[3:]
         if abs(math.sqrt(sum(x * x for x in q)) - 1.0) > 1e-3:
             raise ParameterError('base_to_camera: the quaternion (last 4 values) must be unit')
+
+    def layout(self) -> JointLayout:
+        """The joint layout these parameters select (``joint_layout``; ``custom`` from
+        ``joints_per_person`` and its index lists)."""
+        if self.joint_layout != 'custom':
+            return BUILT_IN[self.joint_layout]
+        return custom_layout(self.joints_per_person,
+                             {name: getattr(self, name) for name in CUSTOM_ROLES})
 
     def replace(self, **changes: Any) -> HacParams:
         """A validated copy with ``changes`` applied (all or nothing)."""

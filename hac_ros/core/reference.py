@@ -140,16 +140,6 @@ class MapIndex:
         return lowest_segment_offset(self.sample, np.asarray(normal, dtype=np.float64))
 
     # ------------------------------------------------------------------ ray queries
-    def cone_distances(self, origin_map: np.ndarray, direction_map: np.ndarray, cos_min: float,
-                       window: tuple[float, float] | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """Distances (SLAM units) and cosines of the map points inside the cone around one ray.
-
-        origin_map: (3,) camera centre, SLAM units, map frame; direction_map: (3,) unit ray
-        direction, map frame; window: (near, far) SLAM units along the ray, or None for all depths.
-        """
-        dist, cos = self._cone(origin_map, direction_map, cos_min, window)
-        return np.asarray(dist, dtype=np.float64), np.asarray(cos, dtype=np.float64)
-
     def query(self, origin_map: np.ndarray, direction_map: np.ndarray, *, mode: str,
               cos_min: float, min_points: int,
               window: tuple[float, float] | None = None) -> RayHit | None:
@@ -205,7 +195,11 @@ class MapIndex:
 
     def _cone(self, origin_map: np.ndarray, direction_map: np.ndarray, cos_min: float,
               window: tuple[float, float] | None) -> tuple[np.ndarray, np.ndarray]:
-        """:meth:`cone_distances`: distances and cosines of the points in the cone."""
+        """Distances (SLAM units) and cosines of the map points inside the cone around one ray.
+
+        origin_map: (3,) camera centre, SLAM units, map frame; direction_map: (3,) unit ray
+        direction, map frame; window: (near, far) SLAM units along the ray, or None for all depths.
+        """
         if self.size == 0:
             return _EMPTY, _EMPTY
         o = np.asarray(origin_map, dtype=np.float64)

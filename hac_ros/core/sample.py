@@ -23,11 +23,18 @@ from hac_ros.core.reference import MapIndex
 @dataclass
 class Sample:
     """A person's sample: scale (metres per SLAM unit), source ('map' or 'ground') and the point
-    on the surface that gave it (metres, camera optical frame)."""
+    on the surface that gave it (metres, camera optical frame); or, with ``reason`` set, why there
+    is none ('behind_camera', 'no_map', 'no_reference'; the scale NaN)."""
 
     scale: float
-    source: str
-    contact_cam: np.ndarray
+    source: str = ''
+    contact_cam: np.ndarray | None = None
+    reason: str = ''
+
+
+def no_sample(reason: str) -> Sample:
+    """The result for a person without a sample, and why."""
+    return Sample(math.nan, reason=reason)
 
 
 @dataclass
@@ -49,12 +56,12 @@ class Scene:
 
 
 def person_sample(params: HacParams, layout: JointLayout, scene: Scene, R_wc: np.ndarray,
-                  c_map: np.ndarray, joints: np.ndarray) -> Sample | str:
+                  c_map: np.ndarray, joints: np.ndarray) -> Sample:
     """The sample of one person (joints (K, 3) metres, camera optical frame, finite, some in front
-    of the camera), or the reason there is none: 'behind_camera', 'no_map', 'no_reference'."""
+    of the camera), or :func:`no_sample` with the reason there is none."""
     candidates = candidate_joints(params.contact_mode, layout, joints, R_wc, scene.normal)
     if not candidates:
-        return 'behind_camera'
+        return no_sample('behind_camera')
     visible = in_view(joints[candidates], scene.K, *scene.image_size)
     # the points on the surface the candidates touch (metres, camera frame): the joints
     # themselves, or moved down onto the sole (sole_correction)
@@ -79,7 +86,7 @@ def person_sample(params: HacParams, layout: JointLayout, scene: Scene, R_wc: np
             ratios[k] = distance_metric / plane_distance
     finite = [k for k, r in enumerate(ratios) if math.isfinite(r)]
     if not finite:
-        return 'no_map' if scene.map is None and plane is None else 'no_reference'
+        return no_sample('no_map' if scene.map is None and plane is None else 'no_reference')
     chosen = 0
     if len(ratios) > 1 and params.contact_mode == 'max_ratio':
         chosen = max(finite, key=ratios.__getitem__)  # the first of equals, as nanargmax

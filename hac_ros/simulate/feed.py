@@ -45,5 +45,5 @@ def feed_scenario(cal: Calibrator, sc: Any, camera_info: bool = True) -> list[Ou
     """Every input of the scenario into ``cal``; returns all outputs (flushed at the end)."""
     outs: list[Output] = []
     if camera_info:
-        outs += cal.add_camera_info(sc.K, sc.width, sc.height, sc.camera_frame)
+        outs += cal.add_camera_info(sc.K, sc.width, sc.height)
     return outs + feed_events(cal, scenario_events(sc)) + cal.flush()

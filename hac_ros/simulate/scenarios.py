@@ -6,7 +6,6 @@ recording writer and the benchmarks use the same :class:`Scenario`.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -239,4 +238,3 @@ def make_scenario(name: str, seed: int = 0, duration: float | None = None, rate:
         world=world, joint_layout=joint_layout)
 
 
-ScaleFunction = Callable[[int], float]
