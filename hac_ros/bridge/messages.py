@@ -15,6 +15,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from hac_ros.core.outputs import (
     CloudOut,
@@ -239,7 +240,6 @@ class OutputMessages:
         if status is None or status.ground_point_metric is None:
             return None
         if self._plane is None or self._plane[0] is not status:
-            from scipy.spatial.transform import Rotation
 
             normal = np.asarray(status.ground_normal_metric, dtype=float)
             quat = Rotation.align_vectors([normal], [[0.0, 0.0, 1.0]])[0].as_quat()

@@ -14,6 +14,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import yaml
+
 from hac_ros.core.errors import ParameterError
 from hac_ros.core.layouts import BUILT_IN, CUSTOM_ROLES, LAYOUTS, JointLayout, custom_layout
 
@@ -231,8 +233,6 @@ class HacParams:
 
         A ``/**`` wildcard section is honoured too; a plain flat mapping is accepted.
         """
-        import yaml
-
         try:
             data = yaml.safe_load(Path(path).read_text(encoding='utf-8')) or {}
         except OSError as exc:

@@ -42,6 +42,7 @@ from hac_ros.recording.tracks import (
     read_output,
     read_truth,
 )
+from hac_ros.replay.feeder import offline_run
 
 ROOT_JOINT = 0  # pelvis (SMPL-24)
 # Outputs carry the input stamps exactly and the ground truth is at the same stamps; 1 ms absorbs
@@ -100,8 +101,6 @@ def _track(outputs: list[PoseOut] | list[OdometryOut]) -> CameraTrack:
 
 def reference_runs(gt_path: str | Path, params: HacParams, truth: Truth) -> dict[str, Replayed]:
     """'no calibration' (scale 1) and 'true scale' (/gt/scale) through the core on IN."""
-    from hac_ros.replay.feeder import offline_run
-
     scales: dict[str, Any] = {'no calibration': lambda stamp_ns: 1.0}
     if truth.scale is not None and len(truth.scale):
         true_scale = truth.scale

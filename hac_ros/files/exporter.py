@@ -33,6 +33,7 @@ from hac_ros.core.layouts import joints_per_person
 from hac_ros.files.tum import rotations_to_quats
 from hac_ros.recording.reader import Recording
 from hac_ros.recording.tracks import read_camera, read_scale
+from msg_adapters import MessageError, pose_array_to_joints, stamp_to_ns
 
 POSE_TOPIC, JOINTS_TOPIC, SCALE_TOPIC = '/hac/pose', '/hac/human_joints', '/hac/scale'
 
@@ -75,8 +76,6 @@ def _joints_per_person(rec: Recording, joint_layout: str | None) -> int:
 
 def _read_joints(rec: Recording, k: int) -> dict[int, np.ndarray]:
     """Header stamp → people (P, K, 3) metres, metric_frame, of every /hac/human_joints message."""
-    from msg_adapters import MessageError, pose_array_to_joints, stamp_to_ns
-
     out: dict[int, np.ndarray] = {}
     if not rec.has(JOINTS_TOPIC):
         return out

@@ -61,6 +61,13 @@ from hac_ros.recording.reader import (
     layout_data,
 )
 from hac_ros.recording.writer import OutputWriter, staged_output
+from msg_adapters import (
+    intrinsics_to_camera_info,
+    joints_to_pose_array,
+    rosbags_types,
+    rt_to_pose_stamped,
+    xyz_to_cloud,
+)
 
 TOPICS = {  # topic -> type, in the order messages of one stamp are written
     '/slam/cloud': 'sensor_msgs/msg/PointCloud2',
@@ -148,14 +155,6 @@ def import_files(output: str | Path, trajectory: str | Path, map_file: str | Pat
     """Write the recording ``output`` from the files (see the module docstring). ``params``: the
     ``interp_max_gap_s`` and ``sync_slop_s`` of the sparse-trajectory warning and the ground-truth
     interpolation (defaults otherwise). Raises HacError before anything is written."""
-    from msg_adapters import (
-        intrinsics_to_camera_info,
-        joints_to_pose_array,
-        rosbags_types,
-        rt_to_pose_stamped,
-        xyz_to_cloud,
-    )
-
     out = Path(output)
     if out.exists() or out.is_symlink():
         raise HacError(f'output {out} already exists (hac never overwrites a recording: remove it '

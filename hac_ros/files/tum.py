@@ -13,6 +13,8 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from hac_ros.core.errors import InputError
+from hac_ros.recording.reader import GT_CAMERA
+from hac_ros.recording.tracks import read_camera
 
 
 def tum_rows(path: str | Path, what: str = 'TUM file') -> Iterator[tuple[int, list[str]]]:
@@ -79,9 +81,6 @@ def write_tum_exports(directory: Path, metric: list,
     (``poses``, the raw SLAM poses: (stamp ns, R_wc (3, 3), c (3,) SLAM units)) and, when the
     recording has it, camera_gt.tum (/gt/camera_pose, metres). Returns kind -> path of the files
     written."""
-    from hac_ros.recording.reader import GT_CAMERA
-    from hac_ros.recording.tracks import read_camera
-
     directory.mkdir(parents=True, exist_ok=True)
     written: dict[str, Path] = {}
 

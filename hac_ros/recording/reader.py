@@ -7,6 +7,10 @@ from functools import cached_property
 from pathlib import Path
 from typing import Any
 
+import yaml
+from rosbags.highlevel import AnyReader
+from rosbags.typesys import Stores, get_typestore
+
 from hac_ros.core.errors import HacError
 from hac_ros.core.layouts import BUILT_IN, SMPL24, JointLayout
 
@@ -47,9 +51,6 @@ class Recording:
     """
 
     def __init__(self, path: str | Path) -> None:
-        from rosbags.highlevel import AnyReader
-        from rosbags.typesys import Stores, get_typestore
-
         self.path = Path(path)
         if not self.path.exists():
             raise HacError(f'input recording {self.path} does not exist')
@@ -71,8 +72,6 @@ class Recording:
     def custom_data(self) -> dict[str, str]:
         """rosbag2 metadata ``custom_data`` (empty for ROS 1 bags and recordings without it);
         read once (a recording is never written while it is read)."""
-        import yaml
-
         meta = self.path / 'metadata.yaml' if self.path.is_dir() else None
         if meta is None or not meta.is_file():
             return {}

@@ -6,9 +6,20 @@ from pathlib import Path
 
 import numpy as np
 
+from hac_ros.bridge.messages import (
+    DIAGNOSTICS,
+    HUMAN_JOINTS,
+    ODOMETRY,
+    POSE,
+    SAMPLE_FIELDS,
+    SAMPLES,
+    SCALE,
+    in_root,
+)
 from hac_ros.core.errors import HacError
 from hac_ros.core.layouts import SMPL24, JointLayout
 from hac_ros.recording.reader import GT_CAMERA, GT_JOINTS, GT_SCALE, Recording
+from msg_adapters import MessageError, pose_array_to_joints, pose_msg_to_rt, stamp_to_ns
 
 
 # ============================================================================ tracks
@@ -68,8 +79,6 @@ class Truth:
 
 def read_camera(recording: Recording, topic: str) -> CameraTrack:
     """PoseStamped or Odometry messages of ``topic`` as a camera track (header stamps)."""
-    from msg_adapters import pose_msg_to_rt, stamp_to_ns
-
     stamps, positions, rotations = [], [], []
     for _, msg in recording.read(topic):
         R, c = pose_msg_to_rt(msg)
@@ -85,8 +94,6 @@ def read_camera(recording: Recording, topic: str) -> CameraTrack:
 def read_joints(recording: Recording, topic: str) -> JointsTrack:
     """PoseArray messages of ``topic``: (P, K, 3) joints per header stamp, K the recording's
     (:attr:`Recording.joints_per_person`); malformed ones skipped."""
-    from msg_adapters import MessageError, pose_array_to_joints, stamp_to_ns
-
     stamps, joints = [], []
     k = recording.joints_per_person
     for _, msg in recording.read(topic):
@@ -147,16 +154,6 @@ class Replayed:
 
 def read_output(path: str | Path) -> Replayed:
     """Read a recording written by ``hac replay`` (SPEC's output topics and /hac/samples)."""
-    from hac_ros.bridge.messages import (
-        DIAGNOSTICS,
-        HUMAN_JOINTS,
-        ODOMETRY,
-        POSE,
-        SAMPLES,
-        SCALE,
-        in_root,
-    )
-
     pose, odom, diag = in_root(POSE[0]), in_root(ODOMETRY[0]), DIAGNOSTICS[0]
     joints_topic, scale_topic, samples_topic = (in_root(HUMAN_JOINTS[0]), in_root(SCALE[0]),
                                                 in_root(SAMPLES[0]))
@@ -177,8 +174,6 @@ def read_output(path: str | Path) -> Replayed:
 
 
 def _read_samples(recording: Recording, topic: str) -> Samples:
-    from hac_ros.bridge.messages import SAMPLE_FIELDS
-
     stamps, rows = [], []
     for log_ns, msg in recording.read(topic):
         data = np.asarray(msg.data, dtype=float).reshape(-1, SAMPLE_FIELDS)

@@ -8,20 +8,22 @@ from collections import Counter
 from pathlib import Path
 from typing import Any
 
+from rosbags.interfaces import (
+    Qos,
+    QosDurability,
+    QosHistory,
+    QosLiveliness,
+    QosReliability,
+    QosTime,
+)
+from rosbags.rosbag2 import StoragePlugin, Writer
+from rosbags.typesys import Stores, get_typestore
+
 from hac_ros.core.errors import HacError
 from hac_ros.recording.reader import STORAGES
 
 
 def _latched_qos() -> Any:
-    from rosbags.interfaces import (
-        Qos,
-        QosDurability,
-        QosHistory,
-        QosLiveliness,
-        QosReliability,
-        QosTime,
-    )
-
     never = QosTime(0, 0)
     return Qos(QosHistory.KEEP_LAST, 1, QosReliability.RELIABLE, QosDurability.TRANSIENT_LOCAL,
                never, never, QosLiveliness.AUTOMATIC, never, False)
@@ -32,9 +34,6 @@ class OutputWriter:
     """Writes serialized messages into a new rosbag2 recording."""
 
     def __init__(self, path: Path, storage: str, custom_data: dict[str, str] | None = None) -> None:
-        from rosbags.rosbag2 import StoragePlugin, Writer
-        from rosbags.typesys import Stores, get_typestore
-
         if storage not in STORAGES:
             raise HacError(f'storage must be one of {", ".join(STORAGES)}, not {storage!r}')
         self.typestore = get_typestore(Stores.ROS2_JAZZY)

@@ -30,6 +30,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from tqdm import tqdm
+
 from hac_ros.bridge.messages import (
     CLOUD,
     LATCHED_TOPICS,
@@ -48,6 +50,7 @@ from hac_ros.core.numeric import NS
 from hac_ros.core.offline import OfflineScale, resolve_offline
 from hac_ros.core.outputs import NoticeOut, Output, PoseOut, ResetOut, SampleOut, Status
 from hac_ros.core.params import HacParams
+from hac_ros.files.tum import write_tum_exports
 from hac_ros.recording.reader import STORAGES, Recording, layout_data
 from hac_ros.recording.writer import OutputWriter, check_output_path, staged_output
 from hac_ros.replay.feeder import CoreFeeder, InputTopics
@@ -125,8 +128,6 @@ class NoticePrinter:
 
     def line(self, text: str) -> None:
         """A line on the stream that does not break an active progress bar."""
-        from tqdm import tqdm
-
         tqdm.write(text, file=self.stream or sys.stderr)
 
 
@@ -196,8 +197,6 @@ def replay(input_path: str | Path, output_path: str | Path, params: HacParams | 
     Raises :class:`HacError` (OUT exists, IN missing or unreadable, missing topics, ...). On any
     error or KeyboardInterrupt nothing is left at ``output_path``.
     """
-    from hac_ros.files.tum import write_tum_exports
-
     params = params or HacParams()
     if mode not in MODES:
         raise HacError(f'--mode must be offline or online, not {mode!r}')
@@ -298,7 +297,6 @@ class _progress:
     def __enter__(self) -> Any:
         if not self.enabled:
             return None
-        from tqdm import tqdm
 
         self.bar = tqdm(total=self.total, desc=self.desc, unit='msg', file=sys.stderr,
                         dynamic_ncols=True, leave=False, mininterval=0.2)

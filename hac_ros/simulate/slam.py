@@ -17,6 +17,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from hac_ros.simulate.camera import project
 from hac_ros.simulate.world import World
@@ -52,7 +53,6 @@ class SlamOutput:
 
 
 def _rot(axis_angle: np.ndarray) -> np.ndarray:
-    from scipy.spatial.transform import Rotation
     return Rotation.from_rotvec(axis_angle).as_matrix()
 
 

@@ -1,0 +1,121 @@
+"""The package's shape: no import cycle, the core below everything, a short top level.
+
+Read from the source (``ast``), so that an import inside a function or under ``TYPE_CHECKING``
+counts as much as one at the top: a cycle there is still a design knot, even if Python would
+import it.
+"""
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+PACKAGES = ('hac_ros', 'msg_adapters')
+# what the estimation core may import besides itself: the standard library and these
+CORE_THIRD_PARTY = {'numpy', 'scipy', 'yaml'}
+
+
+def _module_name(path: Path) -> str:
+    parts = list(path.relative_to(REPO).with_suffix('').parts)
+    if parts[-1] == '__init__':
+        parts.pop()
+    return '.'.join(parts)
+
+
+def _modules() -> dict[str, Path]:
+    return {_module_name(p): p for package in PACKAGES for p in (REPO / package).rglob('*.py')}
+
+
+def _imports(path: Path, modules: dict[str, Path]) -> set[str]:
+    """The modules ``path`` imports anywhere in its source: ``from a.b import c`` is ``a.b.c``
+    when that is a module, else ``a.b``; relative imports are resolved."""
+    own = _module_name(path)
+    package = own if path.name == '__init__.py' else own.rpartition('.')[0]
+    found: set[str] = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding='utf-8'))):
+        if isinstance(node, ast.Import):
+            found.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ''
+            if node.level:
+                anchor = package.split('.')[:len(package.split('.')) - node.level + 1]
+                base = '.'.join(anchor + ([base] if base else []))
+            for alias in node.names:
+                found.add(f'{base}.{alias.name}' if f'{base}.{alias.name}' in modules else base)
+    return found
+
+
+def _graph() -> dict[str, set[str]]:
+    modules = _modules()
+    return {name: {m for m in _imports(path, modules) if m in modules and m != name}
+            for name, path in modules.items()}
+
+
+def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The strongly connected components with more than one module (Tarjan)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    found: list[list[str]] = []
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in sorted(graph[v]):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                component.append(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                found.append(sorted(component))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return found
+
+
+def test_no_module_imports_itself_back_through_others():
+    graph = _graph()
+    # the graph is read right: a few edges every reader of the code knows
+    assert 'hac_ros.core.metric_stage' in graph['hac_ros.core.calibrator']
+    assert 'hac_ros.core.calibrator' in graph['hac_ros.replay.replayer']
+    assert 'msg_adapters.cdr_write' in graph['hac_ros.bridge.messages']
+    assert _cycles(graph) == []
+
+
+def test_the_cycle_finder_finds_a_cycle():
+    """The check above can fail: a two-module and a three-module knot are both reported."""
+    graph = {'a': {'b'}, 'b': {'a'}, 'c': {'d'}, 'd': {'e'}, 'e': {'c'}, 'f': {'a'}}
+    assert sorted(_cycles(graph)) == [['a', 'b'], ['c', 'd', 'e']]
+
+
+def test_the_core_imports_only_the_core_numpy_and_scipy():
+    """hac_ros.core is the bottom layer: pure numpy/scipy, nothing from the shells or ROS."""
+    modules = _modules()
+    stdlib = {'__future__', 'bisect', 'collections', 'dataclasses', 'functools', 'itertools',
+              'math', 'pathlib', 'typing', 'abc'}
+    for name, path in modules.items():
+        if not name.startswith('hac_ros.core'):
+            continue
+        for imported in _imports(path, modules):
+            top = imported.split('.')[0]
+            assert imported.startswith('hac_ros.core') or top in CORE_THIRD_PARTY | stdlib, \
+                f'{name} imports {imported}'
+
+
+def test_the_top_level_of_the_package_stays_short():
+    """At most 8 modules beside the subpackages: a newcomer finds things by the folder names."""
+    top = sorted(p.name for p in (REPO / 'hac_ros').glob('*.py'))
+    assert len(top) <= 8, top
