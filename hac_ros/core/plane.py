@@ -173,9 +173,10 @@ def robust_plane(points: np.ndarray, normal: np.ndarray, offset: float
     ``normal``, offset, the spread's singular values (3,) largest first), or None (no plane).
 
     Iteratively reweighted least squares with Tukey's biweight (weight (1 - (r / (c sigma))^2)^2
-    within c = TUKEY_C robust sigmas of the plane, 0 beyond; sigma MAD_TO_SIGMA × the median absolute residual),
-    starting from the plane (``normal``, ``offset``). The weights are continuous in the points, so
-    the plane is too: no random draw, and a rigid motion of the points moves it exactly.
+    within c = TUKEY_C robust sigmas of the plane, 0 beyond; sigma MAD_TO_SIGMA × the median
+    absolute residual), starting from the plane (``normal``, ``offset``). The weights are continuous
+    in the points, so the plane is too: no random draw, and a rigid motion of the points moves it
+    exactly.
     """
     residual = points @ normal - offset
     for _ in range(ROBUST_PLANE_ITERS):
