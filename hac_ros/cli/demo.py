@@ -53,6 +53,16 @@ def simulate_into(directory: Path) -> Path:
         raise HacError(f'could not simulate a demo recording (hac simulate exited with {code})')
     return path
 
+def recording_or_simulated(recording: str | None, tmp: Path) -> Path:
+    """The demo recording (:func:`find_recording`), else one simulated into ``tmp``."""
+    source = find_recording(recording)
+    if source is None:
+        print(f'{DEMO_RECORDING} not found: simulating a {SIMULATED["duration_s"]:.0f} s '
+              f'"{SIMULATED["scenario"]}" recording instead')
+        source = simulate_into(tmp)
+    return source
+
+
 def clear_results(out_dir: Path) -> None:
     """Remove the results of an earlier demo (only the names the demo writes)."""
     for name in RESULTS:
@@ -69,11 +79,7 @@ def demo(out_dir: Path, recording: str | None = None) -> int:
 
     start = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix='hac_demo_') as tmp:
-        source = find_recording(recording)
-        if source is None:
-            print(f'{DEMO_RECORDING} not found: simulating a {SIMULATED["duration_s"]:.0f} s '
-                  f'"{SIMULATED["scenario"]}" recording instead')
-            source = simulate_into(Path(tmp))
+        source = recording_or_simulated(recording, Path(tmp))
         out_dir.mkdir(parents=True, exist_ok=True)
         clear_results(out_dir)
         summary = replay(source, out_dir / 'replay', mode='offline', export_tum=out_dir / 'tum')
@@ -98,11 +104,7 @@ def live_demo(recording: str | None, rate: float, params_file: str | None) -> in
     from hac_ros.ros.live import live_run
 
     with tempfile.TemporaryDirectory(prefix='hac_demo_') as tmp:
-        source = find_recording(recording)
-        if source is None:
-            print(f'{DEMO_RECORDING} not found: simulating a {SIMULATED["duration_s"]:.0f} s '
-                  f'"{SIMULATED["scenario"]}" recording instead')
-            source = simulate_into(Path(tmp))
+        source = recording_or_simulated(recording, Path(tmp))
         print(f'starting hac_node and playing {source} into it at {rate:g}x real time '
               '(hac play) ...', flush=True)
         summary = live_run(source, rate, params_file)
