@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from hac_ros.core.numeric import NS
 from hac_ros.core.outputs import (
     CloudOut,
     DiagnosticsOut,
@@ -63,7 +64,7 @@ DIAGNOSTIC_NAME = 'hac_ros: scale estimator'
 PATH_LENGTH = 600  # camera positions kept for the path marker
 # The camera path (600 points, 14 kB) and the ground plane are re-sent at most once per this much
 # stamp time, the skeletons every frame: RViz keeps a marker until it is replaced (lifetime 0).
-SLOW_MARKERS_PERIOD_NS = 1_000_000_000
+SLOW_MARKERS_PERIOD_NS = NS
 PLANE_SIZE_M = 8.0  # side of the ground-plane marker, metres
 PLANE_THICKNESS_M = 0.01
 LINE_STRIP, LINE_LIST, CUBE = 4, 5, 1

@@ -28,7 +28,7 @@ from collections import deque
 
 import numpy as np
 
-from hac_ros.core.numeric import MAD_TO_SIGMA
+from hac_ros.core.numeric import MAD_TO_SIGMA, NS
 
 TREND_BINS = 8  # time bins of the window whose medians the trend is fitted to
 TREND_MIN_PER_BIN = 3  # samples a bin needs to count
@@ -43,7 +43,7 @@ class RollingScale:
 
     def __init__(self, window_s: float, window_max_samples: int, min_samples: int,
                  gate_k: float = 5.0, gate_min_rel: float = 0.15) -> None:
-        self.window_ns = int(round(window_s * 1e9))
+        self.window_ns = int(round(window_s * NS))
         self.max_samples = int(window_max_samples)
         self.min_samples = int(min_samples)
         self.gate_k = float(gate_k)

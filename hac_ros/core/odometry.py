@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hac_ros.core.numeric import NS
 from hac_ros.core.outputs import OdometryOut
 from hac_ros.core.transforms import rotation_log
 
@@ -121,7 +122,7 @@ class ContinuousOdometry:
         linear, angular = np.zeros(3), np.zeros(3)
         last = self._out
         if not still and last is not None and last[0] < stamp_ns:
-            linear, angular = velocities(last[1], last[2], R, p, (stamp_ns - last[0]) / 1e9)
+            linear, angular = velocities(last[1], last[2], R, p, (stamp_ns - last[0]) / NS)
         self._out = (stamp_ns, R, p)
         rel = math.hypot(SLAM_DRIFT_REL, sigma_rel if math.isfinite(sigma_rel) else 0.0)
         orientation_variance = (self.orientation_variance

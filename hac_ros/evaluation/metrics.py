@@ -13,6 +13,7 @@ import math
 import numpy as np
 
 from hac_ros.core.errors import InputError
+from hac_ros.core.numeric import NS
 
 M_TO_MM = 1000.0
 CHUNK_FRAMES = 100  # TRAM/WHAM: W-MPJPE and WA-MPJPE over 100-frame chunks
@@ -95,7 +96,7 @@ def rpe(est_positions: np.ndarray, est_rotations: np.ndarray, gt_positions: np.n
     """
     stamps = np.asarray(stamps_ns, dtype=np.int64)
     i = np.arange(len(stamps))
-    j = np.searchsorted(stamps, stamps + int(delta_s * 1e9), side='left')
+    j = np.searchsorted(stamps, stamps + int(delta_s * NS), side='left')
     keep = j < len(stamps)
     i, j = i[keep], j[keep]
     if not len(i):

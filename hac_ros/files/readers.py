@@ -34,7 +34,7 @@ def seconds_to_ns(t: np.ndarray, where: str = 'stamps', labels: list[str] | None
         label = labels[i] if labels is not None else f'[{i}]'
         raise InputError(f'{where}: {label}: stamp {float(t[i])!r} s is not a ROS time '
                          '(0 to 2^31 s)')
-    return np.round(t * 1e9).astype(np.int64)
+    return np.round(t * NS).astype(np.int64)
 
 
 @dataclass

@@ -13,6 +13,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from hac_ros.core.errors import InputError
+from hac_ros.core.numeric import NS
 from hac_ros.recording.reader import GT_CAMERA
 from hac_ros.recording.tracks import read_camera
 
@@ -42,7 +43,7 @@ def read_tum(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     for number, parts in tum_rows(path):
         try:
             sec, _, frac = parts[0].partition('.')
-            stamps.append(int(sec) * 1_000_000_000 + int((frac + '000000000')[:9]))
+            stamps.append(int(sec) * NS + int((frac + '000000000')[:9]))
             rows.append([float(v) for v in parts[1:]])
         except ValueError as exc:
             raise InputError(f'TUM file {path}:{number}: not a number ({exc})') from exc
@@ -55,7 +56,7 @@ def write_tum(path: str | Path, stamps_ns: np.ndarray, positions: np.ndarray,
     """Write a TUM file (stamps int ns; positions (N, 3); quaternions (N, 4) x, y, z, w)."""
     lines = []
     for stamp, p, q in zip(np.asarray(stamps_ns, dtype=np.int64), positions, quats_xyzw):
-        sec, ns = divmod(int(stamp), 1_000_000_000)
+        sec, ns = divmod(int(stamp), NS)
         lines.append(f'{sec}.{ns:09d} ' + ' '.join(f'{v:.9f}' for v in (*p, *q)))
     Path(path).write_text('\n'.join(lines) + ('\n' if lines else ''))
 

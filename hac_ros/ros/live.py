@@ -26,6 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from hac_ros.core.errors import HacError
+from hac_ros.core.numeric import NS
 from hac_ros.core.outputs import Status
 from hac_ros.core.params import NODE_NAME
 
@@ -66,7 +67,7 @@ class LiveSummary:
         s = self.status
         behind = ''
         if self.status_stamp_ns >= 0:
-            behind = f' (counts as of t+{(self.status_stamp_ns - self.start_ns) / 1e9:.3f} s)'
+            behind = f' (counts as of t+{(self.status_stamp_ns - self.start_ns) / NS:.3f} s)'
         rejected = ', '.join(f'{k} {v}' for k, v in sorted(s.rejected.items())) or 'none'
         received = ', '.join(f'{t} {n}' for t, n in sorted(self.received.items())) or 'nothing'
         return '\n'.join([

@@ -12,6 +12,7 @@ import numpy as np
 
 from hac_ros.core.errors import HacError
 from hac_ros.core.layouts import BUILT_IN
+from hac_ros.core.numeric import NS
 from hac_ros.simulate import camera as rigs
 from hac_ros.simulate import motions
 from hac_ros.simulate.hmr import DepthBias, draw_bias, in_view, predict
@@ -77,7 +78,7 @@ class Scenario:
 
     @property
     def duration_s(self) -> float:
-        return float(self.pose_stamps_ns[-1] - self.pose_stamps_ns[0]) / 1e9
+        return float(self.pose_stamps_ns[-1] - self.pose_stamps_ns[0]) / NS
 
 
 # name -> (default duration s, description)
@@ -130,7 +131,7 @@ def make_scenario(name: str, seed: int = 0, duration: float | None = None, rate:
     duration = SCENARIOS[name][0] if duration is None else float(duration)
     T = max(2, int(round(duration * rate)) + 1)
     t = np.arange(T) / rate
-    stamps = START_NS + np.round(t * 1e9).astype(np.int64)
+    stamps = START_NS + np.round(t * NS).astype(np.int64)
     world = room()
     _furniture(world)
     scale0 = float(np.exp(rng.uniform(math.log(SCALE_RANGE[0]), math.log(SCALE_RANGE[1]))))

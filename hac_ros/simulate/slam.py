@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from hac_ros.core.numeric import NS
 from hac_ros.simulate.camera import project
 from hac_ros.simulate.world import World
 
@@ -76,7 +77,7 @@ def run_slam(world: World, landmarks: np.ndarray, stamps_ns: np.ndarray, R_world
     R_slam = np.empty((T, 3, 3))
     c_slam = np.empty((T, 3))
     drift = np.zeros((T, 3))  # metric random walk of the published position, per frame
-    dt = np.diff(stamps_ns, prepend=stamps_ns[0]) / 1e9
+    dt = np.diff(stamps_ns, prepend=stamps_ns[0]) / NS
     for i in range(T):
         s0 = starts[seg_of[i]]
         R0 = R_world[s0]
@@ -125,7 +126,7 @@ def run_slam(world: World, landmarks: np.ndarray, stamps_ns: np.ndarray, R_world
             if have.any():
                 maps.append(MapMessage(int(stamps_ns[i]), points_slam[have].copy(),
                                        _frame_id(seg_of[i])))
-            next_map += int(map_period_s * 1e9)
+            next_map += int(map_period_s * NS)
     frame_ids = [_frame_id(s) for s in seg_of]
     return SlamOutput(R_slam, c_noisy, frame_ids, maps, scale)
 
