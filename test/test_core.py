@@ -194,7 +194,9 @@ def test_a_rigid_motion_of_the_slam_world_changes_nothing(mode, seed):
     base = transformed_run(scene, params, 1.0, np.eye(3), np.zeros(3), seed)
     moved = transformed_run(scene, params, 1.0, random_rotation(rng), rng.normal(0, 50, 3), seed)
     assert len(base) > 0 and len(base) == len(moved)
-    np.testing.assert_allclose(moved, base, rtol=1e-6)
+    # 1e-5: the map floor's band has a hard edge, and a map point within rounding of it (the
+    # motion moves the points 50 units away) may fall on either side (measured: up to 2.6e-6)
+    np.testing.assert_allclose(moved, base, rtol=1e-5)
 
 
 def test_realistic_scene_is_close_to_the_truth_in_every_mode():
