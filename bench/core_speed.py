@@ -9,7 +9,7 @@ to one core:
   parameters, after a 60-frame warm-up (the estimator converged);
 - the literal method of the authors' code (:func:`literal_frame`) on the same frames and map.
 The two are interleaved in blocks (one literal frame, then a block of ours), so both see the same
-machine speed. Ratio = the literal method's median ms per frame / ours. Target (issue 18):
+machine speed. Ratio = the literal method's median ms per frame / ours. Guard:
 >= 100x at 1M points. Prints, writes bench/results/core_speed.json and its section of
 docs/benchmarks.md.
 """

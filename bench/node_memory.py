@@ -10,7 +10,7 @@ stamp second (serialized once, its stamp patched). The node's resident set size 
 /proc/<pid>/status) is sampled every wall second. The first ``--warmup`` fraction of the run is
 not measured (the rolling window, the camera-path marker and the contact buffer fill up). Growth =
 median RSS of the last 5 % of the samples / median of the first 5 % after the warm-up, minus 1.
-Target (issue 18): < 5 %.
+Guard: < 5 %.
 
 Sets the DDS environment through bench/node_latency.py (imported first). Prints, writes
 bench/results/node_memory.json and its section of docs/benchmarks.md.
