@@ -42,9 +42,10 @@ CONTACT_LINE_RATIO = 0.15  # second/first singular value below this: the contact
 # the map's floor (hmr): the lowest dense surface across the body normal, its plane fitted
 FLOOR_BAND_EXTENT_REL = 0.01  # half width of the floor's band, fraction of the map's extent
 FLOOR_MIN_POINTS = 30  # map points the floor's band needs
-FLOOR_ITERATIONS = 2  # band, plane fit, band again about the fitted normal
+FLOOR_FIT_POINTS = 4000  # map points (an evenly strided subset) the floor is looked for in
+FLOOR_ITERATIONS = 3  # band, plane fit, band again about the fitted plane, ...
 FLOOR_LINE_RATIO = 0.05  # the band's second/first spread below this: a line (a wall's foot)
-FLOOR_MAX_TILT_DEG = 10.0  # a map floor tilted further than this from the body normal is refused
+FLOOR_MAX_TILT_DEG = 30.0  # a map floor tilted further than this from the body normal is refused
 FLOOR_MAX_BELOW = 0.10  # share of the map below the band: more, and it is not the lowest surface
 LARGEST_PLANE_INLIER_REL = 0.005  # largest_plane: inlier distance as a fraction of the map extent
 LARGEST_PLANE_SAMPLE = 5000  # map points used by the largest_plane RANSAC
@@ -57,30 +58,32 @@ def map_floor(map_index: MapIndex, body_normal: np.ndarray) -> Plane | None:
     The map points within FLOOR_BAND_EXTENT_REL of the map's extent of the lowest dense segment
     along the normal (:meth:`MapIndex.floor_offset`) are fitted by :func:`robust_plane`, starting
     from that segment (the floor's many points win over the feet of walls and furniture that share
-    the band); the band is taken again about the fitted normal (FLOOR_ITERATIONS times). A floor of
-    many points gives its normal to about a tenth of a degree, where the bodies' axis is a degree
-    off (HMR's lean). Refused: too few points, points along a line, a plane tilted more than
-    FLOOR_MAX_TILT_DEG from the bodies, or a surface with more than FLOOR_MAX_BELOW of the map
-    below it (not the lowest: table tops over a floor the map missed).
+    the band); the band is taken again about the fitted plane and refitted (FLOOR_ITERATIONS in
+    all: the bodies' axis can be 15 degrees off, as walkers lean). A floor of many points gives its
+    normal to about a tenth of a degree, where the bodies' axis is a degree or more off. Refused:
+    too few points, points along a line, a plane tilted more than FLOOR_MAX_TILT_DEG from the
+    bodies, or a surface with more than FLOOR_MAX_BELOW of the map below it (not the lowest: table
+    tops over a floor the map missed). The floor is looked for in FLOOR_FIT_POINTS of the map's
+    points, evenly strided whatever the band: the cost is bounded (a few ms), and a rigid motion
+    of the map keeps the same points.
     """
-    points = map_index.sample
+    points = map_index.sample[::max(1, len(map_index.sample) // FLOOR_FIT_POINTS)]
     half = FLOOR_BAND_EXTENT_REL * map_index.extent
     body = np.asarray(body_normal, dtype=np.float64)
-    normal, plane = body, None
+    normal, offset, plane = body, map_index.floor_offset(body), None
     for _ in range(FLOOR_ITERATIONS):
-        offset = map_index.floor_offset(normal)
         band = points[np.abs(points @ normal - offset) <= half]
         if len(band) < FLOOR_MIN_POINTS:
             return None
         fit = robust_plane(band, normal, offset)
         if fit is None:
             return None
-        fitted, offset, spread = fit
+        normal, offset, spread = fit
         if spread[1] < FLOOR_LINE_RATIO * spread[0]:
             return None  # a line of points (a wall's foot, a row of table edges)
-        if np.degrees(np.arccos(min(float(fitted @ body), 1.0))) > FLOOR_MAX_TILT_DEG:
+        if np.degrees(np.arccos(min(float(normal @ body), 1.0))) > FLOOR_MAX_TILT_DEG:
             return None
-        normal, plane = fitted, Plane(fitted, offset)
+        plane = Plane(normal, offset)
     assert plane is not None
     if np.mean(points @ plane.normal > plane.offset + half) > FLOOR_MAX_BELOW:
         return None
