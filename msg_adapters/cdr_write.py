@@ -28,7 +28,6 @@ _I32_U32 = struct.Struct('<iI')
 _U32 = struct.Struct('<I')
 _I32X3 = struct.Struct('<iii')
 _F64 = struct.Struct('<d')
-_F32X4 = struct.Struct('<4f')
 _ZEROS = bytes(8)
 IDENTITY_POSE = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0])  # position, quaternion (x, y, z, w)
 
@@ -56,14 +55,6 @@ class CdrWriter:
     def i32x3(self, a: int, b: int, c: int) -> None:
         self.align(4)
         self.buf += _I32X3.pack(a, b, c)
-
-    def f64(self, value: float) -> None:
-        self.align(8)
-        self.buf += _F64.pack(value)
-
-    def f32x4(self, values: Sequence[float]) -> None:
-        self.align(4)
-        self.buf += _F32X4.pack(*values)
 
     def octet(self, value: int) -> None:
         self.buf.append(value)

@@ -18,6 +18,7 @@ from typing import Any
 from hac_ros import __version__
 from hac_ros.core.errors import HacError
 from hac_ros.core.params import HacParams
+from hac_ros.recording.atomic import PARTIAL_SUFFIX, staged_output
 from hac_ros.recording.reader import GT_CAMERA, GT_JOINTS, GT_SCALE, Recording
 from hac_ros.replay.replayer import MODES
 
@@ -132,7 +133,7 @@ def run_job(job: Job) -> Row:
             key = _marker_key(job)  # the input as it is before it is read
             row = _calibrate(job, log)
             row.wall_s = time.perf_counter() - start
-            _write_json(job.marker_path, {**key, 'row': asdict(row)})
+            write_text(job.marker_path, json.dumps({**key, 'row': asdict(row)}, indent=1) + '\n')
         except Exception as exc:
             reason = one_line(exc)
             if not isinstance(exc, HacError):
@@ -159,7 +160,7 @@ def _calibrate(job: Job, log: io.TextIOBase) -> Row:
     output = Path(job.output_path)
     job.marker_path.unlink(missing_ok=True)
     _remove(output)  # written by an attempt that died before its marker
-    for staging in output.parent.glob(f'.{output.name}.*.partial'):  # a killed attempt's
+    for staging in output.parent.glob(f'.{output.name}.*{PARTIAL_SUFFIX}'):  # a killed attempt's
         shutil.rmtree(staging, ignore_errors=True)
     params = HacParams.from_dict(job.params)
     summary = replay(job.input_path, output, params, mode=job.mode, progress=False, notices=log)
@@ -216,11 +217,10 @@ def completed_row(job: Job) -> Row | None:
     return row
 
 
-def _write_json(path: Path, data: dict[str, Any]) -> None:
-    """Write atomically (a temporary file renamed over ``path``)."""
-    tmp = path.with_name(f'.{path.name}.{os.getpid()}.tmp')
-    tmp.write_text(json.dumps(data, indent=1) + '\n', encoding='utf-8')
-    os.replace(tmp, path)
+def write_text(path: Path, text: str) -> None:
+    """``text`` (UTF-8) into ``path``, atomically (an existing file is replaced whole)."""
+    with staged_output(path, replace=True) as staged:
+        staged.write_text(text, encoding='utf-8')
 
 
 def _remove(path: Path) -> None:

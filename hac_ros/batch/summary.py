@@ -3,12 +3,11 @@ from __future__ import annotations
 
 import csv
 import io
-import os
 import statistics
 from collections.abc import Iterable
 from pathlib import Path
 
-from hac_ros.batch.jobs import COLUMNS, LOGS, SUMMARY_CSV, SUMMARY_MD, Row, _finite
+from hac_ros.batch.jobs import COLUMNS, LOGS, SUMMARY_CSV, SUMMARY_MD, Row, _finite, write_text
 
 
 # ============================================================================ the summary
@@ -18,7 +17,7 @@ def write_summary(out_dir: Path, rows: list[Row], mode: str) -> None:
     writer = csv.DictWriter(text, fieldnames=list(COLUMNS), lineterminator='\n')
     writer.writeheader()
     writer.writerows(row.cells() for row in rows)
-    _write_text(out_dir / SUMMARY_CSV, text.getvalue())
+    write_text(out_dir / SUMMARY_CSV, text.getvalue())
     ok = sum(row.ok for row in rows)
     lines = [f'# hac batch: {out_dir}', '',
              f'{len(rows)} recordings ({mode} mode): {ok} ok, {len(rows) - ok} failed. Logs in '
@@ -34,7 +33,7 @@ def write_summary(out_dir: Path, rows: list[Row], mode: str) -> None:
     medians = medians_line(rows)
     if medians:
         lines += ['', medians]
-    _write_text(out_dir / SUMMARY_MD, '\n'.join(lines) + '\n')
+    write_text(out_dir / SUMMARY_MD, '\n'.join(lines) + '\n')
 
 
 def medians_line(rows: Iterable[Row]) -> str:
@@ -49,12 +48,6 @@ def medians_line(rows: Iterable[Row]) -> str:
     return (f'Medians over {len(with_truth)} recordings with ground truth: scale error '
             f'{median("scale_err_pct", ".2f", " %")}, ATE-S {median("ate_s_m", ".4f", " m")}, '
             f'W-MPJPE {median("w_mpjpe_mm", ".1f", " mm")}.')
-
-
-def _write_text(path: Path, text: str) -> None:
-    tmp = path.with_name(f'.{path.name}.{os.getpid()}.tmp')
-    tmp.write_text(text, encoding='utf-8')
-    os.replace(tmp, path)
 
 
 def _md_escape(text: str) -> str:

@@ -48,7 +48,6 @@ ROOT_JOINT = 0  # pelvis (SMPL-24)
 # Outputs carry the input stamps exactly and the ground truth is at the same stamps; 1 ms absorbs
 # a recording whose ground truth was stamped by another clock rounding.
 MATCH_TOLERANCE_NS = 1_000_000
-ROWS = ('hac', 'no calibration', 'true scale')
 COLUMNS = (  # key, header, format
     ('ate_m', 'ATE (m)', '.3f'),
     ('ate_s_m', 'ATE-S (m)', '.3f'),

@@ -21,8 +21,6 @@ The file appears whole or not at all, and an existing FILE is never overwritten.
 """
 from __future__ import annotations
 
-import os
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -31,6 +29,7 @@ import numpy as np
 from hac_ros.core.errors import HacError
 from hac_ros.core.layouts import joints_per_person
 from hac_ros.files.tum import rotations_to_quats
+from hac_ros.recording.atomic import staged_output
 from hac_ros.recording.reader import Recording
 from hac_ros.recording.tracks import read_camera, read_scale
 from msg_adapters import MessageError, pose_array_to_joints, stamp_to_ns
@@ -130,17 +129,8 @@ def export(output: str | Path, npz_path: str | Path, joint_layout: str | None = 
     if not Path(output).exists():
         raise HacError(f'replay output {output} does not exist')
     arrays, dropped = export_arrays(output, joint_layout)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f'.{target.name}.', suffix='.partial', dir=target.parent)
-    try:
-        with os.fdopen(fd, 'wb') as handle:
-            np.savez(handle, **arrays)  # type: ignore[arg-type]  # numpy's stub: allow_pickle
-        if target.exists():
-            raise HacError(f'{target} appeared while writing it: not overwritten')
-        os.replace(tmp, target)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+    with staged_output(target) as staged, open(staged, 'wb') as handle:
+        np.savez(handle, **arrays)  # type: ignore[arg-type]  # numpy's stub: allow_pickle
     joints = arrays['joints_world']
     return ExportResult(target, len(arrays['stamps_ns']), joints.shape[1], joints.shape[2],
                         int((~np.isnan(joints).all(axis=(2, 3))).any(axis=1).sum()), dropped)

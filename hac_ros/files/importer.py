@@ -52,6 +52,7 @@ from hac_ros.files.readers import (
     unpaired_joint_stamps,
 )
 from hac_ros.files.tum import quats_to_rotations
+from hac_ros.recording.atomic import staged_output
 from hac_ros.recording.reader import (
     GT_CAMERA,
     GT_JOINTS,
@@ -60,7 +61,7 @@ from hac_ros.recording.reader import (
     LAYOUT_KEY,
     layout_data,
 )
-from hac_ros.recording.writer import OutputWriter, staged_output
+from hac_ros.recording.writer import OutputWriter
 from msg_adapters import (
     intrinsics_to_camera_info,
     joints_to_pose_array,

@@ -1,9 +1,7 @@
-"""Writing recordings: a new rosbag2 recording, staged so that it appears atomically."""
+"""Writing recordings: a new rosbag2 recording (staged by :mod:`hac_ros.recording.atomic`, so that
+it appears whole or not at all)."""
 from __future__ import annotations
 
-import os
-import shutil
-import tempfile
 from collections import Counter
 from pathlib import Path
 from typing import Any
@@ -80,46 +78,3 @@ def check_output_path(input_path: Path, output_path: Path) -> None:
     out, src = output_path.resolve(), input_path.resolve()
     if out == src or src in out.parents:
         raise HacError(f'output {output_path} is inside the input {input_path}')
-
-
-class staged_output:
-    """A temporary directory beside OUT; the recording is written in it, renamed to OUT at the end.
-
-    ``with staged_output(out) as path:`` gives the path to write. Missing parent directories of OUT
-    are created. On an error or KeyboardInterrupt the temporary directory (and the parents it
-    created) is removed and OUT never appears; OUT appears whole or not at all.
-    """
-
-    def __init__(self, output_path: Path) -> None:
-        self.output_path = Path(output_path)
-        self.tmp: Path | None = None
-        self.created: list[Path] = []
-
-    def __enter__(self) -> Path:
-        parent = self.output_path.parent
-        while not parent.exists():
-            self.created.append(parent)
-            parent = parent.parent
-        self.output_path.parent.mkdir(parents=True, exist_ok=True)
-        self.tmp = Path(tempfile.mkdtemp(prefix=f'.{self.output_path.name}.', suffix='.partial',
-                                         dir=self.output_path.parent))
-        return self.tmp / self.output_path.name
-
-    def __exit__(self, exc_type: Any, exc: Any, tb: Any) -> None:
-        assert self.tmp is not None
-        done = False
-        try:
-            if exc_type is None:
-                if self.output_path.exists():
-                    raise HacError(f'output {self.output_path} appeared while writing it: not '
-                                   'overwritten')
-                os.rename(self.tmp / self.output_path.name, self.output_path)
-                done = True
-        finally:
-            shutil.rmtree(self.tmp, ignore_errors=True)
-            if not done:
-                for directory in self.created:  # innermost first
-                    try:
-                        directory.rmdir()
-                    except OSError:
-                        break

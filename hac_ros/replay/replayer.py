@@ -15,7 +15,7 @@ Modes (docs/replay.md):
   that schedule and written (what a second run with that schedule would publish, without reading
   the recording or indexing its maps again).
 
-OUT appears atomically (:class:`~hac_ros.recording.writer.staged_output`) and IN is only ever read.
+OUT appears atomically (:class:`~hac_ros.recording.atomic.staged_output`) and IN is only ever read.
 Besides SPEC's output topics the replay writes ``/hac/samples`` (per-frame scale samples, for
 ``hac plot``; see :data:`~hac_ros.bridge.messages.SAMPLES`).
 """
@@ -51,8 +51,9 @@ from hac_ros.core.offline import OfflineScale, resolve_offline
 from hac_ros.core.outputs import NoticeOut, Output, PoseOut, ResetOut, SampleOut, Status
 from hac_ros.core.params import HacParams
 from hac_ros.files.tum import write_tum_exports
+from hac_ros.recording.atomic import staged_output
 from hac_ros.recording.reader import STORAGES, Recording, layout_data
-from hac_ros.recording.writer import OutputWriter, check_output_path, staged_output
+from hac_ros.recording.writer import OutputWriter, check_output_path
 from hac_ros.replay.feeder import CoreFeeder, InputTopics
 
 MODES = ('offline', 'online')

@@ -125,7 +125,6 @@ class HacShell(_NodeMixinBase):
         self.outputs = OutputMessages(self.params)
         self.notices: Counter[str] = Counter()  # causes of the NoticeOut logged (once each)
         self.qos_incompatible: Counter[str] = Counter()  # topics with an incompatible publisher
-        self.clouds_received = 0
         self.maps_indexed = 0  # map indexes handed to the calibrator
         self.maps_superseded = 0  # clouds dropped unbuilt: a newer one arrived first
         self._clouds_rejected = 0  # undecodable clouds
@@ -285,7 +284,6 @@ class HacShell(_NodeMixinBase):
 
     def _on_cloud(self, data: bytes) -> None:
         """Raw CDR bytes: read the header here, decode and index on the builder thread."""
-        self.clouds_received += 1
         try:
             cloud = parse_cloud_cdr(data)
         except MessageError:

@@ -237,5 +237,3 @@ def make_scenario(name: str, seed: int = 0, duration: float | None = None, rate:
         hmr_bias_frames=depth_bias.values, contact_heights=heights,
         outlier_frames=np.array(sorted(set(outliers)), dtype=int), segment_starts=segments,
         world=world, joint_layout=joint_layout)
-
-

@@ -13,8 +13,9 @@ from typing import Any
 from hac_ros.core.errors import HacError
 from hac_ros.core.layouts import BUILT_IN
 from hac_ros.core.params import POSE_MSGTYPES
+from hac_ros.recording.atomic import staged_output
 from hac_ros.recording.reader import layout_data
-from hac_ros.recording.writer import OutputWriter, staged_output
+from hac_ros.recording.writer import OutputWriter
 from msg_adapters import (
     intrinsics_to_camera_info,
     joints_to_pose_array,

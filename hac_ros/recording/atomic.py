@@ -1,0 +1,69 @@
+"""Outputs that appear whole or not at all: the one way hac_ros writes a result.
+
+``with staged_output(target) as path:`` gives a path inside a temporary directory beside
+``target`` (``.<name>.<random>.partial``); the caller writes a file or a directory (a rosbag2
+recording) there, and at the end it is renamed to ``target``, on the same file system, in one
+step. Missing parent directories of ``target`` are created. On an error or KeyboardInterrupt the
+temporary directory (and the parents it created) is removed and ``target`` is left as it was.
+
+Recordings (replay, import, simulate), exported arrays, ``hac batch``'s summary and its completion
+markers are all written this way.
+"""
+from __future__ import annotations
+
+import os
+import shutil
+import tempfile
+from pathlib import Path
+from types import TracebackType
+
+from hac_ros.core.errors import HacError
+
+PARTIAL_SUFFIX = '.partial'  # of the temporary directory; `hac batch` removes a killed attempt's
+
+
+class staged_output:
+    """The context manager of the module docstring.
+
+    replace: an existing ``target`` file is replaced (atomically, ``os.replace``); otherwise
+    ``target`` must not exist when the output is complete (HacError, and nothing is written).
+    """
+
+    def __init__(self, target: str | Path, replace: bool = False) -> None:
+        self.target = Path(target)
+        self.replace = replace
+        self.tmp: Path | None = None
+        self.created: list[Path] = []  # parent directories made here, innermost first
+
+    def __enter__(self) -> Path:
+        parent = self.target.parent
+        while not parent.exists():
+            self.created.append(parent)
+            parent = parent.parent
+        self.target.parent.mkdir(parents=True, exist_ok=True)
+        self.tmp = Path(tempfile.mkdtemp(prefix=f'.{self.target.name}.', suffix=PARTIAL_SUFFIX,
+                                         dir=self.target.parent))
+        return self.tmp / self.target.name
+
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
+        assert self.tmp is not None
+        done = False
+        try:
+            if exc_type is None:
+                if self.replace:
+                    os.replace(self.tmp / self.target.name, self.target)
+                else:
+                    if self.target.exists() or self.target.is_symlink():
+                        raise HacError(f'output {self.target} appeared while writing it: not '
+                                       'overwritten')
+                    os.rename(self.tmp / self.target.name, self.target)
+                done = True
+        finally:
+            shutil.rmtree(self.tmp, ignore_errors=True)
+            if not done:
+                for directory in self.created:  # innermost first
+                    try:
+                        directory.rmdir()
+                    except OSError:
+                        break
