@@ -228,7 +228,7 @@ def test_resume_redoes_only_what_an_interrupted_run_left_unfinished(pool_run, si
     assert result.exit_code == 1  # the corrupt input is tried again, and fails again
     for name, mtime_ns in kept.items():
         assert (out / f'{name}.done.json').stat().st_mtime_ns == mtime_ns
-        assert 'skipped (--resume)' in (out / 'logs' / f'{name}.log').read_text()
+        assert 'skipped (resumed)' in (out / 'logs' / f'{name}.log').read_text()
     for name in ('walk', 'ego', 'stairs'):
         assert 'skipped' not in (out / 'logs' / f'{name}.log').read_text()
         assert (out / f'{name}.done.json').exists()

@@ -1,6 +1,8 @@
 """The ``hac`` command line: every sub-command's ``--help`` works (the first thing a user types)."""
 from __future__ import annotations
 
+import ast
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -28,3 +30,61 @@ def test_help_of_the_installed_entry_point():
                             capture_output=True, timeout=60)
     assert result.returncode == 0, result.stderr
     assert all(command in result.stdout for command in COMMANDS)
+
+
+# ============================================================================ flags live in cli/
+# Another program's own flags that a library message may quote
+OTHER_PROGRAMS_FLAGS = {'--head',  # "ray start --head"
+                        '--ros-args', '--params-file'}  # hac_node's own ROS arguments
+FLAG = re.compile(r'(?<![\w-])--[a-z][a-z0-9-]*')
+
+
+# Command lines besides cli/: hac_node's own (--help, and the ROS arguments it reads)
+COMMAND_LINES = {Path('hac_ros/ros/arguments.py')}
+
+
+def _library_strings() -> list[tuple[str, int, str]]:
+    """(file, line, text) of every string literal of hac_ros and msg_adapters outside the command
+    lines that is not a docstring: what the library can say to a user."""
+    found = []
+    for package in ('hac_ros', 'msg_adapters'):
+        for path in sorted((REPO / package).rglob('*.py')):
+            relative = path.relative_to(REPO)
+            if 'cli' in relative.parts or relative in COMMAND_LINES:
+                continue
+            tree = ast.parse(path.read_text(encoding='utf-8'))
+            docstrings = {id(node.body[0].value) for node in ast.walk(tree)
+                          if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef,
+                                               ast.AsyncFunctionDef))
+                          and node.body and isinstance(node.body[0], ast.Expr)}
+            found += [(str(path.relative_to(REPO)), node.lineno, node.value)
+                      for node in ast.walk(tree) if isinstance(node, ast.Constant)
+                      and isinstance(node.value, str) and id(node) not in docstrings]
+    return found
+
+
+def test_the_library_names_no_command_line_flag():
+    """Library errors and messages name arguments and parameters; only cli/ says them as flags."""
+    flags = [(path, line, flag) for path, line, text in _library_strings()
+             for flag in FLAG.findall(text) if flag not in OTHER_PROGRAMS_FLAGS]
+    assert flags == []
+
+
+def test_argument_errors_are_said_with_the_commands_own_options(tmp_path):
+    """One error, two audiences: the library names ``workers``, ``hac batch`` says ``--workers``;
+    an argument the command has no option for keeps its name."""
+    from hac_ros.batch.runner import batch
+    from hac_ros.core.errors import ArgumentError, ArgumentText
+
+    with pytest.raises(ArgumentError, match=r'^workers must be at least 1, not 0$'):
+        batch([str(tmp_path)], tmp_path / 'out', workers=0)
+    result = subprocess.run([sys.executable, '-m', 'hac_ros.cli', 'batch', str(tmp_path), '-o',
+                             str(tmp_path / 'out'), '--workers', '0'], cwd=REPO, text=True,
+                            capture_output=True, timeout=60)
+    assert result.returncode == 2
+    assert result.stderr == 'hac batch: error: --workers must be at least 1, not 0\n'
+    text = ArgumentText('use {pose_type} or {joints_topic}; {other} stays', 'pose_type',
+                        'joints_topic')
+    assert text == 'use pose_type or joints_topic; {other} stays'
+    assert text.naming({'pose_type': '--pose-type'}) == \
+        'use --pose-type or joints_topic; {other} stays'

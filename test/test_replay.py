@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 from scenes import NS, Scene, walking_scene
 
-from hac_ros.core.errors import HacError
+from hac_ros.core.errors import ArgumentError, HacError
 from hac_ros.core.offline import DRIFT_MIN_REL, offline_scale
 from hac_ros.core.params import HacParams
 from hac_ros.replay.replayer import replay
@@ -334,10 +334,14 @@ def test_pose_type_read_from_the_recording_and_a_wrong_override_is_an_error(tmp_
             summary = replay(source, tmp_path / f'{source.name}_{node_type}',
                              HacParams(pose_type=node_type), progress=False)
             assert summary.status.frames == 40
-    with pytest.raises(HacError, match=r'nav_msgs/msg/Odometry.*--pose-type Odometry'):
+    with pytest.raises(ArgumentError, match=r'nav_msgs/msg/Odometry.* \(use pose_type Odometry'):
         replay(odometry, tmp_path / 'wrong', pose_type='PoseStamped', progress=False)
-    with pytest.raises(HacError, match='--pose-type PoseStamped'):
+    with pytest.raises(ArgumentError, match=r' \(use pose_type PoseStamped, or no pose_type'):
         replay(pose, tmp_path / 'wrong', pose_type='Odometry', progress=False)
+    _assert_clean_error(hac('replay', str(pose), '-o', str(tmp_path / 'wrong'), '--pose-type',
+                            'Odometry'),
+                        '(use --pose-type PoseStamped, or no --pose-type: it is read from the '
+                        'recording)')
     assert not (tmp_path / 'wrong').exists()
 
 
@@ -384,8 +388,8 @@ def test_existing_output_is_an_error_and_is_left_alone(walk_bag, tmp_path):
 def test_missing_input_topic_names_what_the_recording_contains(tmp_path):
     source = write_recording(tmp_path / 'nocloud', walking_scene(frames=20), skip=('cloud',))
     _assert_clean_error(hac('replay', str(source), '-o', str(tmp_path / 'out')),
-                        '/slam/cloud', 'is not in', '/slam/pose (geometry_msgs/msg/PoseStamped, 20)',
-                        '/hmr/joints')
+                        '/slam/cloud', 'is not in', '(use --cloud-topic)',
+                        '/slam/pose (geometry_msgs/msg/PoseStamped, 20)', '/hmr/joints')
     assert not (tmp_path / 'out').exists()
 
 
@@ -393,9 +397,20 @@ def test_renamed_topics_are_found_with_flags(tmp_path):
     source = write_recording(tmp_path / 'renamed', walking_scene(frames=30),
                              topics={'joints': '/vimo/joints'})
     _assert_clean_error(hac('replay', str(source), '-o', str(tmp_path / 'a')), '/hmr/joints',
-                        '/vimo/joints')
+                        '/vimo/joints', '(use --joints-topic)')
+    with pytest.raises(ArgumentError, match=r'/hmr/joints is not in .* \(use joints_topic\)'):
+        replay(source, tmp_path / 'a', progress=False)
     result = hac('replay', str(source), '-o', str(tmp_path / 'b'), '--joints-topic', '/vimo/joints')
     assert result.returncode == 0, result.stderr
+
+
+def test_every_missing_input_topic_names_its_flag(tmp_path):
+    scene = walking_scene(frames=20)
+    for kind, flag in (('pose', '--pose-topic'), ('joints', '--joints-topic'),
+                       ('cloud', '--cloud-topic')):
+        source = write_recording(tmp_path / kind, scene, topics={kind: f'/elsewhere/{kind}'})
+        _assert_clean_error(hac('replay', str(source), '-o', str(tmp_path / f'{kind}_out')),
+                            'is not in', f'(use {flag})', f'/elsewhere/{kind}')
 
 
 def test_wrong_message_type_is_an_error(walk_bag, tmp_path):

@@ -6,19 +6,20 @@ name without a ``.mcap``/``.db3``/``.bag`` suffix (:func:`recording_name`), and 
 ``DIR/summary.csv`` and ``DIR/summary.md`` (SPEC, "Command line"; docs/batch.md).
 
 One recording is one call of :func:`run_job`, in a worker of a process pool (``spawn``: the caller
-may have imported rclpy, whose threads a fork would copy half-way) or as a Ray task (``--ray``);
+may have imported rclpy, whose threads a fork would copy half-way) or as a Ray task (``ray``);
 both call the same function with the same arguments, so their outputs are identical. Per recording:
 
 - the output appears atomically (the replay stages it), then a completion marker
   ``DIR/<name>.done.json`` is written: the input's fingerprint (path, and each file's size and
-  modification time), the parameters and the mode, and the summary row. ``--resume`` skips an
+  modification time), the parameters and the mode, and the summary row. ``resume`` skips an
   input whose marker matches and whose output exists, and redoes any other (its output and marker
   removed first). A Ray task that is retried after its worker died finds the same state;
 - everything the replay prints (notices, its summary) and the evaluation go to
   ``DIR/logs/<name>.log``;
 - any error is that row's one-line reason (status ``failed``), and leaves no output behind.
 
-Usage errors (:class:`~hac_ros.core.errors.HacError`, raised before any recording is started): no
-or missing inputs, two inputs with the same name, an existing output without ``--resume``,
-``--ray`` without Ray or with an address where no Ray cluster answers.
+Usage errors (:class:`~hac_ros.core.errors.HacError`, raised before any recording is started;
+:class:`~hac_ros.core.errors.ArgumentError` where an argument is to blame): no or missing inputs,
+two inputs with the same name, an existing output without ``resume``, ``ray`` without Ray or with
+an address where no Ray cluster answers.
 """

@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from hac_ros import __version__
-from hac_ros.core.errors import HacError
+from hac_ros.core.errors import ArgumentError, HacError
 from hac_ros.core.params import HacParams
 from hac_ros.recording.atomic import PARTIAL_SUFFIX, staged_output
 from hac_ros.recording.reader import GT_CAMERA, GT_JOINTS, GT_SCALE, Recording
@@ -100,7 +100,7 @@ class Row:
     ate_s_m: float | None = None
     w_mpjpe_mm: float | None = None
     scale_err_pct: float | None = None
-    skipped: bool = False  # complete from an earlier run (--resume); not a column
+    skipped: bool = False  # complete from an earlier run (resume); not a column
 
     @property
     def ok(self) -> bool:
@@ -187,8 +187,8 @@ def has_ground_truth(path: str | Path) -> bool:
 
 # ============================================================================ completion markers
 def input_fingerprint(path: str | Path) -> dict[str, Any]:
-    """The input as --resume compares it: its absolute path and each file's relative name, size
-    (bytes) and modification time (ns)."""
+    """The input as a resumed batch compares it: its absolute path and each file's relative name,
+    size (bytes) and modification time (ns)."""
     path = Path(path).resolve()
     files = [path] if path.is_file() else sorted(p for p in path.rglob('*') if p.is_file())
     return {'path': str(path),
@@ -242,11 +242,11 @@ def recording_name(path: str | Path) -> str:
 
 def plan(inputs: Sequence[str | Path], out_dir: Path, params: HacParams, mode: str,
          resume: bool) -> tuple[list[Job], dict[str, Row]]:
-    """The jobs to run and the rows already complete (--resume), by output name. Writes
+    """The jobs to run and the rows already complete (``resume``), by output name. Writes
     nothing; raises HacError on a usage error. (An output that is not complete for its job is
     removed by :func:`run_job`, before it replays.)"""
     if mode not in MODES:
-        raise HacError(f'--mode must be offline or online, not {mode!r}')
+        raise ArgumentError(f'{{mode}} must be offline or online, not {mode!r}', 'mode')
     if not inputs:
         raise HacError('no input recordings')
     missing = [str(p) for p in inputs if not Path(p).exists()]
@@ -270,8 +270,9 @@ def plan(inputs: Sequence[str | Path], out_dir: Path, params: HacParams, mode: s
     done: dict[str, Row] = {}
     existing = [job for job in jobs.values() if Path(job.output_path).exists()]
     if existing and not resume:
-        raise HacError(f'output(s) already exist: {", ".join(j.output_path for j in existing)} '
-                       '(--resume skips complete ones and redoes the others)')
+        raise ArgumentError(f'output(s) already exist: '
+                            f'{", ".join(j.output_path for j in existing)} ({{resume}} skips '
+                            'complete ones and redoes the others)', 'resume')
     for job in existing:
         row = completed_row(job)
         if row is not None:

@@ -35,7 +35,7 @@ def run_pool(jobs: list[Job], workers: int, on_row: OnRow) -> None:
                 row = future.result()
             except BrokenProcessPool:
                 row = Row(job.input, 'failed', 'a worker process died (killed, or out of memory?) '
-                          'before this recording finished: run again with --resume')
+                          'before this recording finished: resuming the batch redoes it')
             except Exception as exc:
                 row = Row(job.input, 'failed', one_line(exc))
             on_row(job, row)

@@ -1,4 +1,4 @@
-"""``hac batch --ray``: each recording a Ray task, on a local Ray or a cluster (docs/batch.md).
+"""``hac batch`` on Ray: each recording a Ray task, on a local Ray or a cluster (docs/batch.md).
 
 The task is :func:`hac_ros.batch.jobs.run_job`, the function the process pool runs, with the same
 :class:`~hac_ros.batch.jobs.Job`: the outputs are the pool's. Joining a cluster is bounded in time
@@ -16,7 +16,7 @@ from typing import Any
 
 from hac_ros.batch.jobs import Job, Row, one_line, run_job
 from hac_ros.batch.pool import OnRow
-from hac_ros.core.errors import HacError
+from hac_ros.core.errors import ArgumentError, HacError
 
 # Ray: a task whose worker process (or node) dies is run again this many times; staging and the
 # marker make a rerun start clean (docs/batch.md, "When a worker dies")
@@ -70,7 +70,7 @@ def import_ray() -> Any:
     try:
         import ray
     except ImportError as exc:
-        raise HacError('--ray needs Ray: pip install "hac_ros[cluster]" (or pip install '
+        raise HacError('Ray is not installed: pip install "hac_ros[cluster]" (or pip install '
                        '"ray[default]")') from exc
     return ray
 
@@ -88,7 +88,7 @@ def connect_ray(ray: Any, address: str, workers: int) -> bool:
     try:
         ray.init(**options)
     except Exception as exc:
-        raise HacError(f'--ray {address}: {one_line(exc)}') from exc
+        raise HacError(f'Ray at {address}: {one_line(exc)}') from exc
     return True
 
 
@@ -101,7 +101,8 @@ def probe_ray_address(address: str, timeout_s: float = RAY_CONNECT_TIMEOUT_S) ->
     host, sep, port = address.split('://', 1)[-1].rpartition(':')
     host = host.strip('[]')
     if not sep or not host or not port.isdigit():
-        raise HacError(f'--ray {address}: expected local, auto, HOST:PORT or ray://HOST:PORT')
+        raise ArgumentError(f'{{ray}} {address!r}: expected local, auto, HOST:PORT or '
+                            'ray://HOST:PORT', 'ray')
     try:
         with socket.create_connection((host, int(port)), timeout=timeout_s) as conn:
             if os.environ.get('RAY_USE_TLS', '0') not in ('1', 'true', 'True'):
@@ -109,9 +110,9 @@ def probe_ray_address(address: str, timeout_s: float = RAY_CONNECT_TIMEOUT_S) ->
                 conn.sendall(HTTP2_PREFACE)
                 frame = conn.recv(9)
                 if len(frame) < 9 or frame[3] != HTTP2_SETTINGS:
-                    raise HacError(f'--ray {address}: what answers there is not a Ray cluster '
+                    raise HacError(f'Ray at {address}: what answers there is not a Ray cluster '
                                    '(no gRPC greeting)')
     except OSError as exc:
-        raise HacError(f'--ray {address}: no Ray cluster reachable there within {timeout_s:g} s '
-                       f'({exc.strerror or type(exc).__name__}); start one with "ray start '
-                       '--head", or use --ray local') from exc
+        raise ArgumentError(f'Ray at {address}: no Ray cluster reachable there within '
+                            f'{timeout_s:g} s ({exc.strerror or type(exc).__name__}); start one '
+                            'with "ray start --head", or use {ray} local', 'ray') from exc

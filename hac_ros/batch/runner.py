@@ -12,7 +12,7 @@ from typing import Any
 from hac_ros.batch.jobs import LOGS, SUMMARY_CSV, SUMMARY_MD, Job, Row, plan, recording_name
 from hac_ros.batch.pool import default_workers, run_pool
 from hac_ros.batch.summary import medians_line, write_summary
-from hac_ros.core.errors import HacError
+from hac_ros.core.errors import ArgumentError
 from hac_ros.core.params import HacParams
 
 
@@ -57,7 +57,7 @@ def batch(inputs: Sequence[str | Path], out_dir: str | Path, params: HacParams |
     params = params or HacParams()
     workers = default_workers() if workers is None else workers
     if workers < 1:
-        raise HacError(f'--workers must be at least 1, not {workers}')
+        raise ArgumentError(f'{{workers}} must be at least 1, not {workers}', 'workers')
     out_dir = Path(out_dir)
     jobs, done = plan(inputs, out_dir, params, mode, resume)
     rows: dict[str, Row] = dict(done)
@@ -71,7 +71,7 @@ def batch(inputs: Sequence[str | Path], out_dir: str | Path, params: HacParams |
         (out_dir / LOGS).mkdir(parents=True, exist_ok=True)
         for name in done:
             with open(out_dir / LOGS / f'{name}.log', 'a', encoding='utf-8') as log:
-                print(f'hac batch: {time.strftime("%Y-%m-%d %H:%M:%S")}: skipped (--resume): '
+                print(f'hac batch: {time.strftime("%Y-%m-%d %H:%M:%S")}: skipped (resumed): '
                       f'{out_dir / name} is complete for the same input, parameters and mode',
                       file=log)
         bar = stack.enter_context(_bar(progress, len(jobs) + len(done), len(done)))

@@ -5,6 +5,10 @@ Thin: each sub-command is a module of this package with ``add_arguments(parser)`
 (:mod:`hac_ros.replay.replayer`, :mod:`hac_ros.evaluation.evaluate`, ...). Errors the user can fix
 (:class:`~hac_ros.core.errors.HacError`, :class:`~msg_adapters.MessageError`) print one line and
 exit 2; Ctrl-C exits 130.
+
+The library knows nothing of flags: its errors name function arguments and parameters
+(:class:`~hac_ros.core.errors.ArgumentError`), and this package says them as the sub-command's
+options (``pose_type`` -> ``--pose-type``, :func:`option_names`) where the command has one.
 """
 from __future__ import annotations
 
@@ -14,7 +18,7 @@ import sys
 from collections.abc import Sequence
 
 from hac_ros import __version__
-from hac_ros.core.errors import HacError
+from hac_ros.core.errors import ArgumentError, ArgumentText, HacError
 from msg_adapters import MessageError
 
 # sub-command -> (module in this package, one-line help)
@@ -41,8 +45,20 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
         if only is None or name == only:
             module = importlib.import_module(f'{__name__}.{module_name}')
             module.add_arguments(sub_parser)
-            sub_parser.set_defaults(_run=module.run)
+            sub_parser.set_defaults(_run=module.run, _options=option_names(sub_parser))
     return parser
+
+
+def option_names(parser: argparse.ArgumentParser) -> dict[str, str]:
+    """Argument or parameter name -> the option that sets it (``pose_type`` -> ``--pose-type``):
+    each optional argument's destination and its longest option string."""
+    return {action.dest: max(action.option_strings, key=len)
+            for action in parser._actions if action.option_strings and action.dest != 'help'}
+
+
+def say(text: str, args: argparse.Namespace) -> str:
+    """A library message for this command's user: arguments named as its options."""
+    return text.naming(args._options) if isinstance(text, ArgumentText) else text
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -55,7 +71,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         print('hac: interrupted', file=sys.stderr)
         return 130
     except (HacError, MessageError) as exc:
-        print(f'hac {args.command}: error: {exc}', file=sys.stderr)
+        text = say(exc.text, args) if isinstance(exc, ArgumentError) else str(exc)
+        print(f'hac {args.command}: error: {text}', file=sys.stderr)
         return 2
 
 

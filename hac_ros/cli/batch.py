@@ -35,4 +35,6 @@ def run(args: argparse.Namespace) -> int:
     result = batch(args.inputs, args.output, HacParams.load(args.params), mode=args.mode,
                    workers=args.workers, ray=args.ray, resume=args.resume)
     print(result.text())
+    if any(row.error for row in result.rows):
+        print('  (--resume redoes what failed and keeps what is complete)')
     return result.exit_code

@@ -7,7 +7,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from hac_ros.cli import add_output_recording
+from hac_ros.cli import add_output_recording, say
 from hac_ros.core.layouts import LAYOUTS
 
 
@@ -60,6 +60,8 @@ def run(args: argparse.Namespace) -> int:
                           map_frame=args.map_frame, camera_frame=args.camera_frame,
                           world_frame=args.world_frame)
     print(result.text())
+    if result.params_file is not None:
+        print(f'  parameters: {result.params_file} (for hac replay --params)')
     for warning in result.warnings:
-        print(f'hac import: warning: {warning}', file=sys.stderr)
+        print(f'hac import: warning: {say(warning, args)}', file=sys.stderr)
     return 0

@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hac_ros.core.errors import HacError
+from hac_ros.core.errors import ArgumentError, HacError
 from hac_ros.core.layouts import joints_per_person
 from hac_ros.files.tum import rotations_to_quats
 from hac_ros.recording.atomic import staged_output
@@ -64,12 +64,13 @@ def _joints_per_person(rec: Recording, joint_layout: str | None) -> int:
     k = joints_per_person(joint_layout)
     if k is None:
         if k_rec is None:
-            raise HacError(f'{rec.path} does not say its joints per person: --joint-layout custom '
-                           'cannot tell K (give the built-in layout, or replay again)')
+            raise ArgumentError(f'{rec.path} does not say its joints per person: {{joint_layout}} '
+                                'custom cannot tell K (give the built-in layout, or replay again)',
+                                'joint_layout')
         return k_rec
     if k_rec is not None and k_rec != k:
-        raise HacError(f'--joint-layout {joint_layout} has {k} joints per person but {rec.path} '
-                       f'was replayed with {k_rec}')
+        raise ArgumentError(f'{{joint_layout}} {joint_layout} has {k} joints per person but '
+                            f'{rec.path} was replayed with {k_rec}', 'joint_layout')
     return k
 
 
@@ -82,8 +83,8 @@ def _read_joints(rec: Recording, k: int) -> dict[int, np.ndarray]:
         try:
             out[stamp_to_ns(msg.header.stamp)] = pose_array_to_joints(msg, k)
         except MessageError as exc:
-            raise HacError(f'{rec.path}: the {JOINTS_TOPIC} message logged at {log_ns} ns: {exc} '
-                           '(--joint-layout?)') from exc
+            raise ArgumentError(f'{rec.path}: the {JOINTS_TOPIC} message logged at {log_ns} ns: '
+                                f'{exc} ({{joint_layout}}?)', 'joint_layout') from exc
     return out
 
 

@@ -13,7 +13,7 @@ Inputs (checked by :mod:`hac_ros.files.readers` and :mod:`hac_ros.files.map_file
   left out (so block order is the order of the people present); a frame with nobody in it is not
   written (as the simulator writes joints only when someone is in view); partly-NaN people are
   written as they are (the core counts and drops them);
-- ``--camera fx,fy,cx,cy,width,height`` → ``/camera/camera_info`` at every pose stamp (as the
+- ``camera`` (``fx,fy,cx,cy,width,height``) → ``/camera/camera_info`` at every pose stamp (as the
   simulator does), ``camera_frame``;
 - ground truth G (TUM, metres, any fixed world frame): ``/gt/camera_pose`` (``world_frame``,
   default ``world``) at every stamp of T where G has a pose within 1 ms or between two poses at most
@@ -25,7 +25,7 @@ Every message is logged at its header stamp (``/gt/scale`` at the first pose sta
 the map comes first, then the pose, the camera info, the joints, the ground truth (the simulator's
 order). The recording's rosbag2 ``custom_data`` says its joint layout and K; ``joint_layout``
 checks K against the layout (not for ``custom``) and writes ``params.yaml``
-(``hac_node: {ros__parameters: {joint_layout: ...}}``) into OUT for ``hac replay --params``.
+(``hac_node: {ros__parameters: {joint_layout: ...}}``) into OUT, the replay's parameters file.
 Nothing is written unless every file is good: OUT appears whole or not at all.
 """
 from __future__ import annotations
@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from hac_ros.core.errors import HacError, InputError
+from hac_ros.core.errors import ArgumentText, HacError, InputError
 from hac_ros.core.layouts import BUILT_IN, joints_per_person
 from hac_ros.core.numeric import NS
 from hac_ros.core.params import NODE_NAME, HacParams
@@ -113,8 +113,6 @@ class ImportResult:
                          f'{self.gt_residual_m:.4f} m (mean)')
         if self.gt_joints_frames:
             lines.append(f'  ground-truth joints: {self.gt_joints_frames} frames')
-        if self.params_file is not None:
-            lines.append(f'  parameters: {self.params_file} (for hac replay --params)')
         return '\n'.join(lines)
 
 
@@ -137,7 +135,8 @@ def _fit_scale(traj: Trajectory, gt: Trajectory, max_gap_ns: int
 
 
 def write_params(path: Path, layout: str, k: int) -> None:
-    """``params.yaml`` for ``hac replay --params``: the joint layout (and K for ``custom``)."""
+    """``params.yaml``, a parameters file for the replay: the joint layout (and K for
+    ``custom``)."""
     lines = [f'{NODE_NAME}:', '  ros__parameters:', f'    joint_layout: {layout}']
     if layout == 'custom':
         lines += [f'    joints_per_person: {k}',
@@ -179,9 +178,10 @@ def import_files(output: str | Path, trajectory: str | Path, map_file: str | Pat
                         f'before on {len(repeated)} line(s) (first: line {repeated[0]}): the first '
                         'pose of each stamp is used')
     if joint_layout is None and k != 24:
-        warnings.append(f'{hmr.path} has {k} joints per person, not SMPL-24\'s 24: give '
-                        '--joint-layout (coco17, h36m17 or custom) so that OUT gets a params.yaml '
-                        'for hac replay --params')
+        warnings.append(ArgumentText(
+            f'{hmr.path} has {k} joints per person, not SMPL-24\'s 24: give {{joint_layout}} '
+            '(coco17, h36m17 or custom) so that OUT gets a params.yaml saying it for the replay',
+            'joint_layout'))
     bad, gap = unpaired_joint_stamps(traj.stamps_ns, hmr.stamps_ns,
                                      int(round(params.sync_slop_s * NS)), max_gap_ns)
     if bad:

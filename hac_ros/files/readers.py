@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from hac_ros.core.errors import InputError
+from hac_ros.core.errors import ArgumentError, InputError
 from hac_ros.core.numeric import NS
 from hac_ros.files.tum import tum_rows
 from msg_adapters.stamps import INT32_MAX
@@ -187,11 +187,11 @@ def parse_camera(text: str) -> tuple[np.ndarray, int, int]:
         fx, fy, cx, cy = (float(p) for p in parts[:4])
         width, height = (int(p) for p in parts[4:])
     except ValueError as exc:
-        raise InputError(f'--camera {text!r}: expected fx,fy,cx,cy,width,height (pixels; width '
-                         f'and height integers) ({exc})') from exc
+        raise ArgumentError(f'{{camera}} {text!r}: expected fx,fy,cx,cy,width,height (pixels; '
+                            f'width and height integers) ({exc})', 'camera') from exc
     if not (np.isfinite([fx, fy, cx, cy]).all() and fx > 0 and fy > 0 and width > 0 and height > 0):
-        raise InputError(f'--camera {text!r}: fx, fy, width and height must be positive, all '
-                         'finite')
+        raise ArgumentError(f'{{camera}} {text!r}: fx, fy, width and height must be positive, '
+                            'all finite', 'camera')
     return np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]]), width, height
 
 

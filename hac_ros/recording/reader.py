@@ -11,7 +11,7 @@ import yaml
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
 
-from hac_ros.core.errors import HacError
+from hac_ros.core.errors import ArgumentError, HacError
 from hac_ros.core.layouts import BUILT_IN, SMPL24, JointLayout
 
 GT_CAMERA = ('/gt/camera_pose', 'geometry_msgs/msg/PoseStamped')
@@ -136,15 +136,18 @@ class Recording:
         return topic in self.topics and self.counts.get(topic, 0) > 0 and (
             msgtype is None or self.topics[topic] == msgtype)
 
-    def check_topic(self, topic: str, msgtypes: Iterable[str], what: str, hint: str = '') -> None:
-        """Raise a clear error if ``topic`` is missing, empty or of another type."""
+    def check_topic(self, topic: str, msgtypes: Iterable[str], what: str, hint: str = '',
+                    arguments: tuple[str, ...] = ()) -> None:
+        """Raise a clear error if ``topic`` is missing, empty or of another type. ``hint`` is
+        added to a missing or mistyped topic's error: an :class:`ArgumentError` template naming
+        ``arguments`` (``' (use {joints_topic})'``)."""
         msgtypes = list(msgtypes)
         if topic not in self.topics:
-            raise HacError(f'{what} topic {topic} is not in {self.path}{hint}; the recording '
-                           f'contains: {self.describe()}')
+            raise ArgumentError(f'{what} topic {topic} is not in {self.path}{hint}; the '
+                                f'recording contains: {self.describe()}', *arguments)
         if self.topics[topic] not in msgtypes:
-            raise HacError(f'{what} topic {topic} has type {self.topics[topic]}, expected '
-                           f'{" or ".join(msgtypes)}{hint}')
+            raise ArgumentError(f'{what} topic {topic} has type {self.topics[topic]}, expected '
+                                f'{" or ".join(msgtypes)}{hint}', *arguments)
         if self.counts.get(topic, 0) == 0:
             raise HacError(f'{what} topic {topic} in {self.path} has no messages (empty '
                            'recording?)')

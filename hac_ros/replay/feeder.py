@@ -24,7 +24,7 @@ from hac_ros.bridge.inputs import (
 )
 from hac_ros.bridge.messages import INPUT_MSGTYPES, in_root
 from hac_ros.core.calibrator import Calibrator
-from hac_ros.core.errors import HacError
+from hac_ros.core.errors import ArgumentError
 from hac_ros.core.outputs import Output
 from hac_ros.core.params import POSE_MSGTYPES, HacParams
 from hac_ros.recording.reader import Recording
@@ -54,10 +54,10 @@ class InputTopics:
               pose_type: str | None = None) -> InputTopics:
         """The parameters' topics, checked against what the recording holds.
 
-        The SLAM pose type is the recording's own (SPEC: PoseStamped or Odometry, so recordings of
-        both kinds replay without flags) unless ``pose_type`` (``--pose-type``) overrides it; the
-        parameters' ``pose_type`` (the node's subscription type) only names the type expected of a
-        pose topic that is neither.
+        The SLAM pose type is the recording's own (PoseStamped or Odometry, so recordings of both
+        kinds replay as they are) unless ``pose_type`` overrides it; the parameters' ``pose_type``
+        (the node's subscription type) only names the type expected of a pose topic that is
+        neither. Raises :class:`ArgumentError` naming the argument or parameter to set.
         """
         pose_topic, joints_topic = in_root(params.pose_topic), in_root(params.joints_topic)
         cloud_topic = in_root(params.cloud_topic)
@@ -66,20 +66,25 @@ class InputTopics:
             pose_type = next((k for k, v in POSE_MSGTYPES.items() if v == recorded),
                              params.pose_type)
         elif pose_type not in POSE_MSGTYPES:
-            raise HacError(f'--pose-type must be one of {", ".join(POSE_MSGTYPES)}, '
-                           f'not {pose_type!r}')
+            raise ArgumentError(f'{{pose_type}} must be one of {", ".join(POSE_MSGTYPES)}, '
+                                f'not {pose_type!r}', 'pose_type')
         other = next(k for k in POSE_MSGTYPES if k != pose_type)
-        hint = ''
         if recorded == POSE_MSGTYPES[other]:
-            hint = f' (use --pose-type {other}, or no --pose-type: it is read from the recording)'
-        recording.check_topic(pose_topic, [POSE_MSGTYPES[pose_type]], 'SLAM pose', hint)
+            hint = (f' (use {{pose_type}} {other}, or no {{pose_type}}: it is read from the '
+                    'recording)')
+            recording.check_topic(pose_topic, [POSE_MSGTYPES[pose_type]], 'SLAM pose', hint,
+                                  ('pose_type',))
+        recording.check_topic(pose_topic, [POSE_MSGTYPES[pose_type]], 'SLAM pose',
+                              ' (use {pose_topic})', ('pose_topic',))
         recording.check_topic(joints_topic, [INPUT_MSGTYPES['joints']], 'HMR joints',
-                              ' (use --joints-topic)')
+                              ' (use {joints_topic})', ('joints_topic',))
         recording.check_topic(cloud_topic, [INPUT_MSGTYPES['cloud']], 'map cloud',
-                              ' (use --cloud-topic)')
+                              ' (use {cloud_topic})', ('cloud_topic',))
         camera_info = in_root(params.camera_info_topic) if params.camera_info_topic else ''
         if camera_info and camera_info in recording.topics:
-            recording.check_topic(camera_info, [INPUT_MSGTYPES['camera_info']], 'CameraInfo')
+            recording.check_topic(camera_info, [INPUT_MSGTYPES['camera_info']], 'CameraInfo',
+                                  ' (use {camera_info_topic}, or "" to turn it off)',
+                                  ('camera_info_topic',))
         elif camera_info:
             camera_info = ''
         return cls(pose_topic, POSE_MSGTYPES[pose_type], joints_topic, cloud_topic, camera_info)

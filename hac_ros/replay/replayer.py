@@ -45,7 +45,7 @@ from hac_ros.bridge.messages import (
     samples_message,
 )
 from hac_ros.core.calibrator import Calibrator
-from hac_ros.core.errors import HacError
+from hac_ros.core.errors import ArgumentError
 from hac_ros.core.numeric import NS
 from hac_ros.core.offline import OfflineScale, resolve_offline
 from hac_ros.core.outputs import NoticeOut, Output, PoseOut, ResetOut, SampleOut, Status
@@ -194,15 +194,17 @@ def replay(input_path: str | Path, output_path: str | Path, params: HacParams | 
     copy_inputs: every topic of IN is copied into OUT too; export_tum: a directory for TUM files
     (:func:`hac_ros.files.tum.write_tum_exports`); progress: a bar on stderr (default: when it is a
     terminal); notices: the stream notices are printed on (default stderr); pose_type:
-    ``PoseStamped`` or ``Odometry`` overrides the SLAM pose type read from IN (``--pose-type``).
-    Raises :class:`HacError` (OUT exists, IN missing or unreadable, missing topics, ...). On any
-    error or KeyboardInterrupt nothing is left at ``output_path``.
+    ``PoseStamped`` or ``Odometry`` overrides the SLAM pose type read from IN.
+    Raises :class:`HacError` (OUT exists, IN missing or unreadable, ...; :class:`ArgumentError`
+    naming the argument or parameter: an invalid mode, missing topics, ...). On any error or
+    KeyboardInterrupt nothing is left at ``output_path``.
     """
     params = params or HacParams()
     if mode not in MODES:
-        raise HacError(f'--mode must be offline or online, not {mode!r}')
+        raise ArgumentError(f'{{mode}} must be offline or online, not {mode!r}', 'mode')
     if storage not in STORAGES:
-        raise HacError(f'--storage must be one of {", ".join(STORAGES)}, not {storage!r}')
+        raise ArgumentError(f'{{storage}} must be one of {", ".join(STORAGES)}, not {storage!r}',
+                            'storage')
     input_path, output_path = Path(input_path), Path(output_path)
     check_output_path(input_path, output_path)
     if progress is None:
@@ -270,7 +272,7 @@ def _offline(feeder: CoreFeeder, handler: OutputHandler,
 
 
 def _input_copier(recording: Recording, writer: OutputWriter) -> Callable[[str, int, Any], None]:
-    """--copy-inputs: every input topic passes into OUT unchanged, at its log time.
+    """copy_inputs: every input topic passes into OUT unchanged, at its log time.
 
     A topic of IN with an output topic's name (IN is itself a replay) is not copied, nor a ROS 1
     topic whose type ROS 2 Jazzy does not have.

@@ -71,7 +71,7 @@ class LiveSummary:
         rejected = ', '.join(f'{k} {v}' for k, v in sorted(s.rejected.items())) or 'none'
         received = ', '.join(f'{t} {n}' for t, n in sorted(self.received.items())) or 'nothing'
         return '\n'.join([
-            f'hac demo --live: {self.input_path} -> hac_node over DDS (ROS_DOMAIN_ID '
+            f'hac demo (live): {self.input_path} -> hac_node over DDS (ROS_DOMAIN_ID '
             f'{self.domain_id}, localhost)',
             f'  frames {s.frames}, people {s.people}, input messages {self.played}{behind}',
             f'  final scale {s.scale:.6g} m/SLAM unit, spread {s.spread:.3g} ({s.samples} samples '
