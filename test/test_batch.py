@@ -8,7 +8,6 @@ single replay of its input (same topics, types, log times and bytes per message)
 from __future__ import annotations
 
 import csv
-import io
 import json
 import logging
 import os
@@ -26,10 +25,11 @@ from pathlib import Path
 
 import pytest
 
-from hac_ros.batch.jobs import COLUMNS, recording_name
+from hac_ros.batch.jobs import COLUMNS, Job, recording_name, run_job
 from hac_ros.batch.ray_tasks import RAY_MAX_RETRIES, probe_ray_address
 from hac_ros.batch.runner import batch
 from hac_ros.core.errors import HacError
+from hac_ros.core.params import HacParams
 from hac_ros.recording.diff import recording_differences
 from hac_ros.recording.reader import Recording
 from hac_ros.recording.writer import OutputWriter
@@ -91,8 +91,7 @@ def inputs(tmp_path_factory) -> list[Path]:
 def singles(inputs, tmp_path_factory) -> dict[str, Path]:
     """Each good input replayed alone (what ``hac replay IN -o OUT`` writes), by output name."""
     root = tmp_path_factory.mktemp('singles')
-    return {recording_name(p): replay(p, root / recording_name(p), progress=False,
-                                      notices=io.StringIO()).output_path
+    return {recording_name(p): replay(p, root / recording_name(p), progress=False).output_path
             for p in inputs if recording_name(p) in OK}
 
 
@@ -155,6 +154,35 @@ def test_each_recording_has_its_own_log_with_the_replay_summary(pool_run):
     for name in OK:
         log = (pool_run.out_dir / 'logs' / f'{name}.log').read_text()
         assert 'hac replay (offline)' in log and f'/{name}' in log and 'ok in' in log, name
+
+
+def test_a_job_logs_to_its_file_and_leaves_the_process_streams_alone(inputs, tmp_path, capfd):
+    """run_job gives its log file a logging handler: a thread printing meanwhile stays on stdout
+    (a redirected sys.stdout would have sent it into the job's log)."""
+    out = tmp_path / 'out'
+    job = Job('walk', str(inputs[0]), str(out / 'walk'), HacParams().as_dict(), 'online')
+    running = threading.Event()
+
+    def bystander() -> None:
+        while not running.is_set():
+            time.sleep(0.001)
+        while running.is_set():
+            print('bystander', flush=True)
+            time.sleep(0.01)
+    thread = threading.Thread(target=bystander)
+    thread.start()
+    try:
+        running.set()
+        row = run_job(job)
+    finally:
+        running.clear()
+        thread.join()
+    assert row.ok, row.error
+    log = job.log_path.read_text()
+    assert 'bystander' not in log
+    assert 'hac replay (online)' in log and 'ok in' in log
+    assert 'bystander' in capfd.readouterr().out
+    assert logging.getLogger('hac_ros').handlers == []  # the job's handler is gone
 
 
 def test_summary_csv_has_specs_columns_and_metrics_where_there_is_ground_truth(pool_run, inputs):
@@ -279,8 +307,7 @@ def test_resume_redoes_an_output_of_another_mode(pool_run, inputs, tmp_path):
     online = batch([walk], out, mode='online', resume=True, progress=False)
     assert online.rows[0].ok and not online.rows[0].skipped
     assert json.loads((out / 'walk.done.json').read_text())['mode'] == 'online'
-    single = replay(walk, tmp_path / 'single', mode='online', progress=False,
-                    notices=io.StringIO())
+    single = replay(walk, tmp_path / 'single', mode='online', progress=False)
     assert recording_differences(out / 'walk', single.output_path) == []
 
 

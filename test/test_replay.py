@@ -6,6 +6,7 @@ tests need neither the simulator nor ROS.
 from __future__ import annotations
 
 import hashlib
+import logging
 import signal
 import subprocess
 import sys
@@ -363,6 +364,22 @@ def test_notices_are_printed_once_on_stderr(tmp_path):
     assert result.returncode == 0, result.stderr
     assert result.stderr.count('nonfinite_joints') == 1
     assert 'nonfinite_joints 10' in result.stdout
+    line, = [line for line in result.stderr.splitlines() if 'nonfinite_joints' in line]
+    assert line.startswith('hac replay: warning: t+')
+
+
+def test_the_library_logs_its_notices_and_prints_nothing(tmp_path, caplog, capfd):
+    scene = walking_scene(frames=60)
+    scene.joints_world[10:20] = np.nan
+    source = write_recording(tmp_path / 'nan', scene, camera_info=False)
+    with caplog.at_level(logging.INFO, logger='hac_ros'):
+        replay(source, tmp_path / 'out', progress=False)
+    notices = [(r.name, r.levelname, r.getMessage()) for r in caplog.records]
+    assert ('hac_ros.replay.replayer', 'INFO', 'no camera/camera_info in the recording: joints are '
+            'judged in view by the map cone alone') in notices
+    broken = [n for n in notices if 'nonfinite_joints' in n[2]]
+    assert len(broken) == 1 and broken[0][:2] == ('hac_ros.replay.replayer', 'WARNING')
+    assert capfd.readouterr() == ('', '')
 
 
 # ============================================================================ errors

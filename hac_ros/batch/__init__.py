@@ -14,8 +14,9 @@ both call the same function with the same arguments, so their outputs are identi
   modification time), the parameters and the mode, and the summary row. ``resume`` skips an
   input whose marker matches and whose output exists, and redoes any other (its output and marker
   removed first). A Ray task that is retried after its worker died finds the same state;
-- everything the replay prints (notices, its summary) and the evaluation go to
-  ``DIR/logs/<name>.log``;
+- what hac_ros logs meanwhile (the replay's notices, its summary, the evaluation) goes to
+  ``DIR/logs/<name>.log``, through a logging handler (:func:`~hac_ros.batch.jobs.job_log`; the
+  worker's stdout and stderr are left alone);
 - any error is that row's one-line reason (status ``failed``), and leaves no output behind.
 
 Usage errors (:class:`~hac_ros.core.errors.HacError`, raised before any recording is started;

@@ -2,15 +2,14 @@
 from __future__ import annotations
 
 import contextlib
-import io
 import json
+import logging
 import math
 import os
 import shutil
 import socket
 import time
-import traceback
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -23,6 +22,10 @@ from hac_ros.recording.reader import GT_CAMERA, GT_JOINTS, GT_SCALE, Recording
 from hac_ros.replay.replayer import MODES
 
 RECORDING_SUFFIXES = ('.mcap', '.db3', '.bag')  # left out of an output's name
+PACKAGE_LOGGER = 'hac_ros'  # a job's log file gets what this logger and its children log
+JOB_LOG_FORMAT = '%(asctime)s %(levelname)s %(name)s: %(message)s'
+
+log = logging.getLogger(__name__)
 
 
 LOGS, SUMMARY_CSV, SUMMARY_MD = 'logs', 'summary.csv', 'summary.md'
@@ -123,33 +126,48 @@ def run_job(job: Job) -> Row:
     done = completed_row(job)
     if done is not None:  # an earlier attempt finished it (a retried Ray task)
         return done
-    log_path = job.log_path
-    log_path.parent.mkdir(parents=True, exist_ok=True)
-    with open(log_path, 'w', encoding='utf-8') as log, contextlib.redirect_stdout(log), \
-            contextlib.redirect_stderr(log):
-        print(f'hac batch: {job.input_path} -> {job.output_path} ({job.mode}, hac_ros '
-              f'{__version__}, pid {os.getpid()} on {socket.gethostname()})', flush=True)
+    with job_log(job.log_path):
+        log.info('%s -> %s (%s, hac_ros %s, pid %d on %s)', job.input_path, job.output_path,
+                 job.mode, __version__, os.getpid(), socket.gethostname())
         try:
             key = _marker_key(job)  # the input as it is before it is read
-            row = _calibrate(job, log)
+            row = _calibrate(job)
             row.wall_s = time.perf_counter() - start
             write_text(job.marker_path, json.dumps({**key, 'row': asdict(row)}, indent=1) + '\n')
         except Exception as exc:
             reason = one_line(exc)
-            if not isinstance(exc, HacError):
-                traceback.print_exc(file=log)
-            print(f'hac batch: failed: {reason}', file=log)
+            log.error('failed: %s', reason, exc_info=not isinstance(exc, HacError))
             _remove(Path(job.output_path))
             return Row(job.input, 'failed', reason, wall_s=time.perf_counter() - start)
         except BaseException:  # interrupted (Ctrl-C, a cancelled Ray task): nothing half-done
-            print('hac batch: interrupted', file=log)
+            log.warning('interrupted')
             _remove(Path(job.output_path))
             raise
-        print(f'hac batch: ok in {row.wall_s:.2f} s', file=log)
+        log.info('ok in %.2f s', row.wall_s)
     return row
 
 
-def _calibrate(job: Job, log: io.TextIOBase) -> Row:
+@contextlib.contextmanager
+def job_log(path: Path) -> Iterator[None]:
+    """Everything hac_ros logs meanwhile (the replay's notices, the summaries) goes to ``path``
+    (replaced), through a handler on the package's logger, at level INFO; the process's streams
+    are left alone. Used in a pool worker or a Ray task, one job at a time."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    handler = logging.FileHandler(path, mode='w', encoding='utf-8')
+    handler.setFormatter(logging.Formatter(JOB_LOG_FORMAT))
+    package = logging.getLogger(PACKAGE_LOGGER)
+    level = package.level
+    package.addHandler(handler)
+    package.setLevel(logging.INFO)
+    try:
+        yield
+    finally:
+        package.removeHandler(handler)
+        package.setLevel(level)
+        handler.close()
+
+
+def _calibrate(job: Job) -> Row:
     """The replay and, where IN has ground truth, the metrics of its output against it."""
     from hac_ros.evaluation.evaluate import evaluate
     from hac_ros.replay.replayer import replay
@@ -163,19 +181,19 @@ def _calibrate(job: Job, log: io.TextIOBase) -> Row:
     for staging in output.parent.glob(f'.{output.name}.*{PARTIAL_SUFFIX}'):  # a killed attempt's
         shutil.rmtree(staging, ignore_errors=True)
     params = HacParams.from_dict(job.params)
-    summary = replay(job.input_path, output, params, mode=job.mode, progress=False, notices=log)
-    print(summary.text(), file=log, flush=True)
+    summary = replay(job.input_path, output, params, mode=job.mode, progress=False)
+    log.info('%s', summary.text())
     status = summary.status
     row = Row(job.input, 'ok', frames=status.frames, final_scale=status.scale,
               spread=status.spread, fallback_pct=100.0 * status.fallback_rate,
               resets=status.resets)
     if has_ground_truth(job.input_path):
         evaluation = evaluate(output, job.input_path, params, references=False)
-        print(evaluation.text(), file=log, flush=True)
+        log.info('%s', evaluation.text())
         for key, attr in METRICS.items():
             setattr(row, attr, evaluation.rows['hac'].get(key))
     else:
-        print('hac batch: no ground truth in the input: no metrics', file=log)
+        log.info('no ground truth in the input: no metrics')
     return row
 
 

@@ -4,7 +4,7 @@ Thin: each sub-command is a module of this package with ``add_arguments(parser)`
 ``run(args) -> int``, and only argument parsing in it; the work is done by the library modules
 (:mod:`hac_ros.replay.replayer`, :mod:`hac_ros.evaluation.evaluate`, ...). Errors the user can fix
 (:class:`~hac_ros.core.errors.HacError`, :class:`~msg_adapters.MessageError`) print one line and
-exit 2; Ctrl-C exits 130.
+exit 2; Ctrl-C exits 130. What the library logs is shown on stderr (:mod:`hac_ros.cli.terminal`).
 
 The library knows nothing of flags: its errors name function arguments and parameters
 (:class:`~hac_ros.core.errors.ArgumentError`), and this package says them as the sub-command's
@@ -18,6 +18,7 @@ import sys
 from collections.abc import Sequence
 
 from hac_ros import __version__
+from hac_ros.cli.terminal import terminal_logging
 from hac_ros.core.errors import ArgumentError, ArgumentText, HacError
 from msg_adapters import MessageError
 
@@ -66,7 +67,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     only = argv[0] if argv and argv[0] in COMMANDS else None
     args = build_parser(only).parse_args(argv)
     try:
-        return int(args._run(args) or 0)
+        with terminal_logging(args.command):
+            return int(args._run(args) or 0)
     except KeyboardInterrupt:
         print('hac: interrupted', file=sys.stderr)
         return 130

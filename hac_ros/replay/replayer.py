@@ -21,6 +21,7 @@ Besides SPEC's output topics the replay writes ``/hac/samples`` (per-frame scale
 """
 from __future__ import annotations
 
+import logging
 import math
 import sys
 import time
@@ -57,6 +58,9 @@ from hac_ros.recording.writer import OutputWriter, check_output_path
 from hac_ros.replay.feeder import CoreFeeder, InputTopics
 
 MODES = ('offline', 'online')
+NOTICE_LEVELS = {'info': logging.INFO, 'warn': logging.WARNING, 'error': logging.ERROR}
+
+log = logging.getLogger(__name__)
 PROGRESS_EVERY = 4096  # outputs written between two updates of the offline mode's 'write' bar
 
 
@@ -64,11 +68,11 @@ PROGRESS_EVERY = 4096  # outputs written between two updates of the offline mode
 class OutputHandler:
     """Writes the messages of the calibrator's outputs and keeps what the summary needs."""
 
-    def __init__(self, params: HacParams, writer: OutputWriter | None, printer: NoticePrinter,
+    def __init__(self, params: HacParams, writer: OutputWriter | None, notices: NoticeLog,
                  keep_poses: bool = False) -> None:
         self.messages = OutputMessages(params)
         self.writer = writer
-        self.printer = printer
+        self.notices = notices
         self.resets: list[ResetOut] = []
         self.poses: list[PoseOut] | None = [] if keep_poses else None  # /hac/pose, for TUM
 
@@ -79,7 +83,7 @@ class OutputHandler:
             if progress is not None and count % PROGRESS_EVERY == 0:
                 progress.update(PROGRESS_EVERY)
             if isinstance(output, NoticeOut):
-                self.printer(output)
+                self.notices(output)
                 continue
             if isinstance(output, SampleOut):
                 if frame_samples and frame_samples[-1].stamp_ns != output.stamp_ns:
@@ -108,13 +112,12 @@ class OutputHandler:
         self._write(Message(*SAMPLES, samples_message(samples), samples[0].stamp_ns))
 
 
-class NoticePrinter:
-    """Prints each NoticeOut once to stderr (a notice repeated with the same stamp and text is
-    not)."""
+class NoticeLog:
+    """Logs each NoticeOut once, at its level (a notice repeated with the same stamp and text, as
+    the offline mode's second pass repeats them, is not)."""
 
-    def __init__(self, stream: Any = None, start_ns: int = 0) -> None:
-        self.stream = stream
-        self.start_ns = start_ns  # stamps are printed relative to the recording's start
+    def __init__(self, start_ns: int = 0) -> None:
+        self.start_ns = start_ns  # stamps are logged relative to the recording's start
         self.seen: set[tuple[int, str, str]] = set()
         self.counts: Counter[str] = Counter()
 
@@ -125,11 +128,7 @@ class NoticePrinter:
         self.seen.add(key)
         self.counts[notice.cause] += 1
         when = f'{_seconds(notice.stamp_ns, self.start_ns)} ' if notice.stamp_ns >= 0 else ''
-        self.line(f'hac replay: {notice.level}: {when}{notice.text}')
-
-    def line(self, text: str) -> None:
-        """A line on the stream that does not break an active progress bar."""
-        tqdm.write(text, file=self.stream or sys.stderr)
+        log.log(NOTICE_LEVELS.get(notice.level, logging.WARNING), '%s%s', when, notice.text)
 
 
 def _seconds(stamp_ns: int, start_ns: int) -> str:
@@ -187,14 +186,14 @@ class ReplaySummary:
 def replay(input_path: str | Path, output_path: str | Path, params: HacParams | None = None,
            mode: str = 'offline', storage: str = 'mcap', copy_inputs: bool = False,
            export_tum: str | Path | None = None, progress: bool | None = None,
-           notices: Any = None, pose_type: str | None = None) -> ReplaySummary:
+           pose_type: str | None = None) -> ReplaySummary:
     """Calibrate the recording at ``input_path`` into a new recording at ``output_path``.
 
     mode: ``offline`` or ``online`` (module docstring); storage: of OUT, ``mcap`` or ``sqlite3``;
     copy_inputs: every topic of IN is copied into OUT too; export_tum: a directory for TUM files
     (:func:`hac_ros.files.tum.write_tum_exports`); progress: a bar on stderr (default: when it is a
-    terminal); notices: the stream notices are printed on (default stderr); pose_type:
-    ``PoseStamped`` or ``Odometry`` overrides the SLAM pose type read from IN.
+    terminal); pose_type: ``PoseStamped`` or ``Odometry`` overrides the SLAM pose type read from
+    IN. The calibrator's notices are logged (this module's logger), each once.
     Raises :class:`HacError` (OUT exists, IN missing or unreadable, ...; :class:`ArgumentError`
     naming the argument or parameter: an invalid mode, missing topics, ...). On any error or
     KeyboardInterrupt nothing is left at ``output_path``.
@@ -213,10 +212,10 @@ def replay(input_path: str | Path, output_path: str | Path, params: HacParams | 
     with Recording(input_path) as recording:
         topics = InputTopics.check(recording, params, pose_type)
         start_ns = recording.start_ns
-        printer = NoticePrinter(notices, start_ns)
+        notices = NoticeLog(start_ns)
         if params.camera_info_topic and not topics.camera_info:
-            printer.line(f'hac replay: note: no {params.camera_info_topic} in the recording: '
-                         'joints are judged in view by the map cone alone')
+            log.info('no %s in the recording: joints are judged in view by the map cone alone',
+                     params.camera_info_topic)
         n_inputs = sum(recording.counts.get(t, 0) for t in topics.kinds())
         n_pass = sum(recording.counts.values()) if copy_inputs else n_inputs
         schedule = None
@@ -224,7 +223,7 @@ def replay(input_path: str | Path, output_path: str | Path, params: HacParams | 
         with staged_output(output_path) as staged:
             writer = OutputWriter(staged, storage, layout_data(calibrator.layout))
             try:
-                handler = OutputHandler(params, writer, printer, keep_poses=export_tum is not None)
+                handler = OutputHandler(params, writer, notices, keep_poses=export_tum is not None)
                 off = {MARKERS[0]: not params.publish_markers, CLOUD[0]: not params.publish_cloud,
                        OBSTACLES[0]: not (params.publish_cloud and params.publish_obstacles)}
                 for topic, msgtype in (*OUTPUT_TOPICS, SAMPLES):

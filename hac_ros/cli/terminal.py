@@ -1,0 +1,60 @@
+"""What the ``hac`` command shows on the terminal of what the library logs.
+
+The library logs (module loggers under ``hac_ros``); a command shows those records at INFO and
+above on stderr, one line each, ``hac COMMAND: LEVEL: message`` (``hac replay: warning: t+3.200 s
+...``), written between the lines of a progress bar rather than through it. Nothing else of the
+process is changed: other libraries' loggers and the streams are left as they are.
+"""
+from __future__ import annotations
+
+import contextlib
+import logging
+import sys
+from collections.abc import Iterator
+
+PACKAGE_LOGGER = 'hac_ros'
+LEVEL = logging.INFO
+
+
+class TerminalHandler(logging.Handler):
+    """A record as one line on stderr, written so that an active tqdm bar stays whole."""
+
+    def emit(self, record: logging.LogRecord) -> None:
+        from tqdm import tqdm
+
+        try:
+            tqdm.write(self.format(record), file=sys.stderr)
+        except Exception:
+            self.handleError(record)
+
+
+class CommandFormatter(logging.Formatter):
+    """``hac COMMAND: level: message`` (and the traceback, when a record carries one)."""
+
+    def __init__(self, command: str) -> None:
+        super().__init__()
+        self.command = command
+
+    def format(self, record: logging.LogRecord) -> str:
+        return f'hac {self.command}: {record.levelname.lower()}: {super().format(record)}'
+
+
+@contextlib.contextmanager
+def terminal_logging(command: str) -> Iterator[None]:
+    """While the command runs, hac_ros' records at INFO and above on stderr; the package logger's
+    handlers and level are restored afterwards (a command may run another: the demo simulates)."""
+    package = logging.getLogger(PACKAGE_LOGGER)
+    handlers, level = list(package.handlers), package.level
+    handler = TerminalHandler()
+    handler.setFormatter(CommandFormatter(command))
+    for old in handlers:
+        package.removeHandler(old)
+    package.addHandler(handler)
+    package.setLevel(LEVEL)
+    try:
+        yield
+    finally:
+        package.removeHandler(handler)
+        for old in handlers:
+            package.addHandler(old)
+        package.setLevel(level)
