@@ -23,6 +23,7 @@ from hac_ros.core.outputs import (
 from hac_ros.core.params import HacParams
 from hac_ros.core.plane import Plane, lowest_segment_offset
 from hac_ros.core.reference import MapIndex, literal_cone_median
+from hac_ros.files.params_file import load_params
 
 K = np.array([[500.0, 0.0, 320.0], [0.0, 500.0, 240.0], [0.0, 0.0, 1.0]])
 
@@ -444,7 +445,7 @@ def test_params_validation_names_the_parameter():
 def test_params_yaml_is_the_ros_parameters_file(tmp_path):
     path = tmp_path / 'p.yaml'
     path.write_text('hac_node:\n  ros__parameters:\n    min_samples: 4\n    contact_mode: feet\n')
-    p = HacParams.from_yaml(path)
+    p = load_params(path)
     assert p.min_samples == 4 and p.contact_mode == 'feet'
 
 

@@ -46,9 +46,10 @@ VOLATILE = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
 
 
 def start_node(tmp_path: Path, params: dict[str, Any],
-               env: dict[str, str] | None = None) -> subprocess.Popen:
+               env: dict[str, str] | None = None, text: str | None = None) -> subprocess.Popen:
+    """hac_node with a parameters file of ``params`` (or of the YAML ``text``)."""
     path = tmp_path / 'hac.yaml'
-    path.write_text(yaml.safe_dump({'hac_node': {'ros__parameters': params}}))
+    path.write_text(text or yaml.safe_dump({'hac_node': {'ros__parameters': params}}))
     env = {**os.environ, 'PYTHONUNBUFFERED': '1', 'PYTHONFAULTHANDLER': '1',
            'RCUTILS_COLORIZED_OUTPUT': '0', **(env or {})}
     return subprocess.Popen([sys.executable, '-m', 'hac_ros.ros.node', '--ros-args', '--params-file',
@@ -154,6 +155,46 @@ def test_node_process_exits_cleanly_on_sigterm(tmp_path, client):
         code, log = stop(node, signal.SIGTERM)
     assert code == 0, log
     assert 'Traceback' not in log and 'unknown parameter' not in log
+
+
+SHARED_PARAMS = """\
+/**:
+  ros__parameters:
+    use_sim_time: false
+slam_node:
+  ros__parameters:
+    vocabulary: orb.txt
+/robot1/hac_node:
+  ros__parameters:
+    min_samples: 3
+hac_nod:
+  ros__parameters:
+    min_samples: 4
+hac_node:
+  ros__parameters:
+    window_sec: 20.0
+    qos_overrides:
+      /hac/pose:
+        publisher:
+          depth: 5
+"""
+
+
+def test_node_process_accepts_a_shared_file_and_warns_what_ros_would_ignore(tmp_path, client):
+    """ROS's conventions are accepted in silence (``/**``, other nodes' and namespaces' sections,
+    ``use_sim_time``, ``qos_overrides``); a misspelt parameter is named with the closest valid one
+    and a misspelt node section is warned about; the node runs."""
+    node = start_node(tmp_path, {}, text=SHARED_PARAMS)
+    try:
+        assert wait_for(client.node_is_up, STARTUP_S), 'hac_node did not come up'
+    finally:
+        code, log = stop(node, signal.SIGINT)
+    assert code == 0, log
+    warnings = [line for line in log.splitlines() if line.startswith('[WARN]')]
+    assert len(warnings) == 2, log
+    assert "unknown parameter 'window_sec' (did you mean 'window_s'?) ignored" in warnings[0]
+    assert f"{tmp_path / 'hac.yaml'}: section 'hac_nod' is not /hac_node's" in warnings[1]
+    assert 'Traceback' not in log
 
 
 @pytest.mark.parametrize('params, reason', [

@@ -4,7 +4,7 @@ from __future__ import annotations
 import argparse
 
 from hac_ros.cli import add_mode_and_params
-from hac_ros.core.params import HacParams
+from hac_ros.files.params_file import load_params
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -32,7 +32,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from hac_ros.batch.runner import batch
 
-    result = batch(args.inputs, args.output, HacParams.load(args.params), mode=args.mode,
+    result = batch(args.inputs, args.output, load_params(args.params), mode=args.mode,
                    workers=args.workers, ray=args.ray, resume=args.resume)
     print(result.text())
     if any(row.error for row in result.rows):

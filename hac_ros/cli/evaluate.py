@@ -6,7 +6,7 @@ import json
 from pathlib import Path
 
 from hac_ros.cli import add_params
-from hac_ros.core.params import HacParams
+from hac_ros.files.params_file import load_params
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -26,7 +26,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from hac_ros.evaluation.evaluate import evaluate
 
-    result = evaluate(args.output, args.gt, HacParams.load(args.params) if args.params else None,
+    result = evaluate(args.output, args.gt, load_params(args.params) if args.params else None,
                       references=not args.no_references)
     print(result.text(), flush=True)
     if args.json:

@@ -4,7 +4,8 @@ from __future__ import annotations
 import argparse
 
 from hac_ros.cli import add_mode_and_params, add_output_recording
-from hac_ros.core.params import POSE_MSGTYPES, HacParams
+from hac_ros.core.params import POSE_MSGTYPES
+from hac_ros.files.params_file import load_params
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -31,7 +32,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from hac_ros.replay.replayer import replay
 
-    params = HacParams.load(args.params, {
+    params = load_params(args.params, {
         'pose_topic': args.pose_topic, 'cloud_topic': args.cloud_topic,
         'joints_topic': args.joints_topic, 'camera_info_topic': args.camera_info_topic})
     summary = replay(args.input, args.output, params, mode=args.mode, storage=args.storage,

@@ -1,7 +1,7 @@
 """The one parameter set of hac_ros: SPEC's table, defaults and validation.
 
 The node declares exactly these fields as ROS parameters (with the description and range given
-here) and ``hac replay --params`` reads the same YAML file (``hac_node: {ros__parameters: {...}}``).
+here) and the commands read the same parameters file (:mod:`hac_ros.files.params_file`).
 Every length threshold is metric (applied after the current scale) or relative to the scene, never
 a number of SLAM units (SPEC, conventions).
 """
@@ -11,10 +11,7 @@ import dataclasses
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
-
-import yaml
 
 from hac_ros.core.errors import ParameterError
 from hac_ros.core.layouts import BUILT_IN, CUSTOM_ROLES, LAYOUTS, JointLayout, custom_layout
@@ -226,43 +223,6 @@ class HacParams:
     def from_dict(cls, values: Mapping[str, Any]) -> HacParams:
         """Parameters from a flat mapping; unknown names are an error (typos must not pass)."""
         return cls().replace(**dict(values))
-
-    @classmethod
-    def from_yaml(cls, path: str | Path, node_name: str = NODE_NAME) -> HacParams:
-        """Read the ROS 2 parameters file: ``{node_name: {ros__parameters: {...}}}``.
-
-        A ``/**`` wildcard section is honoured too; a plain flat mapping is accepted.
-        """
-        try:
-            data = yaml.safe_load(Path(path).read_text(encoding='utf-8')) or {}
-        except OSError as exc:
-            raise ParameterError(f'cannot read parameters file {path}: {exc}') from exc
-        except yaml.YAMLError as exc:
-            raise ParameterError(f'parameters file {path} is not valid YAML: {exc}') from exc
-        if not isinstance(data, dict):
-            raise ParameterError(f'parameters file {path}: expected a mapping at the top')
-        values: dict[str, Any] = {}
-        sections = [data.get('/**'), data.get(node_name), data.get('/' + node_name)]
-        found = False
-        for section in sections:
-            if isinstance(section, dict) and isinstance(section.get('ros__parameters'), dict):
-                values.update(section['ros__parameters'])
-                found = True
-        if not found:
-            if any(isinstance(v, dict) for v in data.values()):
-                raise ParameterError(
-                    f'parameters file {path}: no "{node_name}: ros__parameters:" section')
-            values = data
-        return cls.from_dict(values)
-
-    @classmethod
-    def load(cls, params_file: str | Path | None, overrides: Mapping[str, Any] | None = None
-             ) -> HacParams:
-        """The parameters file (or the defaults when None), then ``overrides`` (a command line's
-        flags; None values are flags not given)."""
-        params = cls.from_yaml(params_file) if params_file else cls()
-        changes = {k: v for k, v in (overrides or {}).items() if v is not None}
-        return params.replace(**changes) if changes else params
 
 
 def names() -> list[str]:

@@ -20,6 +20,7 @@ Run: ``ros2 run hac_ros hac_lifecycle_node --ros-args --params-file config/hac.y
 from __future__ import annotations
 
 import sys
+from collections.abc import Sequence
 from typing import Any
 
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
@@ -36,9 +37,14 @@ class HacLifecycleNode(HacShell, LifecycleNode):
     """The managed hac_node (module docstring). Its name is ``hac_node`` unless given another, so
     the same parameters file serves both."""
 
-    def __init__(self, node_name: str = NODE_NAME, **kwargs: Any) -> None:
+    PROGRAM = 'hac_lifecycle_node'
+    SUMMARY = ('hac_node as a managed (rclpy.lifecycle) node: configure reads the parameters, '
+               'activate\nsubscribes and publishes.')
+
+    def __init__(self, node_name: str = NODE_NAME, params_files: Sequence[str] = (),
+                 **kwargs: Any) -> None:
         super().__init__(node_name, **kwargs)
-        self._declare()
+        self._declare(params_files)
 
     def on_configure(self, state: LifecycleState) -> TransitionCallbackReturn:
         try:

@@ -57,12 +57,13 @@ from hac_ros.core.errors import ParameterError
 from hac_ros.core.outputs import NoticeOut, OdometryOut, Output, PoseOut, ResetOut
 from hac_ros.core.params import NODE_NAME, POSE_MSGTYPES, HacParams, names
 from hac_ros.core.reference import MapIndex
+from hac_ros.ros.arguments import NodeClass, params_files, usage, wants_help
 from hac_ros.ros.parameters import (
     RESUBSCRIBE,
     SHELL_ONLY,
     TF_PARAMETERS,
     declare_parameters,
-    unknown_overrides,
+    startup_warnings,
 )
 from hac_ros.ros.qos import cloud_qos, input_qos, output_qos, qos_hint
 from hac_ros.ros.tf_broadcast import TfSender
@@ -96,6 +97,9 @@ class HacShell(_NodeMixinBase):
     (drops the state).
     """
 
+    PROGRAM = 'hac_node'  # the command, and the first line of its --help
+    SUMMARY = ('The ROS 2 node of hac_ros: a metric scale for monocular SLAM from the people in '
+               'view.')
     params: HacParams
     calibrator: Calibrator | None = None
     active = False
@@ -108,12 +112,12 @@ class HacShell(_NodeMixinBase):
         return self.calibrator
 
     # ------------------------------------------------------------------ life
-    def _declare(self) -> None:
+    def _declare(self, params_files: Sequence[str] = ()) -> None:
+        """Declares the parameters and warns about what ROS would ignore in silence: misspelt
+        names, misspelt node sections of ``params_files`` (the node's ``--params-file`` paths)."""
         declare_parameters(self)
-        unknown = unknown_overrides(self)
-        if unknown:  # a misspelt name in a parameters file would otherwise be ignored by ROS
-            self.get_logger().warning(f'unknown parameter(s) ignored: {", ".join(unknown)} '
-                                      '(see config/hac.yaml for the names)')
+        for warning in startup_warnings(self, params_files):
+            self.get_logger().warning(warning)
         self.add_on_set_parameters_callback(self._validate_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
 
@@ -441,9 +445,11 @@ class HacShell(_NodeMixinBase):
 class HacNode(HacShell, Node):
     """hac_node: subscribes to the inputs, feeds the calibrator, publishes its outputs (SPEC)."""
 
-    def __init__(self, node_name: str = NODE_NAME, **kwargs: Any) -> None:
+
+    def __init__(self, node_name: str = NODE_NAME, params_files: Sequence[str] = (),
+                 **kwargs: Any) -> None:
         super().__init__(node_name, **kwargs)
-        self._declare()
+        self._declare(params_files)
         self._configure()
         self._activate()
 
@@ -473,13 +479,18 @@ def main(args: list[str] | None = None) -> int:
     return run(HacNode, args)
 
 
-def run(node_class: type, args: list[str] | None = None) -> int:
+def run(node_class: NodeClass, args: list[str] | None = None) -> int:
     """init → spin ``node_class()`` → clean shutdown on SIGINT/SIGTERM (exit code 0); 2 on
-    invalid parameters.
+    invalid parameters; ``-h``/``--help`` prints the usage (:mod:`hac_ros.ros.arguments`) and
+    exits 0 without starting ROS.
 
     SIGINT/SIGTERM set a flag (see SHUTDOWN_POLL_S): one during start-up ends the loop before it
     spins, and everything made so far is destroyed in order.
     """
+    argv = sys.argv if args is None else args
+    if wants_help(argv):
+        print(usage(node_class))
+        return 0
     stop: list[int] = []
     for signum in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signum, lambda number, _frame: stop.append(number))
@@ -487,7 +498,7 @@ def run(node_class: type, args: list[str] | None = None) -> int:
     executor = SingleThreadedExecutor()
     node = None
     try:
-        node = node_class()
+        node = node_class(params_files=params_files(argv))
         executor.add_node(node)
         while rclpy.ok() and not stop:  # not executor.spin(): see SHUTDOWN_POLL_S
             executor.spin_once(timeout_sec=SHUTDOWN_POLL_S)

@@ -3,21 +3,28 @@
 The values, defaults, ranges and validation are :class:`hac_ros.core.params.HacParams`'; this
 module adds what only the ROS node needs: a ``ParameterDescriptor`` per field (type, range,
 choices, the runtime note), which parameters re-subscribe or rebuild the estimator when changed at
-runtime, how a node declares them, and the markdown table of docs/node.md
-(``python -m hac_ros.ros.parameters`` prints it). Importing it needs no ROS; the functions that
-take a node import rclpy when called.
+runtime, how a node declares them, what it warns about at start-up, and the markdown table of
+docs/node.md (``python -m hac_ros.ros.parameters`` prints it). Importing it needs no ROS; the
+functions that take a node import rclpy when called.
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
+from hac_ros.core.errors import ParameterError
 from hac_ros.core.params import describe, names
+from hac_ros.files.params_file import (
+    ROS_OWN_PARAMETERS,
+    ROS_OWN_PREFIXES,
+    read_params_file,
+    unknown_names,
+)
 
 # ROS types `window_s: 30` (YAML, `ros2 param set`) as an integer and would refuse it for a double;
 # dynamic typing lets it through, and HacParams converts integers and rejects anything else
 # (also the range, which ROS checks only for double values).
 INTEGERS_FOR_DOUBLES = True
-ROS_OWN_PARAMETERS = frozenset({'use_sim_time', 'start_type_description_service'})  # every node's
 
 # What a runtime change does (docs/node.md, "Parameters at runtime"):
 # - these re-create the named subscriptions (topics and QoS cannot change on a live subscription);
@@ -102,11 +109,31 @@ def declare_parameters(node: Any) -> None:
 
 
 def unknown_overrides(node: Any) -> list[str]:
-    """The names overridden at start-up (a parameters file, --ros-args -p) that no parameter of
-    the node has: misspelt, ROS would ignore them silently."""
+    """The names overridden at start-up (a parameters file, ``-p`` on the ROS command line) that
+    no parameter of the node has: misspelt, ROS would ignore them silently."""
     overrides = getattr(node, '_parameter_overrides', {})  # rclpy keeps them on the node
     return sorted(name for name in overrides if name not in names()
-                  and name not in ROS_OWN_PARAMETERS and not name.startswith('qos_overrides.'))
+                  and name not in ROS_OWN_PARAMETERS and not name.startswith(ROS_OWN_PREFIXES))
+
+
+def startup_warnings(node: Any, params_files: Sequence[str]) -> list[str]:
+    """What the node warns about at start-up, one line each: parameters it does not have (with
+    the closest valid name), and in each parameters file it was given, sections a few edits from
+    its name and a file with no section for it (:mod:`hac_ros.files.params_file`, read for the
+    node's own name and namespace). ROS applies the values itself; nothing here stops the node."""
+    warnings = []
+    unknown = unknown_overrides(node)
+    if unknown:
+        warnings.append(f'{unknown_names(unknown)} ignored (the parameters: docs/node.md, '
+                        'config/hac.yaml)')
+    for path in params_files:
+        try:
+            read = read_params_file(path, node.get_name(), node.get_namespace())
+        except ParameterError as exc:
+            warnings.append(str(exc))
+            continue
+        warnings += read.section_problems()
+    return warnings
 
 
 def parameter_table() -> str:
