@@ -7,10 +7,11 @@
     ros2 launch hac_ros hac.launch.py lifecycle:=true     # hac_lifecycle_node (nav2 bring-up)
     ros2 launch hac_ros hac.launch.py dds_profile:=true   # Fast DDS profile for 1M-point maps
 
-Topic defaults are relative (SPEC): in ``namespace:=robot1`` the node reads ``/robot1/slam/pose``
-and writes ``/robot1/hac/...``; ``/diagnostics`` stays absolute. ``lifecycle:=true`` starts the
-managed node unconfigured: a lifecycle manager (nav2's, with ``bond_timeout: 0.0``) or
-``ros2 lifecycle set /robot1/hac_node configure`` / ``activate`` brings it up.
+Topic defaults are relative (docs/interface.md): in ``namespace:=robot1`` the node reads
+``/robot1/slam/pose`` and writes ``/robot1/hac/...``; ``/diagnostics`` stays absolute.
+``lifecycle:=true`` starts the managed node unconfigured: a lifecycle manager (nav2's, with
+``bond_timeout: 0.0``) or ``ros2 lifecycle set /robot1/hac_node configure`` / ``activate`` brings it
+up.
 
 ``dds_profile:=true`` loads config/fastdds_large_data.xml (Fast DDS only) into the processes this
 launch file starts; the process publishing the map needs it too (see the file's comment).

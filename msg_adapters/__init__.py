@@ -2,7 +2,8 @@
 
 Readers are duck-typed; builders take a :class:`MessageTypes` (``rclpy_types()`` or
 ``rosbags_types()``) and give every field. Nothing here imports ROS at import time. Every malformed
-input raises :class:`MessageError`. Poses are camera-to-map ``(R_wc, c)`` (SPEC, conventions).
+input raises :class:`MessageError`. Poses are camera-to-map ``(R_wc, c)`` (hac_ros'
+docs/interface.md, "Conventions").
 """
 from msg_adapters.camera_info import camera_info_to_intrinsics, intrinsics_to_camera_info
 from msg_adapters.cdr import RawCloud, cloud_points, parse_cloud_cdr

@@ -15,7 +15,7 @@ from msg_adapters.errors import MessageError
 from msg_adapters.stamps import make_header
 from msg_adapters.types import MessageTypes
 
-JOINTS_PER_PERSON = 24  # SMPL-24 (SPEC: joint order)
+JOINTS_PER_PERSON = 24  # SMPL-24, the default joint layout
 _POSITION = operator.attrgetter('position.x', 'position.y', 'position.z')  # one C call per pose
 
 

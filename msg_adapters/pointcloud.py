@@ -3,8 +3,8 @@
 Like sensor_msgs_py's ``point_cloud2.py``: a numpy structured dtype built from the PointFields and
 one strided view of the bytes, no per-point Python loop. Only x, y, z are read (FLOAT32 or FLOAT64,
 any order and offset, padding inside ``point_step`` and at the end of each row, either endianness);
-other fields are ignored; non-finite and exactly (0, 0, 0) points are dropped (SPEC, map input:
-(0, 0, 0) is how many SLAM wrappers mark an unset point).
+other fields are ignored; non-finite and exactly (0, 0, 0) points are dropped (as hac_ros' map
+input: (0, 0, 0) is how many SLAM wrappers mark an unset point).
 """
 from __future__ import annotations
 

@@ -1,9 +1,10 @@
 """Pose messages ↔ (R, c); quaternions are scalar-last (x, y, z, w), as in ROS and scipy.
 
-A SLAM pose message is the camera's pose in the SLAM map frame (SPEC, conventions): the readers
-return **camera-to-map** ``(R_wc (3, 3), c (3,))`` — the rotation from the camera frame to the map
-frame and the camera centre in map coordinates, in SLAM units. The builders take the same pair for
-any parent/child frames (e.g. the metric world and the camera, metres).
+A SLAM pose message is the camera's pose in the SLAM map frame (hac_ros' docs/interface.md,
+"Conventions"): the readers return **camera-to-map** ``(R_wc (3, 3), c (3,))`` — the rotation from
+the camera frame to the map frame and the camera centre in map coordinates, in SLAM units. The
+builders take the same pair for any parent/child frames (e.g. the metric world and the camera,
+metres).
 """
 from __future__ import annotations
 

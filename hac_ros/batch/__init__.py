@@ -1,13 +1,15 @@
 """``hac batch``: many recordings calibrated in parallel, on a process pool or as Ray tasks.
 
-:func:`batch` replays each input recording (:func:`hac_ros.replay.replayer.replay`, the same
-parameters and mode for all) into ``DIR/<name>``, where ``<name>`` is the input's file or directory
-name without a ``.mcap``/``.db3``/``.bag`` suffix (:func:`recording_name`), and writes
-``DIR/summary.csv`` and ``DIR/summary.md`` (SPEC, "Command line"; docs/batch.md).
+:func:`~hac_ros.batch.runner.batch` replays each input recording
+(:func:`hac_ros.replay.replayer.replay`, the same parameters and mode for all) into
+``DIR/<name>``, where ``<name>`` is the input's file or directory name without a
+``.mcap``/``.db3``/``.bag`` suffix (:func:`~hac_ros.batch.jobs.recording_name`), and writes
+``DIR/summary.csv`` and ``DIR/summary.md`` (docs/batch.md).
 
-One recording is one call of :func:`run_job`, in a worker of a process pool (``spawn``: the caller
-may have imported rclpy, whose threads a fork would copy half-way) or as a Ray task (``ray``);
-both call the same function with the same arguments, so their outputs are identical. Per recording:
+One recording is one call of :func:`~hac_ros.batch.jobs.run_job`, in a worker of a process pool
+(``spawn``: the caller may have imported rclpy, whose threads a fork would copy half-way) or as a
+Ray task (``ray``); both call the same function with the same arguments, so their outputs are
+identical. Per recording:
 
 - the output appears atomically (the replay stages it), then a completion marker
   ``DIR/<name>.done.json`` is written: the input's fingerprint (path, and each file's size and

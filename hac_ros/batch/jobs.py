@@ -34,7 +34,7 @@ LOGS, SUMMARY_CSV, SUMMARY_MD = 'logs', 'summary.csv', 'summary.md'
 MARKER_SUFFIX = '.done.json'
 
 
-# summary.csv's columns (SPEC) -> (Row field, format, summary.md header)
+# summary.csv's columns (docs/batch.md) -> (Row field, format, summary.md header)
 COLUMNS = {
     'input': ('input', 's', 'input'),
     'status': ('status', 's', 'status'),
@@ -198,7 +198,7 @@ def _calibrate(job: Job) -> Row:
 
 
 def has_ground_truth(path: str | Path) -> bool:
-    """Whether the recording holds any of SPEC's ground-truth topics (with messages)."""
+    """Whether the recording holds any of the ground-truth topics (with messages)."""
     with Recording(path) as recording:
         return any(recording.has(*topic) for topic in (GT_CAMERA, GT_JOINTS, GT_SCALE))
 

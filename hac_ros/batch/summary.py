@@ -12,7 +12,8 @@ from hac_ros.batch.jobs import COLUMNS, LOGS, SUMMARY_CSV, SUMMARY_MD, Row, _fin
 
 # ============================================================================ the summary
 def write_summary(out_dir: Path, rows: list[Row], mode: str) -> None:
-    """DIR/summary.csv (SPEC's columns) and DIR/summary.md (the same table and the medians)."""
+    """DIR/summary.csv (docs/batch.md's columns) and DIR/summary.md (the same table and the
+    medians)."""
     text = io.StringIO()
     writer = csv.DictWriter(text, fieldnames=list(COLUMNS), lineterminator='\n')
     writer.writeheader()

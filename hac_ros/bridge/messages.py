@@ -4,7 +4,8 @@ Both shells call :meth:`OutputMessages.convert` on every output of the
 :class:`~hac_ros.core.calibrator.Calibrator` and publish (``Publisher.publish(bytes)``) or write
 what comes back, so that the same recording gives the same bytes online and replayed. The messages
 are encoded straight from numpy by :mod:`msg_adapters.cdr_write` (the same bytes as building the
-message objects and serializing them, at a fraction of the cost). Topics and types: SPEC, "Outputs".
+message objects and serializing them, at a fraction of the cost). Topics and types:
+docs/interface.md, "Topics".
 
 Topic names are relative (a namespaced node moves them all) except ``/diagnostics``; the replay
 writes them resolved against ``/`` (:func:`in_root`).
@@ -47,7 +48,8 @@ LATCHED_TOPICS = (CLOUD[0], OBSTACLES[0])  # reliable + transient local: late su
 # data = [person, scale, source, accepted] per person, scale in metres per SLAM unit (NaN when
 # rejected), source 0 = map hit, 1 = ground-plane fallback, 2 = rejected.
 SAMPLES = ('hac/samples', 'std_msgs/msg/Float64MultiArray')
-# Inputs (SPEC, ROS 2 interface): kind -> message type; the pose's is the pose_type parameter's
+# Inputs (docs/interface.md, "Topics"): kind -> message type; the pose's is the pose_type
+# parameter's
 INPUT_MSGTYPES = {'joints': 'geometry_msgs/msg/PoseArray', 'cloud': 'sensor_msgs/msg/PointCloud2',
                   'camera_info': 'sensor_msgs/msg/CameraInfo'}
 

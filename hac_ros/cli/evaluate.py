@@ -1,4 +1,4 @@
-"""``hac eval OUT --gt IN``: SPEC's metrics of a replayed recording against its ground truth."""
+"""``hac eval OUT --gt IN``: the metrics of a replayed recording against its ground truth."""
 from __future__ import annotations
 
 import argparse

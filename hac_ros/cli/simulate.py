@@ -26,7 +26,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--joint-layout', choices=tuple(BUILT_IN), default='smpl24',
                         help='the HMR model\'s joints (replay with the same joint_layout)')
     parser.add_argument('--motion', type=Path, default=None,
-                        help='real motion (a ../shared/data/cmu_mocap/*.npz) instead of the gait')
+                        help='real motion instead of the gait: a .npz with joints (T, 24, 3) '
+                        'SMPL-24 metres, y up, floor at y = 0, and fps (CMU motion capture '
+                        're-floored to SMPL\'s foot height)')
 
 
 def run(args: argparse.Namespace) -> int:

@@ -1,6 +1,7 @@
 """Where one SLAM map (a segment between re-initialisations) sits in the metric frame.
 
-SPEC, "The metric frame" (``metric_frame_alignment``). A segment's map is placed by a similarity
+docs/interface.md, "The metric frame" (``metric_frame_alignment``). A segment's map is placed by a
+similarity
 
     p_metric = R · s · (p_slam − origin) + offset
 

@@ -1,4 +1,5 @@
-"""The Calibrator: SLAM poses, maps and HMR joints in (SPEC's processing order), metric results out.
+"""The Calibrator: SLAM poses, maps and HMR joints in (in the processing order of
+docs/interface.md), metric results out.
 
 One object owns all the state; the node and the replay feed it the same inputs and get the same
 outputs, because everything is decided by header stamps, never by the wall clock:
@@ -77,7 +78,7 @@ def _public(method: Callable[Concatenate[Calibrator, _P], list[Record]]
 @dataclass
 class _Frame:
     stamp_ns: int
-    joints_cam: np.ndarray  # (P, 24, 3) metres, camera optical frame
+    joints_cam: np.ndarray  # (P, K, 3) metres, camera optical frame (K: the joint layout's)
 
 
 class Calibrator:
@@ -423,7 +424,7 @@ class Calibrator:
 
     # ================================================================== frames
     def _activate_map(self, stamp_ns: int) -> list[Record]:
-        """Make the latest map not after ``stamp_ns`` the current one (SPEC processing order)."""
+        """Make the latest map not after ``stamp_ns`` the current one (the processing order)."""
         out: list[Record] = []
         chosen = None
         while self._maps and self._maps[0].stamp_ns <= stamp_ns:
@@ -463,7 +464,7 @@ class Calibrator:
                                        self.map.thinned(self.params.cloud_out_max_points)))
 
     def _process(self, frame: _Frame) -> list[Record]:
-        """One frame (SPEC steps 1–6) for every person in it."""
+        """One frame (docs/method.md, steps 1–6) for every person in it."""
         out: list[Record] = []
         stamp = frame.stamp_ns
         pose = self.track.at(stamp)
@@ -488,7 +489,8 @@ class Calibrator:
 
     def _person(self, stamp: int, person: int, R_wc: np.ndarray, c_map: np.ndarray,
                 joints: np.ndarray) -> list[Record]:
-        """One person's scale sample (SPEC steps 1–5, hac_ros.core.sample) and its bookkeeping."""
+        """One person's scale sample (docs/method.md, steps 1–5; hac_ros.core.sample) and its
+        bookkeeping."""
         self.people += 1
         if not np.isfinite(joints).all():
             return self._rejected_sample(stamp, person, 'nonfinite_joints')

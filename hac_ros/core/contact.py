@@ -1,4 +1,4 @@
-"""Contact joint selection (SPEC, method step 1).
+"""Contact joint selection (docs/method.md, step 1).
 
 The paper takes the lowest joint along the camera's y axis (y points down): ``argmax_i J_i.y``.
 That rule breaks when the camera rolls or pitches, so ``lowest_gravity`` takes the lowest joint

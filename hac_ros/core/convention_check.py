@@ -1,5 +1,5 @@
-"""Geometric checks that catch an input convention the parameters do not describe (SPEC,
-Parameters: ``pose_to_optical``, ``joint_layout``; issue 21).
+"""Geometric checks that catch an input convention the parameters do not describe (the
+parameters ``pose_to_optical``, ``joint_layout``; docs/inputs.md).
 
 A wrong convention does not make inputs invalid, it makes the scale confidently wrong: SLAM poses
 of an x-forward, z-up body frame read as optical poses calibrate 60–85 % off on every simulated

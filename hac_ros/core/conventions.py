@@ -1,4 +1,4 @@
-"""Input conventions other than SPEC's defaults (SPEC, Parameters): body-frame SLAM poses
+"""Input conventions other than the defaults (docs/inputs.md): body-frame SLAM poses
 (``pose_to_optical``) and an HMR model that assumed another focal length (``hmr_focal_px``).
 
 Both are applied where the inputs enter the :class:`~hac_ros.core.calibrator.Calibrator`, so

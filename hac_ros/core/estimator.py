@@ -1,5 +1,5 @@
-"""The scale estimator: a rolling window in stamp time with a streaming median (SPEC, method step
-5).
+"""The scale estimator: a rolling window in stamp time with a streaming median (docs/method.md,
+step 5).
 
 The paper takes one median over a whole video. Online we keep the per-frame scales of the last
 ``window_s`` stamp seconds (at most ``window_max_samples``) in arrival order; the estimate is their

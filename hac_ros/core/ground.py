@@ -1,4 +1,4 @@
-"""The ground plane: the out-of-view fallback (SPEC, method step 4; paper Eq. 6).
+"""The ground plane: the out-of-view fallback (docs/method.md, step 4; paper Eq. 6).
 
 A plane is ``{p : n·p = b}`` in the SLAM map frame with ``n`` a unit normal pointing *down* (along
 gravity, like the camera's y axis) and ``b`` in SLAM units; a point with ``n·p > b`` is below it.

@@ -1,5 +1,5 @@
-"""Joint layouts (SPEC, Parameters: ``joint_layout``): which joint is which in an HMR model's
-output.
+"""Joint layouts (the ``joint_layout`` parameter; docs/inputs.md): which joint is which in an HMR
+model's output.
 
 A :class:`JointLayout` says, for one person's K joints (metres, any frame): which joints may touch
 the scene (contact candidates), the root (the person's depth and world track), the body's up axis
@@ -59,10 +59,10 @@ def _mean_of(joints: np.ndarray, indices: tuple[int, ...]) -> np.ndarray:
 
 
 # The foot joints of SMPL's regressor sit about 3 cm above the sole of an 0.83 m leg, its ankles
-# about 7 cm, the hands about 1.5 cm above the palm (docs/method.md, "The contact point"). A COCO
-# or H36M ankle keypoint is the malleolus of a shod foot: in the real CMU walk (../shared/data)
-# the stance ankle stands 9.3 cm above the floor on a 0.80 m leg; 0.11 of the leg is taken
-# (between SMPL's bare 7 cm and that).
+# about 7 cm, the hands about 1.5 cm above the palm (docs/method.md, "The contact is not on the
+# surface"). A COCO or H36M ankle keypoint is the malleolus of a shod foot: in a real CMU
+# motion-capture walk the stance ankle stands 9.3 cm above the floor on a 0.80 m leg; 0.11 of the
+# leg is taken (between SMPL's bare 7 cm and that).
 ANKLE_REL = 0.11
 SMPL24 = JointLayout(
     name='smpl24', joints_per_person=24, root=(0,), axis_lower=(0,), axis_upper=(12,),

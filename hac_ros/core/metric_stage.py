@@ -1,8 +1,8 @@
 """The metric stage: a scale and an alignment applied to SLAM poses, maps and HMR joints.
 
-The :class:`~hac_ros.core.calibrator.Calibrator` decides *what* is published and *when* (SPEC's
-processing order); this stage decides *with which scale and where*. It owns everything that
-depends on the published scale:
+The :class:`~hac_ros.core.calibrator.Calibrator` decides *what* is published and *when* (the
+processing order, docs/interface.md); this stage decides *with which scale and where*. It owns
+everything that depends on the published scale:
 
 - each segment's placement in the metric frame (:mod:`hac_ros.core.alignment`), anchored on the
   last published ``/hac/pose`` when a SLAM re-initialisation starts a new segment;

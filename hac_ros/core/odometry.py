@@ -1,4 +1,5 @@
-"""``/hac/odometry``: continuous metric odometry, a running sum of metric steps (SPEC, Outputs).
+"""``/hac/odometry``: continuous metric odometry, a running sum of metric steps (docs/interface.md,
+"Topics").
 
 REP-105 odometry must not jump. Each step is the SLAM's own step taken with the scale of its
 moment, so a change of the estimate (or of the metric frame's alignment) changes no past step:

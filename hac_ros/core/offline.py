@@ -1,6 +1,6 @@
 """The offline scale: the best estimate of each moment once the whole recording is known.
 
-The paper is offline: one median of every per-frame scale of the video (SPEC, method step 5). Two
+The paper is offline: one median of every per-frame scale of the video (docs/method.md, step 5). Two
 of its stated limitations change that picture, and the offline mode handles both:
 
 - **SLAM re-initialisation.** A new map has a new scale, so the recording is cut into segments at
@@ -230,7 +230,7 @@ def resolve_offline(calibrator: Calibrator, scale_at: ScaleAt | None = None,
 
 def final_planes(records: Sequence[Record]) -> dict[int, Plane | None]:
     """Segment -> its last ground plane (SLAM map frame) among an offline run's records: offline,
-    each segment has one final alignment (SPEC, the metric frame)."""
+    each segment has one final alignment (docs/interface.md, "The metric frame")."""
     planes: dict[int, Plane | None] = {}
     for record in records:
         if isinstance(record, (PendingOdometry, PendingFrame)) and record.plane is not None:

@@ -1,9 +1,9 @@
-"""The one parameter set of hac_ros: SPEC's table, defaults and validation.
+"""The one parameter set of hac_ros: names, defaults, ranges and validation (docs/node.md).
 
 The node declares exactly these fields as ROS parameters (with the description and range given
 here) and the commands read the same parameters file (:mod:`hac_ros.files.params_file`).
 Every length threshold is metric (applied after the current scale) or relative to the scene, never
-a number of SLAM units (SPEC, conventions).
+a number of SLAM units (docs/interface.md, "Conventions").
 """
 from __future__ import annotations
 
@@ -46,9 +46,9 @@ def _p(default: Any, description: str, *, choices: tuple[str, ...] | None = None
 
 @dataclass
 class HacParams:
-    """Every parameter of the node and the replay, with SPEC's names and defaults."""
+    """Every parameter of the node and the replay, with their names and defaults."""
 
-    # --- topics and types (SPEC: ROS 2 interface)
+    # --- topics and types (docs/interface.md, "Topics")
     pose_topic: str = _p('slam/pose', 'SLAM camera pose input (map frame, unknown scale)')
     cloud_topic: str = _p('slam/cloud', 'SLAM map points input (PointCloud2, map frame)')
     joints_topic: str = _p('hmr/joints',
@@ -63,7 +63,7 @@ class HacParams:
                                      'the first view) or slam (the SLAM map\'s axes, scaled)',
                                      choices=ALIGNMENTS)
 
-    # --- method (SPEC: the method)
+    # --- method (docs/method.md)
     contact_mode: str = _p('lowest_gravity', 'how the contact joint is chosen',
                            choices=CONTACT_MODES)
     reference_mode: str = _p('cone_plane', 'map ray query', choices=REFERENCE_MODES)
@@ -131,7 +131,7 @@ class HacParams:
                            "person's world root filtered: causally online, zero-phase offline)",
                            choices=HUMAN_FILTERS)
 
-    # --- beyond SPEC's table: documented extras with metric or scene-relative units
+    # --- tuning: documented extras with metric or scene-relative units
     interp_max_gap_s: float = _p(0.2, 'largest gap between two poses that a joints stamp may be '
                                  'interpolated across, seconds', low=0.0, high=60.0)
     plausibility_rel_tol: float = _p(0.2, 'a map hit is implausible when its metric distance '

@@ -1,15 +1,15 @@
 """The SLAM pose stream of one segment: jumps, isolated outliers, and the pose at a joints stamp.
 
 A monocular SLAM that re-initialises jumps to a new pose and stays there; a glitch jumps and comes
-back. :class:`PoseTrack` tells them apart (SPEC, processing order): a pose whose speed is far above
-the recent ones (``reset_jump_factor`` times their median) over a step that is a fraction of the
-trajectory's extent (``reset_jump_min_rel``) and of the map's (JUMP_MIN_MAP_REL) is a *suspect*; if
-the next poses come back near the old trajectory the suspects were outliers, if
+back. :class:`PoseTrack` tells them apart (docs/interface.md, "Processing order"): a pose whose
+speed is far above the recent ones (``reset_jump_factor`` times their median) over a step that is a
+fraction of the trajectory's extent (``reset_jump_min_rel``) and of the map's (JUMP_MIN_MAP_REL) is
+a *suspect*; if the next poses come back near the old trajectory the suspects were outliers, if
 ``reset_confirm_poses`` of them continue from the jump the SLAM re-initialised. Speeds, not steps:
 keyframe-rate SLAMs publish irregularly, and a long gap between two poses is not a jump.
 
-Poses are camera-to-map (SPEC, conventions): ``R_wc`` (3, 3) rotates the camera optical frame into
-the SLAM map frame, ``c_map`` (3,) is the camera centre in SLAM units, map frame.
+Poses are camera-to-map (docs/interface.md, "Conventions"): ``R_wc`` (3, 3) rotates the camera
+optical frame into the SLAM map frame, ``c_map`` (3,) is the camera centre in SLAM units, map frame.
 """
 from __future__ import annotations
 

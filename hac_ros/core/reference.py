@@ -1,6 +1,6 @@
 """The map reference distance: a ray from the camera centre through a joint, queried in the map.
 
-SPEC, method step 3 (paper Eq. 4; the authors' code): every map point whose direction from the
+docs/method.md, step 3 (paper Eq. 4; the authors' code): every map point whose direction from the
 camera centre ``o`` is within the cone ``cos > cos(cone_angle)`` of the ray counts; ``d_S`` is the
 median of their distances to ``o`` (``cone_median``), or the distance of the point closest in angle
 to the ray (``nearest_to_ray``, the paper's "map point nearest the ray", measured as an angle so
@@ -143,7 +143,7 @@ class MapIndex:
     def query(self, origin_map: np.ndarray, direction_map: np.ndarray, *, mode: str,
               cos_min: float, min_points: int,
               window: tuple[float, float] | None = None) -> RayHit | None:
-        """``d_S`` along one ray (SPEC step 3) or None for "no hit".
+        """``d_S`` along one ray (docs/method.md, step 3) or None for "no hit".
 
         cone_median: the median distance of the cone's points (the authors' code);
         nearest_to_ray: the distance of the point nearest the ray in angle (the paper);

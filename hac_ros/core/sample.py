@@ -1,4 +1,4 @@
-"""One person's scale sample (SPEC, method steps 1–5): contact, reference distance, ratio.
+"""One person's scale sample (docs/method.md, steps 1–5): contact, reference distance, ratio.
 
 :func:`person_sample` is pure: it reads the map, the ground plane and the current estimate and
 returns the sample (or why there is none); the :class:`~hac_ros.core.calibrator.Calibrator`
@@ -96,8 +96,8 @@ def person_sample(params: HacParams, layout: JointLayout, scene: Scene, R_wc: np
 
 def _map_distance(params: HacParams, scene: Scene, c_map: np.ndarray, direction_map: np.ndarray,
                   distance_metric: float) -> float | None:
-    """d_S along the ray (SPEC step 3); once a scale exists only within ``ray_window_rel`` of the
-    distance it predicts."""
+    """d_S along the ray (docs/method.md, step 3); once a scale exists only within
+    ``ray_window_rel`` of the distance it predicts."""
     window = None
     if scene.scale is not None and params.ray_window_rel > 0.0:
         expected = distance_metric / scene.scale

@@ -1,4 +1,4 @@
-"""``~/reset`` and ``~/freeze`` (SPEC, Services) as the calibrator takes them.
+"""``~/reset`` and ``~/freeze`` (docs/node.md, "Services") as the calibrator takes them.
 
 A request is queued by the shell and taken at the next accepted SLAM pose, so the same requests at
 the same stamps give the same outputs online and replayed. :class:`ServiceRequests` keeps the

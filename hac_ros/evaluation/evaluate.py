@@ -1,4 +1,4 @@
-"""``hac eval OUT --gt IN``: SPEC's metrics of a replayed recording against its ground truth.
+"""``hac eval OUT --gt IN``: the metrics of a replayed recording against its ground truth.
 
 Three rows, so that a number has something to be compared with:
 
@@ -12,11 +12,11 @@ The two reference rows run the core once on IN with its metric outputs deferred 
 with each reference scale as the offline replay resolves OUT
 (:func:`hac_ros.core.offline.resolve_offline`: the same final ground planes), so that resets are
 anchored and the frame aligned as in OUT.
-Metrics (SPEC, "Metrics"; implemented in :mod:`hac_ros.evaluation.metrics`): ATE and ATE-S (m,
-camera centres of ``/hac/pose``, Sim(3) / SE(3) alignment, mean), RPE (m and %, the translation of
-``/hac/odometry`` over 1 s steps: odometry is judged by its relative error), W-MPJPE and WA-MPJPE
-(mm, 100-frame chunks), RTE (%), PA-MPJPE (mm), and the scale error (%) of the final estimate and of
-every frame against the truth of that moment.
+Metrics (docs/interface.md, "Metrics"; implemented in :mod:`hac_ros.evaluation.metrics`): ATE and
+ATE-S (m, camera centres of ``/hac/pose``, Sim(3) / SE(3) alignment, mean), RPE (m and %, the
+translation of ``/hac/odometry`` over 1 s steps: odometry is judged by its relative error), W-MPJPE
+and WA-MPJPE (mm, 100-frame chunks), RTE (%), PA-MPJPE (mm), and the scale error (%) of the final
+estimate and of every frame against the truth of that moment.
 """
 from __future__ import annotations
 
@@ -125,8 +125,9 @@ def match(a_ns: np.ndarray, b_ns: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def person_tracks(pred: JointsTrack, truth: JointsTrack) -> list[tuple[np.ndarray, np.ndarray]]:
-    """For each person index k: (pred (F_k, 24, 3), truth (F_k, 24, 3)) over the matched frames
-    where both have a k-th person (people keep their block order in both topics)."""
+    """For each person index k: (pred (F_k, K, 3), truth (F_k, K, 3)) over the matched frames
+    where both have a k-th person (people keep their block order in both topics; K the joint
+    layout's joints per person)."""
     ip, it = match(pred.stamps_ns, truth.stamps_ns)
     people = max((len(pred.joints[i]) for i in ip), default=0)
     tracks = []
@@ -145,7 +146,7 @@ def _weighted(values: list[tuple[float, int]]) -> float:
 
 
 def row_metrics(run: Replayed, truth: Truth) -> dict[str, float]:
-    """SPEC's metrics of one row against the truth (NaN where an input is missing)."""
+    """The metrics of one row against the truth (NaN where an input is missing)."""
     out: dict[str, float] = {k: math.nan for k, _, _ in COLUMNS}
     out['camera_frames'] = 0
     out['joints_frames'] = 0

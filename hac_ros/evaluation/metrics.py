@@ -1,4 +1,4 @@
-"""Alignment and the field's metrics (SPEC, "Metrics"), pure numpy.
+"""Alignment and the field's metrics (docs/interface.md, "Metrics"), pure numpy.
 
 Umeyama follows evo's ``core/geometry.py::umeyama_alignment`` (Umeyama 1991). The human metrics
 follow the evaluation code of TRAM/WHAM, which takes them from SLAHMR: ``first_align_joints``

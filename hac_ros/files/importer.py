@@ -1,4 +1,5 @@
-"""``hac import``: a rosbag2 recording with SPEC's input topics from a SLAM's and an HMR's files.
+"""``hac import``: a rosbag2 recording with hac_node's input topics from a SLAM's and an HMR's
+files (docs/interface.md, "Topics"; docs/inputs.md).
 
 Inputs (checked by :mod:`hac_ros.files.readers` and :mod:`hac_ros.files.map_files`):
 
@@ -142,7 +143,7 @@ def write_params(path: Path, layout: str, k: int) -> None:
         lines += [f'    joints_per_person: {k}',
                   '    # joint_layout custom also needs root_joints, body_axis_lower_joints and',
                   '    # body_axis_upper_joints (and optionally contact_joints, skeleton_edges):',
-                  '    # index lists into the K joints of a person (SPEC, Parameters)']
+                  '    # index lists into the K joints of a person (docs/node.md, parameters)']
     path.write_text('\n'.join(lines) + '\n', encoding='utf-8')
 
 

@@ -1,6 +1,6 @@
 """The parameters file, read as ROS 2 reads it: one reader for ``hac_node`` and every command.
 
-A ROS 2 parameters file maps node names to ``ros__parameters`` (docs/node.md, "Parameters file")::
+A ROS 2 parameters file maps node names to ``ros__parameters`` (docs/interface.md, "Parameters")::
 
     /**:                       # every node: use_sim_time and the like
       ros__parameters: {use_sim_time: true}

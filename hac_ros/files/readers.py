@@ -24,7 +24,7 @@ MAX_STAMP_S = INT32_MAX + 1  # builtin_interfaces/Time's sec is an int32; no ROS
 
 def seconds_to_ns(t: np.ndarray, where: str = 'stamps', labels: list[str] | None = None
                   ) -> np.ndarray:
-    """Float seconds (N,) → int64 nanoseconds by round(t × 1e9) (SPEC, ``hac import``).
+    """Float seconds (N,) → int64 nanoseconds by round(t × 1e9) (docs/interface.md, "Conventions").
     :class:`InputError` (``where``: the file, ``labels``: each stamp's place in it) for a stamp
     that is not a ROS time: negative, or past 2^31 s."""
     t = np.asarray(t, dtype=np.float64)

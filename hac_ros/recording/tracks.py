@@ -48,7 +48,8 @@ class CameraTrack(_Track):
 
 @dataclass
 class JointsTrack(_Track):
-    """joints[f]: (P_f, 24, 3) metres, the track's frame (P_f people in frame f)."""
+    """joints[f]: (P_f, K, 3) metres, the track's frame (P_f people in frame f, K joints each:
+    the recording's joint layout)."""
 
     joints: list[np.ndarray] = field(default_factory=list)
 
@@ -70,7 +71,7 @@ class ScaleTrack(_Track):
 
 @dataclass
 class Truth:
-    """Ground truth of a recording (any part may be missing): SPEC, "Recordings"."""
+    """Ground truth of a recording (any part may be missing): docs/interface.md, "Recordings"."""
 
     camera: CameraTrack | None
     joints: JointsTrack | None
@@ -153,7 +154,7 @@ class Replayed:
 
 
 def read_output(path: str | Path) -> Replayed:
-    """Read a recording written by ``hac replay`` (SPEC's output topics and /hac/samples)."""
+    """Read a recording written by ``hac replay`` (the output topics and /hac/samples)."""
     pose, odom, diag = in_root(POSE[0]), in_root(ODOMETRY[0]), DIAGNOSTICS[0]
     joints_topic, scale_topic, samples_topic = (in_root(HUMAN_JOINTS[0]), in_root(SCALE[0]),
                                                 in_root(SAMPLES[0]))

@@ -1,9 +1,9 @@
 """Feeding a recording to the core: its input messages, in the node's order, to one calibrator.
 
 :class:`CoreFeeder` feeds every input message of a :class:`~hac_ros.recording.reader.Recording` to a
-:class:`~hac_ros.core.calibrator.Calibrator` in log-time order with its header stamp (SPEC,
-processing order), exactly as ``hac_node`` does (:mod:`hac_ros.bridge.inputs`: the same decoders and
-the same map builder). The replay, the evaluation and the tests share it.
+:class:`~hac_ros.core.calibrator.Calibrator` in log-time order with its header stamp
+(docs/interface.md, "Processing order"), exactly as ``hac_node`` does (:mod:`hac_ros.bridge.inputs`:
+the same decoders and the same map builder). The replay, the evaluation and the tests share it.
 """
 from __future__ import annotations
 
@@ -40,8 +40,8 @@ LOOKAHEAD_MESSAGES = 400  # at most this many messages read ahead of the calibra
 
 @dataclass
 class InputTopics:
-    """The input topics of one replay (resolved against ``/``) and their message types (SPEC: ROS 2
-    interface)."""
+    """The input topics of one replay (resolved against ``/``) and their message types
+    (docs/interface.md, "Topics")."""
 
     pose: str
     pose_type: str

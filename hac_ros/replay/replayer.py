@@ -16,7 +16,7 @@ Modes (docs/replay.md):
   the recording or indexing its maps again).
 
 OUT appears atomically (:class:`~hac_ros.recording.atomic.staged_output`) and IN is only ever read.
-Besides SPEC's output topics the replay writes ``/hac/samples`` (per-frame scale samples, for
+Besides the node's output topics the replay writes ``/hac/samples`` (per-frame scale samples, for
 ``hac plot``; see :data:`~hac_ros.bridge.messages.SAMPLES`).
 """
 from __future__ import annotations

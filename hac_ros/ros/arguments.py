@@ -32,9 +32,11 @@ options:
                           -p window_s:=20.0    one parameter
 
 Parameters: every one, with its default, range and what a change at runtime does, in
-docs/node.md ("Parameters"); a file with all of them at their defaults is config/hac.yaml
-(installed as share/hac_ros/config/hac.yaml); `python -m hac_ros.ros.parameters` prints the
-table. Unknown names and sections that look misspelt are warned about at start-up.
+docs/node.md ("Parameters at runtime"; `python -m hac_ros.ros.parameters` prints the table); a
+file with all of them at their defaults is config/hac.yaml (installed as
+share/hac_ros/config/hac.yaml); how a parameters file is read (shared files, namespaces,
+wildcards): docs/interface.md ("Parameters"). Unknown names and sections that look misspelt are
+warned about at start-up.
 """
 
 

@@ -1,7 +1,7 @@
 """``hac_lifecycle_node``: hac_node as a managed node (rclpy.lifecycle), for nav2-style bring-up.
 
 The same shell as :class:`hac_ros.ros.node.HacNode` (:class:`hac_ros.ros.node.HacShell`), with
-SPEC's transitions:
+these transitions:
 
 - configure: reads the parameters (an invalid one fails the transition with the reason logged);
 - activate: subscribes, publishes, offers ``~/reset`` and ``~/freeze`` and TF;

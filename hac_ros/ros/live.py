@@ -32,7 +32,7 @@ from hac_ros.core.params import NODE_NAME
 
 log = logging.getLogger(__name__)
 
-# what comes back: output topic -> type (SPEC, Outputs)
+# what comes back: output topic -> type (docs/interface.md, "Topics")
 OUTPUTS = {'/hac/odometry': 'nav_msgs/msg/Odometry',
            '/hac/pose': 'geometry_msgs/msg/PoseWithCovarianceStamped',
            '/hac/human_joints': 'geometry_msgs/msg/PoseArray',

@@ -3,8 +3,8 @@
 It subscribes to the SLAM pose, the SLAM map cloud, the HMR joints and (optionally) the CameraInfo,
 forwards every message to the calibrator with its header stamp, and publishes exactly the messages
 :class:`~hac_ros.bridge.messages.OutputMessages` makes of the calibrator's outputs (the same
-messages ``hac replay`` writes). It has no estimation logic of its own; SPEC, "ROS 2 interface" and
-"Processing order", and ``docs/node.md``.
+messages ``hac replay`` writes). It has no estimation logic of its own; docs/interface.md ("Topics",
+"Processing order") and docs/node.md.
 
 Threads. Everything that touches the calibrator runs on the executor's thread. The only other
 thread is the map builder (:class:`hac_ros.bridge.inputs.MapBuilder`, as in the replay): a map cloud
@@ -357,7 +357,7 @@ class HacShell(_NodeMixinBase):
 
     # ------------------------------------------------------------------ services
     def _on_reset(self, request: Any, response: Any) -> Any:
-        """``~/reset`` (Trigger): a new segment at the next SLAM pose (SPEC, Services)."""
+        """``~/reset`` (Trigger): a new segment at the next SLAM pose (docs/node.md, Services)."""
         self.core.request_reset()
         response.success = True
         response.message = 'a new segment starts at the next SLAM pose (map and ground normal kept)'
@@ -443,7 +443,8 @@ class HacShell(_NodeMixinBase):
 
 
 class HacNode(HacShell, Node):
-    """hac_node: subscribes to the inputs, feeds the calibrator, publishes its outputs (SPEC)."""
+    """hac_node: subscribes to the inputs, feeds the calibrator, publishes its outputs
+    (docs/node.md)."""
 
 
     def __init__(self, node_name: str = NODE_NAME, params_files: Sequence[str] = (),

@@ -16,7 +16,7 @@ publishes each message's CDR bytes as they are (a ROS 1 message converted to its
 - ``loop``: from the start again at the end (the stamps then go back in time, as with
   ``ros2 bag play --loop``).
 
-By default the topics played are SPEC's inputs present in the recording (``/slam/pose``,
+By default the topics played are hac_node's inputs present in the recording (``/slam/pose``,
 ``/slam/cloud``, ``/hmr/joints``, ``/camera/camera_info``, and ``/tf`` and ``/tf_static`` for
 ``pose_source: tf``); ground truth and outputs are not. ``topics`` names others; ``remap`` renames
 them on the way out. A topic whose message type this Python cannot publish (``tf2_msgs`` is not in
@@ -46,7 +46,7 @@ from msg_adapters import MessageError, ns_to_stamp, rclpy_types
 
 log = logging.getLogger(__name__)
 
-# SPEC's input topics as a recording holds them (resolved in the root namespace)
+# hac_node's input topics as a recording holds them (resolved in the root namespace)
 DEFAULT_TOPICS = ('/slam/cloud', '/slam/pose', '/camera/camera_info', '/hmr/joints', '/tf',
                   '/tf_static')
 CLOCK = ('/clock', 'rosgraph_msgs/msg/Clock')

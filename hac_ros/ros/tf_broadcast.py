@@ -1,4 +1,5 @@
-"""Optional TF (SPEC, Outputs): ``publish_tf`` and ``publish_odom_tf``, when tf2_ros is importable.
+"""Optional TF (docs/interface.md, "Topics"): ``publish_tf`` and ``publish_odom_tf``, when tf2_ros
+is importable.
 
 Kept apart from the node because ``tf2_ros`` is not in the rclpy wheels: without it the node logs
 one warning and carries on (``/hac/pose`` and ``/hac/odometry`` hold the same poses).

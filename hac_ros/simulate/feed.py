@@ -1,4 +1,4 @@
-"""Feed a :class:`Scenario` straight to a Calibrator, in SPEC's processing order (no recording).
+"""Feed a :class:`Scenario` straight to a Calibrator, in the processing order (no recording).
 
 The order is the recording's: by stamp; at one stamp the map first, then the pose, then the joints
 (as ``write_recording`` logs them), so that this and a replay of the recording agree.
@@ -16,7 +16,8 @@ ORDER = {'map': 0, 'pose': 1, 'joints': 2}
 
 def scenario_events(sc: Any) -> Iterator[tuple[int, str, tuple]]:
     """(stamp_ns, kind, payload) in processing order. Payloads: map (points_slam, frame_id);
-    pose (R_wc, c, frame_id); joints (joints_cam (P, 24, 3), camera frame_id)."""
+    pose (R_wc, c, frame_id); joints (joints_cam (P, K, 3) in the scenario's joint layout, camera
+    frame_id)."""
     events: list[tuple[int, str, tuple]] = [(m.stamp_ns, 'map', (m.points_slam, m.frame_id))
                                             for m in sc.maps]
     events += [(int(s), 'pose', (sc.slam_R_wc[i], sc.slam_c[i], sc.slam_frame_ids[i]))

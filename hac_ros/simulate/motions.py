@@ -19,7 +19,7 @@ STEP_PERIOD_S = 0.55  # one step (half a gait cycle)
 SWING_HEIGHT_M = 0.10
 PELVIS_BOB_M = 0.02
 FOOT_LATERAL_M = 0.11
-# ankle relative to the foot joint (fwd, left, up): in the real CMU walk (../shared/data) the stance
+# ankle relative to the foot joint (fwd, left, up): in a real CMU motion-capture walk the stance
 # ankle is about 3 cm above the lowest (foot) joint, in SMPL about 4.5 cm
 ANKLE_ABOVE_FOOT = np.array([-0.11, 0.0, 0.06])
 

@@ -1,4 +1,4 @@
-"""Write a :class:`Scenario` as a rosbag2 recording (sqlite3 or mcap) with SPEC's topics.
+"""Write a :class:`Scenario` as a rosbag2 recording (sqlite3 or mcap) with hac_ros' topics.
 
 Inputs: /slam/pose (PoseStamped or Odometry), /slam/cloud, /hmr/joints, /camera/camera_info;
 ground truth: /gt/camera_pose, /gt/human_joints, /gt/scale. Every message is logged at its
