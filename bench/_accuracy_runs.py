@@ -33,7 +33,14 @@ import numpy as np
 from hac_ros.core.calibrator import Calibrator
 from hac_ros.core.human_filter import smooth_outputs
 from hac_ros.core.offline import resolve_offline
-from hac_ros.core.outputs import HumanJointsOut, SampleOut, ScaleOut
+from hac_ros.core.outputs import (
+    DiagnosticsOut,
+    HumanJointsOut,
+    PoseOut,
+    SampleOut,
+    ScaleOut,
+    Status,
+)
 from hac_ros.core.params import HacParams
 from hac_ros.evaluation import metrics
 from hac_ros.simulate.feed import feed_events
@@ -50,7 +57,9 @@ class Scene:
     (N, 3) SLAM units, frame id); poses: (R_wc, c SLAM units, frame id); joints: (joints (P, 24, 3)
     metres camera frame, frame id)); K, width, height: the camera; true_scale_at(stamps) ->
     metres per SLAM unit; joints_world[k] (P, 24, 3) metres and person_ids[k] (P,) at the joints
-    frames, in the order of the joints events.
+    frames, in the order of the joints events; gt_R_wc (T, 3, 3) and gt_c (T, 3) metres the true
+    camera at the pose stamps (camera to a z-up world whose floor is z = 0); hmr_bias: the HMR's
+    mean relative depth bias.
     """
 
     name: str
@@ -63,6 +72,9 @@ class Scene:
     true_scale: np.ndarray  # (T,) at the pose stamps
     joints_world: list[np.ndarray]
     person_ids: list[np.ndarray]
+    gt_R_wc: np.ndarray
+    gt_c: np.ndarray
+    hmr_bias: float = 0.0
 
     def true_scale_at(self, stamps_ns: np.ndarray) -> np.ndarray:
         i = np.searchsorted(self.pose_stamps_ns, np.asarray(stamps_ns), side='right') - 1
@@ -75,15 +87,16 @@ def scene_from_scenario(sc: Any) -> Scene:
     return Scene(sc.name, sc.seed, list(scenario_events(sc)), sc.K, sc.width, sc.height,
                  np.asarray(sc.pose_stamps_ns), np.broadcast_to(sc.true_scale,
                                                                 (len(sc.pose_stamps_ns),)).copy(),
-                 list(sc.gt_joints_world), list(sc.person_ids))
+                 list(sc.gt_joints_world), list(sc.person_ids), sc.gt_R_wc, sc.gt_c, sc.hmr_bias)
 
 
-def scene_from_composite(data: Any, seed: int) -> Scene:
+def scene_from_composite(data: Any, seed: int, hmr_bias: float = 0.0) -> Scene:
     from composite import HEIGHT, WIDTH, events
 
     return Scene(f'composite:{data.name}', seed, events(data), data.K, WIDTH, HEIGHT,
                  np.asarray(data.stamps_ns), np.full(len(data.stamps_ns), data.scale_fit),
-                 [j[None] for j in data.joints_world], [np.array([0])] * len(data.joints_world))
+                 [j[None] for j in data.joints_world], [np.array([0])] * len(data.joints_world),
+                 data.R_gt, data.c_gt, hmr_bias)
 
 
 def feed(cal: Calibrator, scene: Scene) -> list[Any]:
@@ -141,16 +154,47 @@ def figures(scene: Scene, params: HacParams, cal: Calibrator, literal: World,
     signed = _signed_errors(scene, frames)
     humans = [o for o in resolved if isinstance(o, HumanJointsOut)]
     raw = w_mpjpe(scene, *_common(humans, literal))
+    offline_humans = {o.stamp_ns: o.joints_metric.copy() for o in humans}
     smooth_outputs(humans, cal.layout)  # the replay's offline human_filter: smooth
     common = _common(humans, literal)
+    poses = [o for o in resolved if isinstance(o, PoseOut)]
     out.update(scale_bias=float(np.median(signed)), scale_err=float(np.median(np.abs(signed))),
                w_mpjpe=raw, w_mpjpe_filtered=w_mpjpe(scene, *common),
                w_mpjpe_literal=w_mpjpe(scene, common[0], [literal[t] for t in common[0]]),
-               fallback_pct=100.0 * cal.status().fallback_rate)
+               fallback_pct=100.0 * cal.status().fallback_rate,
+               hmr_excess=float(np.median(np.abs(signed))) - 100.0 * abs(scene.hmr_bias))
     out['w_mpjpe_vs_literal'] = out['w_mpjpe'] - out['w_mpjpe_literal']
+    if params.metric_frame_alignment == 'gravity':
+        out.update(gravity_frame(scene, poses, frames))
     if online:
-        out.update(_online(scene, params))
+        out.update(_online(scene, params, offline_humans,
+                           {o.stamp_ns: o.position_metric for o in poses}))
     return out
+
+
+def gravity_frame(scene: Scene, poses: list[PoseOut], scales: list[ScaleOut]) -> dict[str, float]:
+    """How well the gravity-aligned metric frame sits (its floor is z = 0): ``camera_height_err``
+    the median relative error of the camera's height (/hac/pose z against the true height above
+    the floor), %; ``floor_err`` the median |z| (metres) of the true floor below each person's
+    lowest joint, placed in the metric frame through the camera of its frame (the true camera-frame
+    vector, at the published scale over the true one)."""
+    index = {int(s): i for i, s in enumerate(scene.pose_stamps_ns)}
+    rel = [o.position_metric[2] / scene.gt_c[index[o.stamp_ns], 2] - 1.0 for o in poses
+           if o.stamp_ns in index]
+    pose_at = {o.stamp_ns: o for o in poses}
+    scale_at = {o.stamp_ns: o.scale for o in scales}
+    floor = []
+    for k, stamp in enumerate(_joint_stamps(scene)):
+        pose, i = pose_at.get(stamp), index.get(stamp)
+        if pose is None or i is None or stamp not in scale_at:
+            continue
+        ratio = scale_at[stamp] / float(scene.true_scale_at(np.array([stamp]))[0])
+        for person in scene.joints_world[k]:
+            below = person[np.argmin(person[:, 2])] * [1.0, 1.0, 0.0]  # the floor under the feet
+            v_cam = scene.gt_R_wc[i].T @ (below - scene.gt_c[i])
+            floor.append(abs(float((pose.position_metric + ratio * pose.rotation_metric @ v_cam)[2])))
+    return {'camera_height_err': 100.0 * float(np.median(np.abs(rel))) if rel else math.nan,
+            'floor_err': float(np.median(floor)) if floor else math.nan}
 
 
 def _common(humans: list[HumanJointsOut], literal: World) -> tuple[list[int], list[np.ndarray]]:
@@ -166,8 +210,13 @@ def _signed_errors(scene: Scene, scales: list[ScaleOut]) -> np.ndarray:
     return 100.0 * (values / scene.true_scale_at(stamps) - 1.0) if len(values) else np.full(1, np.nan)
 
 
-def _online(scene: Scene, params: HacParams) -> dict[str, float]:
-    outputs = feed(Calibrator(params), scene)
+def _online(scene: Scene, params: HacParams, offline_humans: World,
+            offline_positions: dict[int, np.ndarray]) -> dict[str, float]:
+    """The online run's figures (what hac_node publishes; the world humans unfiltered, like the
+    offline ones they are compared with): its scale error, its W-MPJPE and ATE-S on the frames
+    after convergence beside the offline run's on the same frames, and the /diagnostics statuses
+    that said OK and converged while the scale was more than CONVERGED_REL off the truth."""
+    outputs = feed(Calibrator(params.replace(human_filter='none')), scene)
     scales = [o for o in outputs if isinstance(o, ScaleOut)]
     signed = _signed_errors(scene, scales)
     joint_stamps = _joint_stamps(scene)
@@ -177,8 +226,33 @@ def _online(scene: Scene, params: HacParams) -> dict[str, float]:
         first_good = 0 if not bad.size else int(bad[-1]) + 1
         if first_good < len(scales):
             converged = (scales[first_good].stamp_ns - joint_stamps[0]) / 1e9
-    return {'online_err': float(np.median(np.abs(signed))),
-            'online_final_err': float(abs(signed[-1])), 'converged_s': converged}
+    out = {'online_err': float(np.median(np.abs(signed))),
+           'online_final_err': float(abs(signed[-1])), 'converged_s': converged}
+    humans = [o for o in outputs if isinstance(o, HumanJointsOut) and o.stamp_ns in offline_humans]
+    if humans:
+        stamps = [o.stamp_ns for o in humans]
+        out['w_mpjpe_online'] = w_mpjpe(scene, stamps, [o.joints_metric for o in humans])
+        out['w_mpjpe_offline'] = w_mpjpe(scene, stamps, [offline_humans[t] for t in stamps])
+    index = {int(s): i for i, s in enumerate(scene.pose_stamps_ns)}
+    poses = [o for o in outputs if isinstance(o, PoseOut) and o.stamp_ns in offline_positions
+             and o.stamp_ns in index]
+    if len(poses) > 2:
+        true = scene.gt_c[[index[o.stamp_ns] for o in poses]]
+        out['ate_s_online'] = metrics.ate_s(np.array([o.position_metric for o in poses]), true)
+        out['ate_s_offline'] = metrics.ate_s(np.array([offline_positions[o.stamp_ns]
+                                                       for o in poses]), true)
+    statuses = [o.status for o in outputs if isinstance(o, DiagnosticsOut)]
+    off = [abs(st.scale / float(scene.true_scale_at(np.array([st.stamp_ns]))[0]) - 1.0)
+           > CONVERGED_REL if st.converged else False for st in statuses]
+    out.update(statuses=len(statuses),
+               converged_wrong=sum(off),
+               ok_wrong=sum(w and status_ok(st) for w, st in zip(off, statuses)))
+    return out
+
+
+def status_ok(status: Status) -> bool:
+    """Whether /diagnostics says OK for this status (hac_ros.bridge.messages' rule)."""
+    return status.converged and not status.suspects and status.alignment != 'slam'
 
 
 def run_literal(scene: Scene) -> tuple[dict[str, float], World]:

@@ -34,7 +34,10 @@ TRAJECTORIES = {'fr2_desk': ('fr2_desk_ORB_kf_mono.txt', 'fr2_desk_groundtruth.t
 MOTIONS = ('scaled_131_01.npz', 'scaled_131_02.npz', 'scaled_131_03.npz')
 WIDTH, HEIGHT = 640, 480
 MAP_NOISE_M = 0.005
-WALKER_DISTANCE_M = (2.0, 3.5)  # from the mean camera centre along the mean horizontal view
+# the walker's distance from the mean camera centre along the mean horizontal view, metres: on
+# freiburg1_xyz (the camera 1.6 m high, pitched about 48 degrees down) a steep view of a person
+# 1-2 m away
+WALKER_DISTANCE_M = {'fr2_desk': (2.0, 3.5), 'freiburg1_xyz': (1.2, 2.0)}
 
 
 @dataclass
@@ -79,11 +82,12 @@ def hand_eye(R_gt: np.ndarray, R_slam_world: np.ndarray) -> np.ndarray:
     return Rotation.from_matrix(np.einsum('nji,njk->nik', R_gt, R_slam_world)).mean().as_matrix()
 
 
-def build(shared: Path, seed: int = 0, hmr_bias: float = 0.0, sequence: str | None = None
-          ) -> Composite:
+def build(shared: Path, seed: int = 0, hmr_bias: float = 0.0, sequence: str | None = None,
+          motion: int | None = None) -> Composite:
     """The composite of ``seed``: sequence (fr2_desk for even seeds, freiburg1_xyz for every
-    fourth odd one, unless given), motion, placement and noise drawn from the seed; ``hmr_bias``:
-    the mean relative HMR depth bias (0: clean, no bias and no wander)."""
+    fourth odd one, unless given), motion (an index into MOTIONS, unless given), placement and
+    noise drawn from the seed; ``hmr_bias``: the mean relative HMR depth bias (0: clean, no bias
+    and no wander)."""
     rng = np.random.default_rng([seed, 7])
     if sequence is None:
         sequence = 'freiburg1_xyz' if seed % 4 == 3 else 'fr2_desk'
@@ -99,13 +103,14 @@ def build(shared: Path, seed: int = 0, hmr_bias: float = 0.0, sequence: str | No
     K = INTRINSICS[sequence]
 
     # the walker: real motion at its real heights, on the floor (z = 0) in front of the cameras
-    motion = np.load(shared / 'cmu_mocap' / MOTIONS[int(rng.integers(len(MOTIONS)))])
-    walk = _y_up_to_z_up(motion['joints'].astype(float))
-    fps = float(motion['fps'])
+    drawn = int(rng.integers(len(MOTIONS)))  # drawn also when given: the other draws stay
+    data = np.load(shared / 'cmu_mocap' / MOTIONS[drawn if motion is None else motion])
+    walk = _y_up_to_z_up(data['joints'].astype(float))
+    fps = float(data['fps'])
     view = np.mean(R_gt[:, :, 2], axis=0)
     view[2] = 0.0
     view /= np.linalg.norm(view)
-    centre = np.mean(c_gt, axis=0) + rng.uniform(*WALKER_DISTANCE_M) * view
+    centre = np.mean(c_gt, axis=0) + rng.uniform(*WALKER_DISTANCE_M[sequence]) * view
     centre[2] = 0.0
     root_mid = walk[:, 0].mean(axis=0) * [1, 1, 0]
     heading = np.arctan2(view[1], view[0]) + rng.uniform(0.3, 2.8)  # across the view, any way

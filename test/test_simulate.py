@@ -132,14 +132,19 @@ def test_map_points_lie_on_the_world_and_never_on_people(scenarios):
         assert sizes == sorted(sizes), name
 
 
-def test_walk_stance_foot_stands_its_sole_height_above_the_floor():
-    """The stance foot joint is the lowest joint, at the person's contact height above the floor
-    (drawn per person in SOLE_HEIGHT_M: a foot joint is not on the surface)."""
-    sc = make_scenario('walk', seed=3, duration=SHORT)
+def test_walk_contact_stands_its_sole_height_above_the_floor_and_lifts_like_real_gait():
+    """The lowest joint stands at the person's contact height above the floor (drawn per person in
+    SOLE_HEIGHT_M: a foot joint is not on the surface) only while the foot is flat: it is lifted
+    at heel strike and towards toe-off (motions.FootRoll) about as much as in the real CMU walks
+    (131_02, 131_03: 0.5-0.9 cm above their stance height at the quartile, 0.9-1.2 cm at the
+    median, 2.8 cm at the 95th percentile)."""
+    sc = make_scenario('walk', seed=3, duration=20.0)
     height = sc.contact_heights[0]
     assert SOLE_HEIGHT_M[0] <= height <= SOLE_HEIGHT_M[1]
-    lowest = np.array([j[:, :, 2].min() for j in sc.gt_joints_world])
-    np.testing.assert_allclose(lowest, height, atol=1e-9)
+    lift = np.array([j[:, :, 2].min() for j in sc.gt_joints_world]) - height
+    assert lift.min() > -1e-9 and np.mean(lift < 1e-3) > 0.05  # planted now and then, never below
+    quartile, median, top = np.percentile(lift, [25, 50, 95])
+    assert 0.0 <= quartile <= 0.01 and 0.003 <= median <= 0.015 and 0.02 <= top <= 0.045
     other = make_scenario('walk', seed=4, duration=SHORT)
     assert other.contact_heights[0] != height  # drawn per person
     feet = np.array([j[0, [10, 11], 2] for j in sc.gt_joints_world])

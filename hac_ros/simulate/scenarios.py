@@ -128,6 +128,14 @@ def make_scenario(name: str, seed: int = 0, duration: float | None = None, rate:
     # the contact heights and the HMR depth process have a generator of their own (adding them
     # left every other draw of a seed as it was)
     body_rng = np.random.default_rng([seed, sorted(SCENARIOS).index(name), 1])
+    # so have the walkers' foot rolls (motions.FootRoll: a contact lifted as in real gait)
+    roll_rng = np.random.default_rng([seed, sorted(SCENARIOS).index(name), 2])
+
+    def walker(path: motions.Path2D, phase_s: float = 0.0) -> np.ndarray:
+        roll = motions.FootRoll(roll_rng.uniform(*motions.ROLL_HEEL_STRIKE_M),
+                                roll_rng.uniform(*motions.ROLL_TOE_OFF_M))
+        return motions.gait(t, path, world, phase_s, roll)
+
     duration = SCENARIOS[name][0] if duration is None else float(duration)
     T = max(2, int(round(duration * rate)) + 1)
     t = np.arange(T) / rate
@@ -141,7 +149,7 @@ def make_scenario(name: str, seed: int = 0, duration: float | None = None, rate:
     people: list[np.ndarray]
     if name == 'stairs':
         _stairs(world)
-        people = [motions.gait(t, motions.shuttle_path((-4.0, 0.0), (4.0, 0.0), 1.0), world)]
+        people = [walker(motions.shuttle_path((-4.0, 0.0), (4.0, 0.0), 1.0))]
     elif name == 'handstand':
         people = [motions.handstand(t, motions.circle_path((0.0, 0.0), 2.5, 0.5), world)]
     elif name == 'skate':
@@ -150,17 +158,16 @@ def make_scenario(name: str, seed: int = 0, duration: float | None = None, rate:
         for k in range(4):  # a row of tables between the camera and the walker
             x0 = -5.0 + 2.6 * k
             world.boxes.append(Box(np.array([x0, -0.3, 0.0]), np.array([x0 + 2.0, 0.9, 0.75]), 1.5))
-        people = [motions.gait(t, motions.shuttle_path((-4.5, 1.6), (4.5, 1.6), 1.0), world)]
+        people = [walker(motions.shuttle_path((-4.5, 1.6), (4.5, 1.6), 1.0))]
     elif name == 'crowd':
-        people = [motions.gait(t, motions.circle_path((0.0, 0.0), 3.0, 1.1), world),
-                  motions.gait(t, motions.circle_path((0.0, 0.0), 1.8, 0.9, phase=2.0), world, 0.2),
-                  motions.gait(t, motions.shuttle_path((-4.0, -4.0), (4.0, -1.0), 1.2), world,
-                               0.35)]
+        people = [walker(motions.circle_path((0.0, 0.0), 3.0, 1.1)),
+                  walker(motions.circle_path((0.0, 0.0), 1.8, 0.9, phase=2.0), 0.2),
+                  walker(motions.shuttle_path((-4.0, -4.0), (4.0, -1.0), 1.2), 0.35)]
     elif name == 'ego':
         world.floor_texture = 0.08  # a plain floor: sparsely mapped
-        people = [motions.gait(t, motions.circle_path((0.0, 0.0), 3.2, 1.0), world)]
+        people = [walker(motions.circle_path((0.0, 0.0), 3.2, 1.0))]
     else:  # walk, drift, reset, static
-        people = [motions.gait(t, motions.circle_path((0.0, 0.0), 3.0, 1.1), world)]
+        people = [walker(motions.circle_path((0.0, 0.0), 3.0, 1.1))]
     heights = body_rng.uniform(*(HAND_HEIGHT_M if name == 'handstand' else SOLE_HEIGHT_M),
                                len(people))
     for person, height in zip(people, heights):
