@@ -31,7 +31,9 @@ import numpy as np
 from hac_ros.core.numeric import MAD_TO_SIGMA, NS
 
 TREND_BINS = 8  # time bins of the window whose medians the trend is fitted to
-TREND_MIN_PER_BIN = 3  # samples a bin needs to count
+# samples a bin needs to count: the median of fewer is too noisy to fit a slope to (at keyframe
+# rate, 1-2 Hz, bins of 3 samples made a spurious 'drift' that read a constant scale 9 % off)
+TREND_MIN_PER_BIN = 10
 TREND_REFRESH_NS = 500_000_000  # the trend is re-fitted this often (stamp time)
 DRIFT_Z = 4.0  # the slope's distance from zero, in standard errors, that says "drifting"
 DRIFT_MIN_REL = 0.04  # ... and the smallest relative change over the window worth following
