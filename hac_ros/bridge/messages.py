@@ -13,11 +13,13 @@ writes them resolved against ``/`` (:func:`in_root`).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from hac_ros.core.health import Finding, HealthMonitor
 from hac_ros.core.numeric import NS
 from hac_ros.core.outputs import (
     CloudOut,
@@ -71,7 +73,6 @@ PLANE_SIZE_M = 8.0  # side of the ground-plane marker, metres
 PLANE_THICKNESS_M = 0.01
 LINE_STRIP, LINE_LIST, CUBE = 4, 5, 1
 ADD = 0
-DIAG_OK, DIAG_WARN = 0, 1
 SKELETON_RGBA = (0.1, 0.9, 0.2, 1.0)
 PATH_RGBA = (0.2, 0.4, 1.0, 1.0)
 PLANE_RGBA = (0.6, 0.6, 0.6, 0.4)
@@ -101,6 +102,7 @@ class OutputMessages:
     """Serializes the outputs; keeps the little state markers need (the camera path, the plane)."""
 
     def __init__(self, params: HacParams) -> None:
+        self.health = HealthMonitor()  # the level and reasons of each /diagnostics status
         self.params = params
         self._path = np.empty((PATH_LENGTH, 3))  # ring buffer of camera positions, metres
         self._path_count = 0
@@ -117,6 +119,7 @@ class OutputMessages:
         """The parameters; a new set (the node's runtime change) also renews what derives from
         them: the skeleton marker's LINE_LIST point order, the layout's bones (parent, child)."""
         self._params = params
+        self.health.gravity_wanted = params.metric_frame_alignment == 'gravity'
         self._bone_joints = np.array(params.layout().edges, dtype=int).reshape(-1)
 
     def convert(self, output: Output) -> list[Message]:
@@ -162,8 +165,14 @@ class OutputMessages:
         return []
 
     # ------------------------------------------------------------------ diagnostics
-    def diagnostics(self, status: Status) -> bytes:
-        """/diagnostics: one DiagnosticStatus with the estimator's state as key-values."""
+    def diagnostics(self, status: Status, extra: Sequence[Finding] = (),
+                    extra_values: Sequence[tuple[str, str]] = (), take: bool = True) -> bytes:
+        """/diagnostics: one DiagnosticStatus with the estimator's state as key-values, its level
+        and message from :mod:`hac_ros.core.health` (``reasons``: the findings' reasons).
+
+        extra, extra_values: findings and key-values only the shell knows (the node's latency,
+        backlog, stale input); take: False for a status that repeats the last one (the node's
+        timer), whose counts must not be taken as seen."""
         values = [
             ('converged', str(status.converged).lower()),
             ('scale', f'{status.scale:.9g}'),
@@ -183,21 +192,15 @@ class OutputMessages:
         ]
         values += [(f'service.{name}', str(count))
                    for name, count in sorted(status.services.items())]
+        values += [(f'event.{kind}', str(count)) for kind, count in sorted(status.events.items())]
         values += [(f'rejected.{reason}', str(count))
                    for reason, count in sorted(status.rejected.items())]
-        level = DIAG_OK if status.converged else DIAG_WARN
-        message = (f'converged: scale {status.scale:.6g} +- {status.spread:.2g}' if status.converged
-                   else f'not converged: {status.samples} samples')
-        if status.frozen:
-            message += ' (frozen)'
         values += [(f'suspect.{key}', text) for key, text in sorted(status.suspects.items())]
-        if status.suspects:
-            level = DIAG_WARN
-            message += '; inputs suspect: ' + ', '.join(sorted(status.suspects))
-        if status.alignment == 'slam' and self.params.metric_frame_alignment == 'gravity':
-            level = DIAG_WARN
-            message += '; metric frame: SLAM axes (no usable ground normal)'
-
+        values += [(f'condition.{key}', text) for key, text in sorted(status.conditions.items())]
+        values += list(extra_values)
+        health = self.health.assess(status, extra) if take else self.health.peek(status, extra)
+        values.append(('reasons', ','.join(health.reasons)))
+        level, message = health.level, health.message
         return cdr_write.diagnostic_array(
             status.stamp_ns, '',
             [(level, DIAGNOSTIC_NAME, message, self.params.metric_frame, values)])

@@ -48,15 +48,19 @@ from hac_ros.core.pending import (
     Record,
     outputs_only,
 )
-from hac_ros.core.pose_stream import Pose, PoseTrack
+from hac_ros.core.plausibility import CLOUD_IMPLAUSIBLE_SHARE, body_unit_problem, implausible
+from hac_ros.core.pose_stream import FreezeWatch, Pose, PoseTrack
 from hac_ros.core.reference import MapIndex
 from hac_ros.core.sample import Scene, person_sample
 from hac_ros.core.services import ServiceRequests
+from hac_ros.core.timeline import Stamped, Timeline
 from hac_ros.core.transforms import is_rotation
 
 PENDING_MAPS_MAX = 8  # maps waiting for a frame of their stamp
 GROUND_SHARE_SAMPLES = 30  # recent samples whose sources say whether the ground plane carries
-BODY_SPAN_MAX_M = 4.0  # a person's joints spread wider than this (box diagonal) are not metres
+# resets that keep the map in use, and the ground model: the same SLAM map goes on
+KEEPS_MAP = ('map_overlap', 'service', 'time_jump_ahead')
+KEEPS_GROUND = ('service', 'time_jump_ahead')
 
 
 _P = ParamSpec('_P')
@@ -98,32 +102,17 @@ class Calibrator:
         self.schedule = schedule
         self.journal: list[Record] | None = [] if offline else None
         p = self.params
-        self.estimator = RollingScale(p.window_s, p.window_max_samples, p.min_samples,
-                                      p.gate_k, p.gate_min_rel)
-        self.ground = GroundModel(p.ground_mode, p.ground_inlier_m, p.ground_ransac_iters, p.seed)
         self._cos_min = math.cos(math.radians(p.cone_angle_deg))
         self.rejected: Counter[str] = Counter()
+        self.events: Counter[str] = Counter()  # time jumps (hac_ros.core.timeline)
         self._noticed: set[str] = set()
         self.frames = self.people = self.map_hits = self.ground_fallbacks = self.resets = 0
         self._K: np.ndarray | None = None
         self._image_size = (0, 0)
         self._camera_frame = p.camera_frame
         self._child_frame = p.camera_frame
-        self._map_frame: str | None = None
-        self.track = PoseTrack(p.pose_buffer, p.reset_jump_factor, p.reset_jump_min_rel,
-                               p.reset_confirm_poses, int(p.sync_slop_s * NS),
-                               p.interp_max_gap_s * NS)
-        self._pending: list[_Frame] = []  # sorted by stamp
-        self._maps: list[MapIndex] = []  # pending maps, sorted by stamp
-        self._foreign_map: MapIndex | None = None  # a map in a frame the poses have not reached yet
-        self.map: MapIndex | None = None
-        self._expect_new_map = False
-        self._last_frame_ns = -1
-        self._diag_second: int | None = None
         self.segment = -1  # the current segment (one SLAM map between re-initialisations)
-        self._map_handed_ns: int | None = None  # stamp of the last map handed to the metric stage
-        self._map_unhanded = False  # a map in use has not been handed to the metric stage yet
-        self._sources: deque[bool] = deque(maxlen=GROUND_SHARE_SAMPLES)  # True: a ground sample
+        self._init_stream()
         self.services = ServiceRequests()  # ~/reset, ~/freeze
         self.layout = p.layout()  # which joint is which (joint_layout)
         self.conventions = Conventions(p.pose_to_optical, p.hmr_focal_px, self.layout)
@@ -132,6 +121,32 @@ class Calibrator:
         # odometry, the cloud (hac_ros.core.metric_stage)
         self.metric = MetricStage(StageConfig.from_params(p),
                                   RootFilter(self.layout) if p.human_filter == 'smooth' else None)
+
+    def _init_stream(self) -> None:
+        """The state of one stream of header time, as at start-up (a jump back in time starts
+        a new one: hac_ros.core.timeline); the counters, the camera and the conventions stay."""
+        p = self.params
+        self.estimator = RollingScale(p.window_s, p.window_max_samples, p.min_samples,
+                                      p.gate_k, p.gate_min_rel)
+        self.ground = GroundModel(p.ground_mode, p.ground_inlier_m, p.ground_ransac_iters, p.seed)
+        self._map_frame: str | None = None
+        self.track = PoseTrack(p.pose_buffer, p.reset_jump_factor, p.reset_jump_min_rel,
+                               p.reset_confirm_poses, int(p.sync_slop_s * NS),
+                               p.interp_max_gap_s * NS)
+        self.timeline = Timeline(int(p.time_jump_back_s * NS), int(p.time_jump_ahead_s * NS),
+                                 p.reset_confirm_poses)
+        self._pending: list[_Frame] = []  # sorted by stamp
+        self._maps: list[MapIndex] = []  # pending maps, sorted by stamp
+        self._foreign_map: MapIndex | None = None  # a map in a frame the poses have not reached yet
+        self.map: MapIndex | None = None
+        self._expect_new_map = False
+        self._last_frame_ns = -1
+        self._diag_second: int | None = None
+        self._segment_starts: str | None = ''  # the cause of a segment starting at the next pose
+        self._map_handed_ns: int | None = None  # stamp of the last map handed to the metric stage
+        self._map_unhanded = False  # a map in use has not been handed to the metric stage yet
+        self._sources: deque[bool] = deque(maxlen=GROUND_SHARE_SAMPLES)  # True: a ground sample
+        self.freeze = FreezeWatch()
 
     # ================================================================== inputs
     @_public
@@ -148,21 +163,49 @@ class Calibrator:
     @_public
     def add_pose(self, stamp_ns: int, R_wc: np.ndarray, c_map: np.ndarray, frame_id: str = '',
                  child_frame_id: str = '') -> list[Record]:
-        """A SLAM pose: camera-to-map rotation (3, 3) and camera centre (3,), SLAM units, map
-        frame."""
-        out: list[Record] = []
+        """A SLAM pose: camera-to-map rotation (3, 3) and camera centre (3,), SLAM units, map frame.
+
+        Its stamp is judged first (hac_ros.core.timeline: late, a jump back that starts a new
+        stream, one stamp far ahead, a jump ahead), then the pose in its stream (pose_stream)."""
         R_wc = self.conventions.pose(np.asarray(R_wc, dtype=float))
         c_map = np.asarray(c_map, dtype=float)
         if not (is_rotation(R_wc, 1e-3) and c_map.shape == (3,) and np.all(np.isfinite(c_map))):
             return self._reject('pose_nonfinite', stamp_ns)
-        newest = self.track.newest_stamp_ns
-        if newest is not None and stamp_ns <= newest:
-            return self._reject('pose_out_of_order', stamp_ns)
-        if child_frame_id and not self.params.camera_frame and self.conventions.optical_poses:
-            self._child_frame = child_frame_id
-        pose = Pose(int(stamp_ns), R_wc, c_map)
+        item = Stamped(Pose(int(stamp_ns), R_wc, c_map), frame_id, child_frame_id)
+        verdict = self.timeline.judge(item, self.track.newest_stamp_ns)
+        out: list[Record] = []
+        for bad in verdict.refused:
+            out += self._reject(verdict.reason, bad.pose.stamp_ns)
+        if verdict.refused and verdict.reason == 'pose_out_of_order':  # no new stream after all
+            frames, held_map = self.timeline.take_held()
+            for frame in frames:
+                out += self._reject('late_frame', frame.stamp_ns)
+            if held_map is not None:
+                out += self._reject('map_late', held_map.stamp_ns)
+        if verdict.kind == 'late':
+            return out + self._reject('pose_out_of_order', stamp_ns)
+        if verdict.kind == 'held':
+            return out
+        first = verdict.poses[0].pose if verdict.poses else None
+        if verdict.kind == 'restart' and first is not None:
+            out += self._restart(first)
+        elif verdict.kind == 'ahead' and first is not None:
+            self.events['time_jump_ahead'] += 1
+            out += self._reset(first, 'time_jump_ahead', 'header time jumped ahead and went on '
+                               'from there: a new segment')
+        for each in verdict.poses or [item]:
+            out += self._stream_pose(each)
+        return out
 
+    def _stream_pose(self, item: Stamped) -> list[Record]:
+        """A pose whose stamp belongs to the current stream: the map frame, the stream's first
+        poses, jumps and outliers, a frozen SLAM (hac_ros.core.pose_stream)."""
+        pose, frame_id, track = item.pose, item.frame_id, self.track
+        if item.child_frame_id and not self.params.camera_frame and self.conventions.optical_poses:
+            self._child_frame = item.child_frame_id
+        out: list[Record] = []
         move = None  # the pose's step, when the jump test computed it
+        measured = True  # the step is the camera's motion (not a freeze's)
         if self._map_frame is None:
             self._map_frame = frame_id
             out += self._refuse_foreign_maps()
@@ -171,8 +214,13 @@ class Calibrator:
                                f'{frame_id!r}: SLAM re-initialised')
             self._map_frame = frame_id
             self._adopt_foreign_map(out)
-        elif self.track.suspects:
-            verdict = self.track.follow(pose)
+        if track.vetting:  # nothing is anchored on the stream's first poses until judged
+            accepted = track.start(pose, self._map_extent())
+            if accepted is None:
+                return out
+            return out + self._vetted(accepted) + self._diagnostics(pose.stamp_ns)
+        if track.suspects:
+            verdict = track.follow(pose)
             for bad in verdict.outliers:
                 out += self._reject('pose_outlier', bad.stamp_ns)
             if verdict.reset is not None:
@@ -180,16 +228,32 @@ class Calibrator:
                                    'SLAM pose jumped and stayed: SLAM re-initialised')
                 for confirmed in verdict.confirmed:
                     out += self._accept_pose(confirmed)
-            elif self.track.suspects:
-                return out + self._diagnostics(stamp_ns)
+            elif track.suspects:
+                return out + self._diagnostics(pose.stamp_ns)
+        elif track.repetition(pose):  # a repeated pose, or the first one after a freeze
+            measured = False
         else:
-            move = self.track.step(pose)
-            if self.track.is_jump(move, self.map.extent if self.map is not None else 0.0):
-                self.track.suspects = [pose]
-                return out + self._diagnostics(stamp_ns)
+            move = track.step(pose)
+            if track.is_jump(move, self.map.extent if self.map is not None else 0.0):
+                track.suspects = [pose]
+                return out + self._diagnostics(pose.stamp_ns)
+        out += self._accept_pose(pose, move, measured)
+        return out + self._diagnostics(pose.stamp_ns)
 
-        out += self._accept_pose(pose, move)
-        return out + self._diagnostics(stamp_ns)
+    def _vetted(self, accepted: list[Pose] | None) -> list[Record]:
+        """The stream's first poses judged (PoseTrack.start): the others refused as outliers."""
+        out: list[Record] = []
+        refused, self.track.candidates = self.track.candidates, []
+        for bad in refused:
+            out += self._reject('pose_outlier', bad.stamp_ns)
+        for good in accepted or []:
+            out += self._accept_pose(good)
+        return out
+
+    def _map_extent(self) -> float:
+        """The extent of the map in use or about to be (SLAM units; 0 without a map)."""
+        latest = self._maps[-1] if self._maps else self.map
+        return latest.extent if latest is not None else 0.0
 
     @_public
     def add_map(self, stamp_ns: int, points_map: np.ndarray, frame_id: str = '') -> list[Record]:
@@ -211,6 +275,23 @@ class Calibrator:
         if self._map_frame is not None and index.frame_id != self._map_frame:
             self._foreign_map = index
             return self._reject('cloud_wrong_frame', index.stamp_ns)
+        camera = None if self.track.last is None else self.track.last.c_map
+        far, median = implausible(index.sample, camera)  # hac_ros.core.plausibility
+        share = float(far.mean()) if len(far) else 0.0
+        if share > CLOUD_IMPLAUSIBLE_SHARE:  # values no SLAM produces: refused
+            return self._reject('cloud_implausible', index.stamp_ns,
+                               f'a map cloud with {100 * share:.0f} % of its points 1000x nearer '
+                               'or further than its median depth from the camera: values no SLAM '
+                               'produces (a wrong byte order or field layout?): refused')
+        if share > 0.0:  # a few such points: the map without them (rare: indexed again here)
+            far, _ = implausible(index.points_map, camera, median)
+            index = MapIndex(index.points_map[~far], index.frame_id, index.stamp_ns,
+                             self.params.index_max_points)
+        stream_ns = max(self.map.stamp_ns if self.map is not None else -1, self._last_frame_ns,
+                        self.track.newest_stamp_ns or -1)
+        if self.timeline.is_before(index.stamp_ns, stream_ns):
+            late, self.timeline.map = self.timeline.map, index  # a new stream's, if time jumped
+            return [] if late is None else self._reject('map_late', late.stamp_ns)
         if self.map is not None and index.stamp_ns <= self.map.stamp_ns:
             return self._reject('map_late', index.stamp_ns)
         stamps = [m.stamp_ns for m in self._maps]
@@ -242,18 +323,29 @@ class Calibrator:
                     self._child_frame = frame_id
             elif frame_id != self._camera_frame:
                 return self._reject('joints_wrong_frame', stamp_ns)
-        if stamp_ns <= self._last_frame_ns:
+        stream_ns = max(self._last_frame_ns, self.track.newest_stamp_ns or -1)
+        back = self.timeline.is_before(stamp_ns, stream_ns)
+        if stamp_ns <= self._last_frame_ns and not back:
             return self._reject('late_frame', stamp_ns)
         joints_cam, notices = self.conventions.joints(stamp_ns, joints_cam, self._K)
         out: list[Record] = [*notices]
         frame = _Frame(int(stamp_ns), joints_cam)
+        if back:  # older than the stream: a new stream's if time jumped back (timeline)
+            for late in self.timeline.hold_frame(frame):
+                out += self._reject('late_frame', late.stamp_ns)
+            return out
+        return out + self._queue_frame(frame)
+
+    def _queue_frame(self, frame: _Frame) -> list[Record]:
+        """Process ``frame`` now if its pose is known, else keep it until a pose at or after it."""
         last = self.track.last
-        if last is not None and last.stamp_ns >= stamp_ns and not self.track.suspects:
-            return out + self._process(frame)
+        if last is not None and last.stamp_ns >= frame.stamp_ns and not self.track.suspects:
+            return self._process(frame)
         stamps = [f.stamp_ns for f in self._pending]
         pos = bisect.bisect_right(stamps, frame.stamp_ns)
         if pos and stamps[pos - 1] == frame.stamp_ns:
-            return self._reject('late_frame', stamp_ns)  # a repeated stamp
+            return self._reject('late_frame', frame.stamp_ns)  # a repeated stamp
+        out: list[Record] = []
         self._pending.insert(pos, frame)
         while len(self._pending) > self.params.pose_buffer:
             dropped = self._pending.pop(0)
@@ -265,6 +357,17 @@ class Calibrator:
         """End of input: process the frames still waiting (matched within the slop, else
         dropped)."""
         out: list[Record] = []
+        suspects, self.timeline.suspects = self.timeline.suspects, []
+        for item in suspects:  # an unconfirmed jump in time at the very end: stray stamps
+            out += self._reject('pose_out_of_order' if self.timeline.direction == 'back'
+                               else 'pose_stamp_outlier', item.pose.stamp_ns)
+        frames, held_map = self.timeline.take_held()
+        for frame in frames:
+            out += self._reject('late_frame', frame.stamp_ns)
+        if held_map is not None:
+            out += self._reject('map_late', held_map.stamp_ns)
+        if self.track.vetting and self.track.candidates:  # the first poses, judged as they are
+            out += self._vetted(self.track.start(None, self._map_extent(), final=True))
         if self.track.suspects:  # an unconfirmed jump at the very end: its poses are outliers
             for pose in self.track.suspects:
                 out += self._reject('pose_outlier', pose.stamp_ns)
@@ -278,12 +381,14 @@ class Calibrator:
         """Count a rejected input (shells use it for messages they could not decode)."""
         return self._reject(reason, stamp_ns)
 
-    def _reject(self, reason: str, stamp_ns: int = -1) -> list[Record]:
+    def _reject(self, reason: str, stamp_ns: int = -1, detail: str = '') -> list[Record]:
+        """Count a rejection; the first of each reason is announced with ``detail`` (else the
+        reason's text)."""
         self.rejected[reason] += 1
         if reason in self._noticed:
             return []
         self._noticed.add(reason)
-        text = REASONS.get(reason, reason)
+        text = detail or REASONS.get(reason, reason)
         return [NoticeOut(int(stamp_ns), reason, f'rejected input ({reason}): {text}; '
                           'further ones are counted in /diagnostics')]
 
@@ -351,21 +456,34 @@ class Calibrator:
             ground_normal_map=None if plane is None else plane.normal,
             ground_offset_slam=float('nan') if plane is None else plane.offset,
             drifting=self.estimator.drifting, frozen=self.services.holding,
-            services=dict(self.services.counts), suspects=dict(self.check.suspects))
+            services=dict(self.services.counts), suspects=dict(self.check.suspects),
+            events=dict(self.events), conditions=self.conditions())
         last = self.track.last
         return PendingStatus(status, plane, None if last is None else last.c_map, self.segment)
+
+    def conditions(self) -> dict[str, str]:
+        """What holds now and makes /diagnostics WARN (hac_ros.core.health): reason -> text."""
+        out = {}
+        if self.freeze.holds:
+            out['slam_frozen'] = ('the SLAM pose repeats bit for bit while the people move: '
+                                  'tracking lost? (frames not sampled)')
+        return out
 
     @property
     def child_frame_id(self) -> str:
         return self.params.base_frame or self._child_frame
 
     # ================================================================== poses
-    def _accept_pose(self, pose: Pose, move: tuple[float, float] | None = None) -> list[Record]:
-        """Take ``pose`` as the camera's next one; ``move``: its step, if computed."""
+    def _accept_pose(self, pose: Pose, move: tuple[float, float] | None = None,
+                     measured: bool = True) -> list[Record]:
+        """Take ``pose`` as the camera's next one; ``move``: its step, if computed; ``measured``:
+        False when its step is not the camera's motion (a frozen SLAM's)."""
         out: list[Record] = self._take_requests(pose) if self.services.queue else []
-        if self.segment < 0:  # the very first pose starts the first segment
-            out += self._new_segment(pose, '')
-        self.track.append(pose, self.track.step(pose) if move is None else move)
+        if self._segment_starts is not None:  # the stream's first pose starts its first segment
+            out += self._new_segment(pose, self._segment_starts)
+            self._segment_starts = None
+        self.track.append(pose, (self.track.step(pose) if move is None else move)
+                          if measured else None)
         self.ground.add_camera(pose.R_wc)
         # frames before this stamp first, then this pose's odometry, then the frame of this stamp
         while self._pending and self._pending[0].stamp_ns < pose.stamp_ns:
@@ -378,7 +496,7 @@ class Calibrator:
     # ================================================================== reset
     def _new_segment(self, first_pose: Pose, cause: str) -> list[Record]:
         self.segment += 1
-        keeps_map = cause in ('map_overlap', 'service')
+        keeps_map = cause in KEEPS_MAP
         out = self._metric(PendingSegment(first_pose.stamp_ns, self.segment, first_pose.R_wc,
                                           first_pose.c_map, keeps_map, cause))
         if keeps_map and self.map is not None:
@@ -389,14 +507,14 @@ class Calibrator:
         """Forget the old map's scale and anchor the new map at ``first_pose``; a ``service`` reset
         keeps the map and the ground model (the same map, only a new estimate)."""
         self.estimator.reset()
-        if cause != 'service':
+        if cause not in KEEPS_GROUND:
             self.ground.reset()
         self.resets += 1
         self._sources.clear()
         self.services.clear()  # a held scale belongs to the old segment
         out: list[Record] = self._new_segment(first_pose, cause)
         self.track.clear()
-        if cause not in ('map_overlap', 'service'):
+        if cause not in KEEPS_MAP:
             self.map = None
             self._maps.clear()
             self._expect_new_map = True
@@ -408,6 +526,31 @@ class Calibrator:
                           'warn')]
         for frame in stale:
             out += self._reject('no_pose', frame.stamp_ns)
+        return out
+
+    def _restart(self, first_pose: Pose) -> list[Record]:
+        """Time jumped back (hac_ros.core.timeline): a new stream from ``first_pose``, its state,
+        maps, ground and anchor as at start-up; the odometry goes on (a zero step) and the
+        counters keep counting. The frames and the map held for it are its first."""
+        jump_s = ((self.track.newest_stamp_ns or first_pose.stamp_ns) - first_pose.stamp_ns) / NS
+        stale = self._pending
+        frames, held_map = self.timeline.take_held()
+        self._init_stream()
+        self.services.clear()
+        self.resets += 1
+        self.events['time_jump_back'] += 1
+        self._segment_starts = 'time_jump_back'
+        out: list[Record] = [
+            ResetOut(first_pose.stamp_ns, 'time_jump_back'),
+            NoticeOut(first_pose.stamp_ns, 'time_jump_back', f'header time jumped back by '
+                      f'{jump_s:.3f} s (a recording played again, a restarted clock?): a new '
+                      'stream starts, calibrated afresh (/hac/odometry goes on)', 'warn')]
+        for frame in stale:  # waiting for poses of the old stream that will not come
+            out += self._reject('no_pose', frame.stamp_ns)
+        if held_map is not None:
+            out += self._add_map_index(held_map)
+        for frame in frames:
+            out += self._queue_frame(frame)
         return out
 
     def _refuse_foreign_maps(self) -> list[Record]:
@@ -478,8 +621,11 @@ class Calibrator:
         if not self.services.holding:  # frozen: nothing expires
             self.estimator.advance(stamp)
         self.check.view_map(stamp, self.map, R_wc, c_map, self._K, self._image_size)
-        for person, joints in enumerate(frame.joints_cam):
-            out += self._person(stamp, person, R_wc, c_map, joints)
+        if self.freeze.frame(self.track.frozen(stamp), frame.joints_cam):
+            out += self._reject('slam_frozen', stamp)  # its pose is not the camera's
+        else:
+            for person, joints in enumerate(frame.joints_cam):
+                out += self._person(stamp, person, R_wc, c_map, joints)
         out += self.check.notices(stamp)
         if self.journal is not None or self.published_scale(stamp) is not None:
             plane = self.ground.plane(self.map)
@@ -494,8 +640,9 @@ class Calibrator:
         self.people += 1
         if not np.isfinite(joints).all():
             return self._rejected_sample(stamp, person, 'nonfinite_joints')
-        if math.dist(joints.min(axis=0).tolist(), joints.max(axis=0).tolist()) > BODY_SPAN_MAX_M:
-            return self._rejected_sample(stamp, person, 'joints_not_metres')
+        unit = body_unit_problem(joints)
+        if unit:
+            return self._rejected_sample(stamp, person, 'joints_not_metres', unit)
         if not (joints[:, 2] > 0.0).any():
             return self._rejected_sample(stamp, person, 'behind_camera')
         up_cam = self.layout.up_axis(joints)
@@ -525,8 +672,10 @@ class Calibrator:
                 self.ground.add_contact(contact_map, scale_now)
         return out
 
-    def _rejected_sample(self, stamp: int, person: int, reason: str) -> list[Record]:
-        return [SampleOut(stamp, person, float('nan'), reason, False), *self._reject(reason, stamp)]
+    def _rejected_sample(self, stamp: int, person: int, reason: str, detail: str = ''
+                         ) -> list[Record]:
+        return [SampleOut(stamp, person, float('nan'), reason, False),
+                *self._reject(reason, stamp, detail)]
 
     # ================================================================== outputs
     def _odometry(self, pose: Pose) -> list[Record]:

@@ -42,6 +42,7 @@ from hac_ros.core.outputs import (
     DiagnosticsOut,
     HumanJointsOut,
     NoticeOut,
+    OdometryOut,
     Output,
     PoseOut,
     ScaleOut,
@@ -59,6 +60,7 @@ from hac_ros.core.pending import (
     Record,
 )
 from hac_ros.core.plane import Plane
+from hac_ros.core.plausibility import sane, sane_rows
 from hac_ros.core.transforms import base_from_camera
 
 CLOUD_MOVE_DEG = 1.0  # the alignment moved this much since the last cloud: republish it
@@ -80,12 +82,13 @@ class StageConfig:
     publish_cloud: bool = True
     cloud_republish_rel: float = 0.01
     cloud_min_period_ns: int = 5 * NS
+    output_max_m: float = 1e5  # no output value beyond this, metres
 
     @classmethod
     def from_params(cls, p: HacParams) -> StageConfig:
         base = base_from_camera(p.base_to_camera) if p.base_frame else None
         return cls(p.metric_frame_alignment, base, p.orientation_variance, p.publish_cloud,
-                   p.cloud_republish_rel, int(p.cloud_min_period_s * NS))
+                   p.cloud_republish_rel, int(p.cloud_min_period_s * NS), p.output_max_m)
 
 
 @dataclass
@@ -124,6 +127,7 @@ class MetricStage:
         self.cloud = _CloudState()
         self.final_planes: dict[int, Plane | None] | None = None
         self._warned: set[int] = set()
+        self.suppressed = 0  # outputs held back or trimmed: output_implausible
 
     # ------------------------------------------------------------------ resolving
     def resolve(self, records: Iterable[Record], scale_at: ScaleAt,
@@ -147,7 +151,12 @@ class MetricStage:
 
     def apply(self, pending: Pending, scale_at: ScaleAt,
               error_at: Callable[[int], float] | None = None) -> list[Output]:
-        """One pending record -> its outputs with the scale ``scale_at`` gives at its stamp."""
+        """One pending record -> its outputs with the scale ``scale_at`` gives at its stamp, never
+        a non-finite value or one beyond ``output_max_m`` (:meth:`_sane`)."""
+        return self._sane(self._apply(pending, scale_at, error_at))
+
+    def _apply(self, pending: Pending, scale_at: ScaleAt,
+               error_at: Callable[[int], float] | None) -> list[Output]:
         if isinstance(pending, PendingOdometry):
             sigma = pending.sigma_scale if error_at is None else error_at(pending.stamp_ns)
             return self._pose(pending, finite_scale(scale_at(pending.stamp_ns)), sigma)
@@ -167,8 +176,41 @@ class MetricStage:
             return [DiagnosticsOut(self.status(pending, scale))]
         raise TypeError(f'not a pending output: {type(pending).__name__}')
 
+    def _sane(self, outputs: list[Output]) -> list[Output]:
+        """The outputs with nothing non-finite or beyond ``output_max_m`` metres
+        (hac_ros.core.plausibility): such a pose, odometry, scale or joints message is suppressed
+        and a cloud loses those points, each counted as ``output_implausible``; a person whose
+        input joints were not finite (counted as such) is left out of the joints."""
+        bound, out = self.config.output_max_m, []
+        for output in outputs:
+            ok = True
+            if isinstance(output, (PoseOut, OdometryOut)):
+                ok = sane(output.position_metric, bound) and sane(output.covariance, math.inf)
+            elif isinstance(output, ScaleOut):
+                ok = math.isfinite(output.scale) and output.scale > 0.0
+            elif isinstance(output, HumanJointsOut):
+                people = output.joints_metric
+                finite = np.isfinite(people).all(axis=(1, 2))
+                if not finite.all():
+                    output = replace(output, joints_metric=people[finite])
+                ok = sane(output.joints_metric, bound)
+            elif isinstance(output, CloudOut):
+                points = sane_rows(output.points_metric, bound)
+                if len(points) < len(output.points_metric):
+                    self.suppressed += 1
+                    output = replace(output, points_metric=points)
+            if ok:
+                out.append(output)
+            else:
+                self.suppressed += 1
+        return out
+
     # ------------------------------------------------------------------ segments and alignment
     def _new_segment(self, pending: PendingSegment) -> None:
+        if pending.cause == 'time_jump_back':  # a new stream: placed afresh, as at start-up
+            self.last_pose, self.cloud = None, _CloudState()
+            if self.humans is not None:
+                self.humans = RootFilter(self.humans.layout)
         anchor = variance = None
         if self.last_pose is not None:
             anchor, variance = self.last_pose[:2], self.last_pose[2]
@@ -287,6 +329,9 @@ class MetricStage:
         camera, in the metric frame (None before a scale or without a plane)."""
         plane, c_map = pending.plane, pending.c_map
         status = pending.status
+        if self.suppressed:
+            status = replace(status, rejected={**status.rejected,
+                                               'output_implausible': self.suppressed})
         if pending.segment in self.segments:
             seg = self.segments[pending.segment]
             status = replace(status, alignment='slam' if seg.slam else self.config.alignment)

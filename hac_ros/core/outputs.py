@@ -114,6 +114,9 @@ class Status:
     alignment: str = ''  # the metric frame of the current segment: 'gravity' or 'slam'
     services: dict[str, int] = field(default_factory=dict)  # service requests taken, by name
     suspects: dict[str, str] = field(default_factory=dict)  # convention warnings (convention_check)
+    events: dict[str, int] = field(default_factory=dict)  # time jumps, by kind (core.timeline)
+    # conditions that hold now and make the status WARN: reason -> text (hac_ros.core.health)
+    conditions: dict[str, str] = field(default_factory=dict)
 
     @property
     def fallback_rate(self) -> float:
@@ -130,8 +133,9 @@ class DiagnosticsOut:
 
 @dataclass(slots=True)
 class ResetOut:
-    """The estimator was reset (SLAM re-initialisation). cause: 'pose_jump', 'map_frame',
-    'map_overlap', or 'service' (``~/reset``)."""
+    """The estimator was reset. cause: a SLAM re-initialisation ('pose_jump', 'map_frame',
+    'map_overlap'), a service ('service'), or header time that jumped ('time_jump_back': a new
+    stream, 'time_jump_ahead': a new segment)."""
 
     stamp_ns: int
     cause: str
@@ -141,7 +145,10 @@ class ResetOut:
 REASONS = {
     'pose_nonfinite': 'SLAM pose with NaN/inf, an invalid rotation or an invalid stamp',
     'pose_out_of_order': 'SLAM pose stamp not after the previous one (out of order or repeated)',
-    'pose_outlier': 'isolated SLAM pose jump (jump and back): pose ignored',
+    'pose_outlier': 'isolated SLAM pose jump (jump and back, or a glitch among the first poses): '
+                    'pose ignored',
+    'pose_stamp_outlier': 'SLAM pose stamped far ahead of the others (a clock glitch): ignored',
+    'slam_frozen': 'frame not sampled: the SLAM pose is frozen while the people move',
     'late_frame': 'joints frame older than the last processed frame: dropped',
     'joints_malformed': 'joints message is not P blocks of the layout\'s joints',
     'joints_wrong_layout': ('the number of joints is not a multiple of the joint layout\'s joints '
@@ -149,8 +156,10 @@ REASONS = {
                             'custom: joints_per_person)'),
     'joints_wrong_frame': 'joints in a frame other than the camera frame',
     'nonfinite_joints': 'a person with NaN/inf joints',
-    'joints_not_metres': ('a person whose joints spread over more than 4 m: HMR joints must be '
-                          'metres (millimetres or centimetres?)'),
+    'joints_not_metres': ('a person whose joints spread over more than 4 m or less than 0.3 m: '
+                          'HMR joints must be metres'),
+    'cloud_implausible': 'map cloud of values no SLAM produces (a wrong byte order?): refused',
+    'output_implausible': 'an output with a non-finite or absurd value: suppressed',
     'behind_camera': 'a person entirely behind the camera',
     'no_pose': 'no SLAM pose at (or around) the joints stamp',
     'no_map': 'no map yet (or none since the last reset) and no ground plane',

@@ -155,6 +155,18 @@ class HacParams:
                                    'extent so far', low=0.0, high=100.0)
     reset_confirm_poses: int = _p(3, 'poses after a jump that must continue from it to make it '
                                   'a SLAM re-initialisation', low=1, high=1000)
+    time_jump_back_s: float = _p(1.0, 'a SLAM pose stamped this much (seconds) before the newest '
+                                 'one, followed by reset_confirm_poses poses that go on from it, '
+                                 'is time jumping back (a recording played again): a new stream '
+                                 'starts; a smaller step back is a late message',
+                                 low=0.0, high=1e9)
+    time_jump_ahead_s: float = _p(60.0, 'a SLAM pose stamped this much (seconds) after the newest '
+                                  'one is one stamp far ahead (refused) unless '
+                                  'reset_confirm_poses poses go on from it: then a new segment '
+                                  'starts', low=0.0, high=1e9)
+    output_max_m: float = _p(1e5, 'no output carries a value beyond this many metres (nor a '
+                             'non-finite one): such a message is suppressed, a cloud loses those '
+                             'points (output_implausible)', low=1.0, high=1e12)
     map_overlap_min: float = _p(0.1, 'a new map overlapping the previous one less than this '
                                 'fraction is a SLAM re-initialisation (0 disables)',
                                 low=0.0, high=1.0)

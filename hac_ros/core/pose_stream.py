@@ -8,12 +8,19 @@ a *suspect*; if the next poses come back near the old trajectory the suspects we
 ``reset_confirm_poses`` of them continue from the jump the SLAM re-initialised. Speeds, not steps:
 keyframe-rate SLAMs publish irregularly, and a long gap between two poses is not a jump.
 
+The first poses of a stream have no history to be judged by, so nothing is anchored on them until
+they are judged together (:meth:`PoseTrack.start`): a glitched first pose, or first two, is refused
+like a glitch mid-run. A SLAM that lost tracking repeats its last pose bit for bit (a *freeze*);
+the pose it resumes with is its true pose in the same map, not a jump
+(:meth:`PoseTrack.repetition`).
+
 Poses are camera-to-map (docs/interface.md, "Conventions"): ``R_wc`` (3, 3) rotates the camera
 optical frame into the SLAM map frame, ``c_map`` (3,) is the camera centre in SLAM units, map frame.
 """
 from __future__ import annotations
 
 import bisect
+import itertools
 from collections import deque
 from dataclasses import dataclass
 
@@ -26,6 +33,9 @@ JUMP_MIN_HISTORY = 5  # steps needed before a jump can be told from normal motio
 # ... and a jump is at least this fraction of the map's extent: a camera that stood still has no
 # speed and no extent to judge its first motion by, while a re-initialisation jumps across the scene
 JUMP_MIN_MAP_REL = 0.01
+START_POSES_MAX_FACTOR = 4  # the first poses: decided after at most this many times
+                            # reset_confirm_poses + 1 of them, whatever they look like
+FREEZE_MIN_NS = 1_000_000_000  # a pose repeated bit for bit this long (stamp time) is a freeze
 
 
 @dataclass
@@ -73,6 +83,9 @@ class PoseTrack:
         self._speeds: deque[float] = deque(maxlen=JUMP_HISTORY)
         # the camera centres' bounding box (SLAM units, map frame): lower and upper corners
         self._bbox: tuple[np.ndarray, np.ndarray] | None = None  # camera centres' box, SLAM units
+        self.vetting = True  # the stream's first poses are still to be judged (start)
+        self.candidates: list[Pose] = []  # ... the poses so far
+        self.repeated_since_ns: int | None = None  # the stamp a bit-for-bit repetition began
 
     @property
     def last(self) -> Pose | None:
@@ -81,8 +94,10 @@ class PoseTrack:
 
     @property
     def newest_stamp_ns(self) -> int | None:
-        """The stamp of the newest pose seen (accepted or suspect): later poses must be after it."""
-        newest = self.suspects[-1] if self.suspects else self.last
+        """The stamp of the newest pose seen (accepted, suspect or candidate): later poses must be
+        after it."""
+        newest = (self.suspects[-1] if self.suspects else
+                  self.candidates[-1] if self.candidates else self.last)
         return None if newest is None else newest.stamp_ns
 
     def clear(self) -> None:
@@ -91,6 +106,66 @@ class PoseTrack:
         self._stamps.clear()
         self._speeds.clear()
         self._bbox = None
+        self.repeated_since_ns = None
+
+    # ------------------------------------------------------------------ the first poses
+    def start(self, pose: Pose | None, map_extent: float = 0.0, final: bool = False
+              ) -> list[Pose] | None:
+        """Judge the stream's first poses together before anything is anchored on them.
+
+        Collects ``pose`` (None: none more); once the newest run of them (the poses since the
+        last jump, judged by their median speed as :meth:`is_jump` judges) holds
+        ``confirm_poses + 1`` poses, returns the poses to accept in order: that run, and every
+        earlier pose that is no jump from its first (a glitch came back). The rest are left in
+        ``candidates``: the caller refuses them (``pose_outlier``). None: not decided yet.
+        ``final``: decide with what there is (the end of the input).
+        """
+        if pose is not None:
+            self.candidates.append(pose)
+        poses = self.candidates
+        enough = self.confirm_poses + 1
+        if not poses or (not final and len(poses) < enough):
+            return None
+        speeds = [_speed(a, b) for a, b in itertools.pairwise(poses)]
+        typical = float(np.median(speeds)) if speeds else 0.0
+        run = [poses[-1]]
+        for earlier in reversed(poses[:-1]):  # the newest run: back to the last jump
+            if self._start_jump(earlier, run[0], typical, map_extent):
+                break
+            run.insert(0, earlier)
+        if not final and len(run) < enough and len(poses) < START_POSES_MAX_FACTOR * enough:
+            return None
+        accepted = [p for p in poses[:len(poses) - len(run)]
+                    if not self._start_jump(p, run[0], typical, map_extent)] + run
+        self.candidates = [p for p in poses if not any(p is a for a in accepted)]
+        self.vetting = False
+        return accepted
+
+    def _start_jump(self, a: Pose, b: Pose, typical: float, map_extent: float) -> bool:
+        step = float(np.linalg.norm(b.c_map - a.c_map))
+        return (_speed(a, b) > self.jump_factor * typical and step > 0.0
+                and step > JUMP_MIN_MAP_REL * map_extent)
+
+    # ------------------------------------------------------------------ a frozen SLAM
+    def repetition(self, pose: Pose) -> str:
+        """``repeat``: ``pose`` repeats the last accepted one bit for bit (a SLAM that lost
+        tracking); ``resume``: the first pose that differs after a freeze (the SLAM's true pose in
+        the same map: no jump, and its step is not the camera's speed); '' otherwise."""
+        last = self.last
+        if last is None:
+            return ''
+        if np.array_equal(pose.c_map, last.c_map) and np.array_equal(pose.R_wc, last.R_wc):
+            if self.repeated_since_ns is None:
+                self.repeated_since_ns = last.stamp_ns
+            return 'repeat'
+        resumed = self.frozen(last.stamp_ns)
+        self.repeated_since_ns = None
+        return 'resume' if resumed else ''
+
+    def frozen(self, stamp_ns: int) -> bool:
+        """The SLAM has repeated its pose for FREEZE_MIN_NS up to ``stamp_ns``."""
+        since = self.repeated_since_ns
+        return since is not None and stamp_ns - since >= FREEZE_MIN_NS
 
     # ------------------------------------------------------------------ jumps
     def step(self, pose: Pose) -> tuple[float, float] | None:
@@ -133,9 +208,11 @@ class PoseTrack:
 
     # ------------------------------------------------------------------ accepted poses
     def append(self, pose: Pose, move: tuple[float, float] | None) -> None:
-        """Accept ``pose``; ``move``: its :meth:`step` (None for the first pose of a segment)."""
+        """Accept ``pose``; ``move``: its :meth:`step` (None for the first pose of a segment, a
+        repeated pose and the pose a frozen SLAM resumes with: no speed of the camera's)."""
         if move is not None:
             self._speeds.append(move[1])
+        self.vetting = False
         self.poses.append(pose)
         self._stamps.append(pose.stamp_ns)
         if self._bbox is None:
@@ -163,3 +240,41 @@ class PoseTrack:
             return interpolate_pose(stamp_ns, a.stamp_ns, a.R_wc, a.c_map,
                                     b.stamp_ns, b.R_wc, b.c_map)
         return None
+
+
+def _speed(a: Pose, b: Pose) -> float:
+    """SLAM units per stamp ns from ``a`` to ``b``."""
+    return float(np.linalg.norm(b.c_map - a.c_map)) / max(abs(b.stamp_ns - a.stamp_ns), 1)
+
+
+PEOPLE_MOVED_M = 0.25  # joints that moved this far (metres, camera frame) during a freeze ...
+PEOPLE_MOVED_SHARE = 0.1  # ... this share of them or more: the people are moving
+
+
+class FreezeWatch:
+    """``slam_frozen``: the SLAM repeats its pose bit for bit while the people in view keep
+    moving (a still camera with still people is not frozen). Judged per frame on the people's
+    joints in the camera frame (metres) against the first frame of the freeze: a body that walks
+    moves its limbs even when a following camera keeps it in the middle of the image."""
+
+    def __init__(self) -> None:
+        self._people_at_start: np.ndarray | None = None
+        self.holds = False
+
+    def frame(self, frozen: bool, joints_cam: np.ndarray) -> bool:
+        """One frame: ``frozen`` (PoseTrack.frozen at its stamp), its joints (P, K, 3) metres,
+        camera optical frame. True while the SLAM is frozen and the people moved."""
+        if not frozen:
+            self._people_at_start, self.holds = None, False
+            return False
+        start = self._people_at_start
+        if start is None:
+            self._people_at_start = np.array(joints_cam, dtype=float)
+        elif start.shape != joints_cam.shape:
+            self.holds = True  # people came or went
+        else:
+            moved = np.linalg.norm(joints_cam - start, axis=-1)
+            moved = moved[np.isfinite(moved)]
+            if moved.size and np.mean(moved > PEOPLE_MOVED_M) >= PEOPLE_MOVED_SHARE:
+                self.holds = True
+        return self.holds

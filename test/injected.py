@@ -1,0 +1,182 @@
+"""Faults injected into real recordings, for the fault suite (test_faults.py).
+
+A recording of the simulator is copied message by message with an edit applied: the recording
+played twice (header stamps go back), one SLAM pose glitched or stamped far ahead, the SLAM frozen,
+maps whose bytes decode to garbage, joints in the wrong unit. Each edit is a function
+``(topic, log_ns, msg) -> [(topic, log_ns, msg), ...]`` on rosbags' message objects; the copy keeps
+every other message as it is.
+"""
+from __future__ import annotations
+
+import copy
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from hac_ros.core.numeric import NS
+
+Message = tuple[str, int, Any]  # (topic, log time ns, rosbags message)
+Edit = Callable[[Iterator[Message]], Iterator[Message]]
+POSE, JOINTS, CLOUD = '/slam/pose', '/hmr/joints', '/slam/cloud'
+
+
+def simulate(path: Path, scenario: str = 'walk', seed: int = 1, duration: float | None = None,
+             hmr_bias: float = 0.0) -> Path:
+    """``hac simulate SCENARIO --seed SEED --hmr-bias 0`` (the issue's recipe) into ``path``."""
+    from hac_ros.simulate import make_scenario, write_recording
+
+    sc = make_scenario(scenario, seed=seed, duration=duration, hmr_bias=hmr_bias)
+    return write_recording(sc, path)
+
+
+def rewrite(source: Path, target: Path, edit: Edit) -> Path:
+    """A copy of ``source`` at ``target`` with ``edit`` applied to its messages (in log order)."""
+    from rosbags.highlevel import AnyReader
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS2_JAZZY)
+    with AnyReader([source], default_typestore=store) as reader:
+        types = {c.topic: c.msgtype for c in reader.connections}
+
+        def messages() -> Iterator[Message]:
+            for conn, log_ns, raw in reader.messages():
+                yield conn.topic, log_ns, reader.deserialize(raw, conn.msgtype)
+
+        writer = Writer(target, version=9, storage_plugin=StoragePlugin.MCAP)
+        writer.open()
+        conns = {topic: writer.add_connection(topic, msgtype, typestore=store)
+                 for topic, msgtype in types.items()}
+        for topic, log_ns, msg in edit(messages()):
+            writer.write(conns[topic], log_ns, store.serialize_cdr(msg, types[topic]))
+        writer.close()
+    return target
+
+
+def _stamp_ns(msg: Any) -> int:
+    return int(msg.header.stamp.sec) * NS + int(msg.header.stamp.nanosec)
+
+
+def _set_stamp(msg: Any, stamp_ns: int) -> Any:
+    msg = copy.deepcopy(msg)
+    msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(int(stamp_ns), NS)
+    return msg
+
+
+# ---------------------------------------------------------------------------------------- edits
+def played(times: int, gap_s: float = 1.0) -> Edit:
+    """The recording played ``times`` times in a row (``ros2 bag play --loop``): the same header
+    stamps again, later log times."""
+    def edit(messages: Iterator[Message]) -> Iterator[Message]:
+        items = list(messages)
+        span = items[-1][1] - items[0][1] + int(gap_s * NS)
+        for k in range(times):
+            for topic, log_ns, msg in items:
+                yield topic, log_ns + k * span, msg
+    return edit
+
+
+def pose_moved(index: int, offset: float) -> Edit:
+    """SLAM pose ``index`` glitched: its centre moved by ``offset`` SLAM units along x."""
+    return _nth(POSE, {index}, lambda msg: _moved(msg, offset))
+
+
+def poses_moved(indices: set[int], offset: float) -> Edit:
+    return _nth(POSE, indices, lambda msg: _moved(msg, offset))
+
+
+def pose_stamped_ahead(index: int, seconds: float) -> Edit:
+    """SLAM pose ``index`` stamped ``seconds`` ahead of its image (a clock glitch)."""
+    return _nth(POSE, {index}, lambda msg: _set_stamp(msg, _stamp_ns(msg) + int(seconds * NS)))
+
+
+def slam_frozen(start_s: float, duration_s: float) -> Edit:
+    """SLAM tracking frozen: from ``start_s`` into the recording, for ``duration_s``, every pose
+    repeats the last one before it bit for bit (with its own stamp)."""
+    def edit(messages: Iterator[Message]) -> Iterator[Message]:
+        first: int | None = None
+        held: Any = None
+        for topic, log_ns, msg in messages:
+            first = log_ns if first is None else first
+            if topic == POSE:
+                into = (log_ns - first) / NS
+                if start_s <= into < start_s + duration_s and held is not None:
+                    frozen = copy.deepcopy(held)
+                    frozen.header.stamp = copy.deepcopy(msg.header.stamp)
+                    msg = frozen
+                elif into < start_s:
+                    held = msg
+            yield topic, log_ns, msg
+    return edit
+
+
+def maps_big_endian(indices: set[int] | None = None) -> Edit:
+    """Map clouds whose bytes decode to garbage: little-endian floats flagged ``is_bigendian``
+    (every map, or those of ``indices``)."""
+    def flip(msg: Any) -> Any:
+        msg = copy.deepcopy(msg)
+        msg.is_bigendian = True
+        return msg
+    return _nth(CLOUD, indices, flip)
+
+
+def joints_scaled(factor: float) -> Edit:
+    """HMR joints in another unit: every joint multiplied by ``factor`` (0.01: decimetres read
+    as metres twice over, 0.1: centimetres converted twice)."""
+    def scaled(msg: Any) -> Any:
+        msg = copy.deepcopy(msg)
+        for pose in msg.poses:
+            pose.position.x *= factor
+            pose.position.y *= factor
+            pose.position.z *= factor
+        return msg
+    return _nth(JOINTS, None, scaled)
+
+
+def chained(*edits: Edit) -> Edit:
+    def edit(messages: Iterator[Message]) -> Iterator[Message]:
+        for one in edits:
+            messages = one(messages)
+        return messages
+    return edit
+
+
+def _nth(topic: str, indices: set[int] | None, change: Callable[[Any], Any]) -> Edit:
+    def edit(messages: Iterator[Message]) -> Iterator[Message]:
+        count = 0
+        for t, log_ns, msg in messages:
+            if t == topic:
+                if indices is None or count in indices:
+                    msg = change(msg)
+                count += 1
+            yield t, log_ns, msg
+    return edit
+
+
+def _moved(msg: Any, offset: float) -> Any:
+    msg = copy.deepcopy(msg)
+    pose = msg.pose.pose if hasattr(msg.pose, 'pose') else msg.pose
+    pose.position.x += offset
+    return msg
+
+
+def truth_scale(path: Path) -> float:
+    """The recording's /gt/scale (the first; the simulator's walk has one)."""
+    from hac_ros.recording.reader import Recording
+
+    with Recording(path) as rec:
+        return float(rec.read('/gt/scale')[0][1].data)
+
+
+def finite_abs_max(values: list[np.ndarray]) -> float:
+    """The largest |value| over arrays (inf when any is not finite)."""
+    top = 0.0
+    for v in values:
+        v = np.asarray(v, dtype=float)
+        if v.size and not np.isfinite(v).all():
+            return float('inf')
+        if v.size:
+            top = max(top, float(np.abs(v).max()))
+    return top
