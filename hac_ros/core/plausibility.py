@@ -47,6 +47,8 @@ def implausible(points_map: np.ndarray, camera_map: np.ndarray | None,
     with np.errstate(over='ignore', invalid='ignore'):
         depth = np.linalg.norm(points - centre, axis=1)
     median = float(np.median(depth)) if median_depth is None else median_depth
+    if camera_map is None and median == 0.0:  # most points on one: nothing to judge them by
+        return np.zeros(len(points), dtype=bool), median
     if not math.isfinite(median) or median <= 0.0:  # most points at the camera, or overflowing
         return np.ones(len(points), dtype=bool), median
     with np.errstate(divide='ignore', over='ignore', invalid='ignore'):
