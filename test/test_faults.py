@@ -10,6 +10,14 @@ OK while it is wrong or blind.
 from __future__ import annotations
 
 import io
+import os
+import shlex
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -32,6 +40,7 @@ from injected import (
 )
 from scenes import walking_scene
 
+from hac_ros.batch.runner import batch
 from hac_ros.core.calibrator import Calibrator
 from hac_ros.core.health import OK, WARN
 from hac_ros.core.numeric import NS
@@ -54,6 +63,7 @@ from hac_ros.replay.feeder import CoreFeeder, InputTopics
 from hac_ros.replay.replayer import replay
 
 SANE_M = 1e4  # no published value may be larger (metres; the issue's bound)
+REPO = Path(__file__).resolve().parents[1]
 
 
 # ============================================================================ recordings
@@ -393,3 +403,324 @@ def test_no_output_carries_a_value_beyond_output_max_m():
     suppressed = cal.status().rejected['output_implausible']
     assert suppressed >= len(run.of(CloudOut))  # every cloud trimmed (the floor is 12 m wide)
     assert len(run.of(PoseOut)) < 60 - 5  # the poses beyond 2 m are gone
+
+
+# ============================================================================ reports
+def test_every_report_gives_the_last_scale_written(tmp_path):
+    """The summary's final scale is the last /hac/scale written, in hac replay, hac batch and
+    hac eval alike (offline, on a drifting SLAM, where the online estimate differs from it)."""
+    drift = simulate(tmp_path / 'drift', 'drift', seed=1, duration=30.0)
+    summary = replay(drift, tmp_path / 'out', progress=False, notices=io.StringIO())
+    with Recording(tmp_path / 'out') as recording:
+        written = [m.data for _, m in recording.read('/hac/scale')]
+    assert summary.final_scale == written[-1]
+    assert f'final scale {written[-1]:.6g} ' in summary.text()
+    assert abs(summary.status.scale / written[-1] - 1) > 1e-3  # the case the issue saw
+    result = batch([drift], tmp_path / 'batch', workers=1, progress=False)
+    assert result.rows[0].final_scale == pytest.approx(written[-1], rel=1e-12)
+    evaluation = evaluate(tmp_path / 'out', drift, references=False)
+    assert evaluation.rows['hac']['scale_final'] == pytest.approx(written[-1], rel=1e-12)
+
+
+def test_a_replay_that_calibrated_nothing_exits_3_and_its_batch_row_fails(walk, tmp_path):
+    """Every map garbage: nothing calibrated. hac replay exits 3 with one line saying why and a
+    summary without a made-up scale; in hac batch that input's row is failed with the reason."""
+    path = faulty(walk, tmp_path, maps_big_endian())
+    result = hac('replay', str(path), '-o', str(tmp_path / 'out'), '--no-progress')
+    assert result.returncode == 3, result.stderr
+    assert 'final scale: none' in result.stdout and 'Traceback' not in result.stderr
+    why = [line for line in result.stderr.splitlines() if 'nothing calibrated' in line]
+    assert len(why) == 1 and 'rejected most' in why[0]
+    rows = batch([path], tmp_path / 'batch', workers=1, progress=False).rows
+    assert rows[0].status == 'failed' and 'nothing calibrated' in rows[0].error
+
+
+def hac(*args: str, timeout: float = 300.0) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, '-m', 'hac_ros.cli', *args], cwd=REPO,
+                          capture_output=True, text=True, timeout=timeout)
+
+
+# ============================================================================ signals
+SIGNALS = [signal.SIGINT, signal.SIGTERM, signal.SIGHUP]
+
+
+def interrupted_midway(args: list[str], inside: Callable[[int], bool], signum: int,
+                       tmp_path: Path) -> tuple[int, str]:
+    """Run ``hac ARGS``, wait until ``inside(pid)`` says it is in the middle of its work, stop it
+    there (SIGSTOP: it cannot finish meanwhile, however loaded the machine), send ``signum``, let
+    it go on; its exit code and stderr. Its session must be empty afterwards (no process left)."""
+    stderr_path = tmp_path / 'stderr.txt'
+    with open(stderr_path, 'w') as stderr:
+        proc = subprocess.Popen([sys.executable, '-m', 'hac_ros.cli', *args], cwd=REPO,
+                                stdout=subprocess.DEVNULL, stderr=stderr, start_new_session=True)
+        try:
+            deadline = time.monotonic() + 600.0
+            while not inside(proc.pid):
+                assert proc.poll() is None, f'hac {args[0]} finished before it could be interrupted'
+                assert time.monotonic() < deadline
+                time.sleep(0.005)
+            os.kill(proc.pid, signal.SIGSTOP)
+            assert inside(proc.pid), 'left its work before it was stopped'
+            os.kill(proc.pid, signum)
+            os.kill(proc.pid, signal.SIGCONT)
+            code = proc.wait(timeout=120.0)
+        finally:
+            if proc.poll() is None:
+                os.killpg(proc.pid, signal.SIGKILL)
+                proc.wait()
+    assert wait_until(lambda: not session_members(proc.pid), 30.0), session_members(proc.pid)
+    return code, stderr_path.read_text()
+
+
+def session_members(sid: int) -> list[str]:
+    """The live processes of session ``sid`` (zombies waiting to be reaped left out)."""
+    members = []
+    for entry in os.listdir('/proc'):
+        if not entry.isdigit():
+            continue
+        try:
+            stat = Path(f'/proc/{entry}/stat').read_text()
+            if os.getsid(int(entry)) == sid and stat.rsplit(')', 1)[1].split()[0] != 'Z':
+                members.append(Path(f'/proc/{entry}/cmdline').read_text().replace('\0', ' '))
+        except OSError:
+            continue
+    return members
+
+
+def wait_until(predicate: Callable[[], bool], timeout: float) -> bool:
+    deadline = time.monotonic() + timeout
+    while not predicate():
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(0.05)
+    return True
+
+
+def staging(directory: Path) -> Callable[[int], bool]:
+    """In the middle: a staging directory or file (``.*partial``) exists in ``directory``."""
+    return lambda pid: directory.is_dir() and any(directory.glob('.*partial'))
+
+
+def reading(path: Path) -> Callable[[int], bool]:
+    """In the middle: the process has a file under ``path`` open."""
+    target = str(path.resolve())
+
+    def check(pid: int) -> bool:
+        try:
+            return any(os.readlink(f'/proc/{pid}/fd/{fd}').startswith(target)
+                       for fd in os.listdir(f'/proc/{pid}/fd'))
+        except OSError:
+            return False
+    return check
+
+
+def assert_clean_interruption(code: int, stderr: str, signum: int) -> None:
+    assert code == 128 + signum, stderr
+    assert 'Traceback' not in stderr
+    lines = [line for line in stderr.splitlines() if 'interrupted' in line]
+    assert len(lines) == 1 and signal.Signals(signum).name in lines[0], stderr
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize('signum', SIGNALS, ids=lambda s: signal.Signals(s).name)
+def test_a_signal_to_hac_replay_leaves_nothing_and_exits_128_plus_it(walk, tmp_path, signum):
+    """SIGTERM and SIGHUP (timeout, systemd, Slurm, a closed terminal) end hac replay as Ctrl-C
+    does: no OUT, no staging directory, the input untouched, one line, exit 128 + the signal."""
+    results = tmp_path / 'results'
+    out = results / 'out'
+    code, stderr = interrupted_midway(['replay', str(walk), '-o', str(out), '--mode', 'online'],
+                                      staging(results), signum, tmp_path)
+    assert_clean_interruption(code, stderr, signum)
+    assert not results.exists()  # nor OUT, nor its staging, nor the parent it made
+
+
+@pytest.mark.slow
+def test_a_signal_in_the_first_moments_of_hac_replay_prints_no_traceback(walk, tmp_path):
+    """Ctrl-C while the command is still starting (importing): one line, no traceback."""
+    for delay in (0.3, 0.6, 1.0):
+        proc = subprocess.Popen([sys.executable, '-m', 'hac_ros.cli', 'replay', str(walk), '-o',
+                                 str(tmp_path / f'out{delay}')], cwd=REPO, text=True,
+                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+        time.sleep(delay)
+        proc.send_signal(signal.SIGINT)
+        _, stderr = proc.communicate(timeout=120)
+        assert 'Traceback' not in stderr, stderr
+        assert proc.returncode in (0, 130), stderr
+        assert not list(tmp_path.glob(f'.out{delay}.*'))
+
+
+@pytest.mark.slow
+def test_a_signal_to_hac_batch_stops_its_workers_and_keeps_what_finished(walk, tmp_path):
+    """SIGTERM to hac batch alone (not its workers): it stops them within seconds, starts no
+    new recording, leaves no process and no partial output, keeps what finished; --resume
+    completes the rest."""
+    inputs = []
+    for name in ('one', 'two', 'three'):
+        inputs.append(tmp_path / name)
+        shutil.copytree(walk, inputs[-1])
+    out = tmp_path / 'out'
+    start = time.monotonic()
+    code, stderr = interrupted_midway(
+        ['batch', *map(str, inputs), '-o', str(out), '--workers', '1'],
+        lambda pid: bool(list(out.glob('*.done.json'))) and any(out.glob('.*partial')),
+        signal.SIGTERM, tmp_path)
+    assert_clean_interruption(code, stderr, signal.SIGTERM)
+    assert time.monotonic() - start < 120.0
+    finished = {p.name[:-len('.done.json')] for p in out.glob('*.done.json')}
+    assert len(finished) == 1
+    assert not list(out.glob('.*partial')) and not (out / 'summary.csv').exists()
+    assert {p.name for p in out.iterdir() if p.is_dir()} == finished | {'logs'}
+    result = batch(inputs, out, workers=1, resume=True, progress=False)
+    assert [r.skipped for r in result.rows].count(True) == 1 and all(r.ok for r in result.rows)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize('command', ['simulate', 'import', 'export', 'eval', 'plot', 'demo'])
+def test_every_command_stops_cleanly_on_sigterm(walk, tmp_path, command):
+    """SIGTERM in the middle of each other command: exit 143, one line, nothing partial."""
+    work = tmp_path / 'work'
+    work.mkdir()
+    if command == 'simulate':
+        args, inside = ['simulate', 'walk', '-o', str(work / 'sim')], staging(work)
+    elif command == 'import':
+        args, inside = _import_args(walk, tmp_path, work / 'imported'), staging(work)
+    elif command in ('export', 'eval', 'plot'):
+        replayed = tmp_path / 'replayed'
+        replay(walk, replayed, progress=False, notices=io.StringIO())
+        args = {'export': ['export', str(replayed), '-o', str(work / 'out.npz')],
+                'eval': ['eval', str(replayed), '--gt', str(walk), '--json',
+                         str(work / 'eval.json')],
+                'plot': ['plot', str(replayed), '--gt', str(walk), '-o', str(work / 'figures')]
+                }[command]
+        inside = staging(work / 'figures') if command == 'plot' else reading(replayed)
+    else:
+        args = ['demo', '--recording', str(walk), '-o', str(work / 'demo')]
+        inside = staging(work / 'demo')  # its replay is being written
+    code, stderr = interrupted_midway(args, inside, signal.SIGTERM, tmp_path)
+    assert_clean_interruption(code, stderr, signal.SIGTERM)
+    left = [p for p in work.rglob('*')]
+    assert left == ([work / 'demo'] if command == 'demo' else []), left
+
+
+def _import_args(walk: Path, tmp_path: Path, out: Path, factor: float = 1.0,
+                 shift_s: float = 0.0) -> list[str]:
+    """``hac import`` arguments for the walk's SLAM and HMR data written as files (the joints
+    times ``factor``, their stamps ``shift_s`` later)."""
+    from scipy.spatial.transform import Rotation
+
+    from hac_ros.files.tum import write_tum
+    from msg_adapters import cloud_to_xyz, pose_msg_to_rt, stamp_to_ns
+
+    with Recording(walk) as recording:
+        poses = [(stamp_to_ns(m.header.stamp), *pose_msg_to_rt(m))
+                 for _, m in recording.read('/slam/pose')]
+        joints = [(stamp_to_ns(m.header.stamp),
+                   np.array([[p.position.x, p.position.y, p.position.z] for p in m.poses]))
+                  for _, m in recording.read('/hmr/joints')]
+        clouds = recording.read('/slam/cloud')
+    stamps = np.array([p[0] for p in poses], dtype=np.int64)
+    write_tum(tmp_path / 'traj.tum', stamps, np.array([p[2] for p in poses]),
+              Rotation.from_matrix(np.array([p[1] for p in poses])).as_quat())
+    np.save(tmp_path / 'map.npy', cloud_to_xyz(clouds[-1][1]))
+    np.savez(tmp_path / 'joints.npz', stamps=np.array([j[0] for j in joints]) / NS + shift_s,
+             joints=factor * np.stack([j[1].reshape(-1, 24, 3) for j in joints]))
+    return ['import', '-o', str(out), '--trajectory', str(tmp_path / 'traj.tum'), '--map',
+            str(tmp_path / 'map.npy'), '--joints', str(tmp_path / 'joints.npz')]
+
+
+# ============================================================================ files
+@pytest.fixture(scope='module')
+def unshare() -> list[str]:
+    """A private mount namespace, where an unprivileged user may mount a tiny tmpfs: a real full
+    or read-only filesystem, no mock."""
+    command = ['unshare', '--user', '--map-root-user', '--mount']
+    try:
+        probe = subprocess.run([*command, 'sh', '-c', 'mount -t tmpfs -o size=16k tmpfs /mnt'],
+                               capture_output=True, timeout=30)
+    except (OSError, subprocess.TimeoutExpired) as exc:
+        pytest.skip(f'unshare not available: {exc}')
+    if probe.returncode != 0:
+        pytest.skip(f'cannot mount a tmpfs in a user namespace here: {probe.stderr!r}')
+    return command
+
+
+def on_small_filesystem(unshare: list[str], tmp_path: Path, args: list[str], size: str,
+                        read_only: bool = False) -> tuple[int, str, list[str]]:
+    """``hac ARGS`` with ``{fs}`` in them standing for a fresh tmpfs of ``size`` (read-only if
+    asked): its exit code, stderr, and what is left on the filesystem afterwards."""
+    mount = tmp_path / 'fs'
+    mount.mkdir()
+    left, err = tmp_path / 'left.txt', tmp_path / 'stderr.txt'
+    command = ' '.join(shlex.quote(a.replace('{fs}', str(mount)))
+                       for a in [sys.executable, '-m', 'hac_ros.cli', *args])
+    options = f'size={size}' + (',ro' if read_only else '')
+    script = (f'mount -t tmpfs -o {options} tmpfs {mount} || exit 99; cd {REPO}; '
+              f'{command} >/dev/null 2>{err}; code=$?; ls -A {mount} > {left}; exit $code')
+    code = subprocess.run([*unshare, 'sh', '-c', script], timeout=600).returncode
+    assert code != 99, 'the tmpfs could not be mounted'
+    return code, err.read_text(), left.read_text().split()
+
+
+def assert_one_line_error(code: int, stderr: str, *needles: str) -> None:
+    assert code == 2, stderr
+    assert 'Traceback' not in stderr, stderr
+    lines = [line for line in stderr.splitlines() if ': error: ' in line]
+    assert len(lines) == 1, stderr  # (notices printed before it are the replay's own)
+    for needle in needles:
+        assert needle in lines[0], stderr
+
+
+@pytest.mark.slow
+def test_a_full_disk_gives_one_line_and_leaves_nothing(unshare, walk, tmp_path):
+    """hac replay onto a 1 MB filesystem (its output needs about 5 MB): one line naming the
+    problem, exit 2, no OUT and no staging left."""
+    code, stderr, left = on_small_filesystem(
+        unshare, tmp_path, ['replay', str(walk), '-o', '{fs}/out', '--no-progress'], '1m')
+    assert_one_line_error(code, stderr, 'No space left on device')
+    assert left == []
+
+
+@pytest.mark.slow
+def test_a_read_only_output_gives_one_line(unshare, walk, tmp_path):
+    code, stderr, left = on_small_filesystem(
+        unshare, tmp_path, ['replay', str(walk), '-o', '{fs}/out', '--no-progress'], '1m',
+        read_only=True)
+    assert_one_line_error(code, stderr, 'Read-only file system')
+    assert left == []
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize('command', ['simulate', 'export', 'batch'])
+def test_other_commands_on_a_full_disk_give_one_line_and_leave_nothing(unshare, walk, tmp_path,
+                                                                       command):
+    if command == 'simulate':
+        args, size = ['simulate', 'walk', '-o', '{fs}/sim'], '1m'
+    elif command == 'export':
+        replayed = tmp_path / 'replayed'
+        replay(walk, replayed, progress=False, notices=io.StringIO())
+        args, size = ['export', str(replayed), '-o', '{fs}/out.npz'], '64k'
+    else:
+        args, size = ['batch', str(walk), '-o', '{fs}/batch', '--workers', '1'], '1m'
+    code, stderr, left = on_small_filesystem(unshare, tmp_path, args, size)
+    if command == 'batch':  # the recording's own failure is its row; the summary is written
+        assert code in (1, 2), stderr
+        assert 'Traceback' not in stderr
+    else:
+        assert_one_line_error(code, stderr, 'No space left on device')
+        assert left == []
+
+
+@pytest.mark.parametrize('factor, shift_s, needle', [
+    (1000.0, 0.0, 'millimetres'), (0.01, 0.0, 'centimetres converted to metres twice'),
+    (1.0, 3600.0, 'share no time')], ids=['mm', 'cm_twice', 'outside_in_time'])
+def test_hac_import_refuses_joints_the_calibrator_would_refuse(walk, tmp_path, factor, shift_s,
+                                                              needle):
+    """hac import judges the joints as the calibrator does (a body's size in metres, naming the
+    likely unit) and checks they overlap the trajectory in time: exit 2, one line, nothing
+    written."""
+    out = tmp_path / 'imported'
+    result = hac(*_import_args(walk, tmp_path, out, factor, shift_s))
+    assert result.returncode == 2, result.stderr
+    assert 'Traceback' not in result.stderr and len(result.stderr.strip().splitlines()) == 1
+    assert needle in result.stderr
+    assert not out.exists()

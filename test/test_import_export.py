@@ -176,7 +176,7 @@ def test_people_frames_layouts_and_storage(files, tmp_path, capsys):
     """Two people (NaN blocks left out, an empty frame not written), a COCO-17 layout, sqlite3,
     a text map, and a trajectory too sparse for the joints (a warning, not a failure)."""
     t_s = np.array([10.0, 10.1, 10.2, 10.3])
-    joints = np.random.default_rng(0).normal(size=(4, 2, 17, 3)) + [0.0, 0.0, 4.0]
+    joints = np.random.default_rng(0).normal(scale=0.3, size=(4, 2, 17, 3)) + [0.0, 0.0, 4.0]
     joints[1, 0] = np.nan  # person 0 absent in frame 1
     joints[2] = np.nan  # nobody in frame 2
     keyframes = write_tum(tmp_path / 'kf.tum', np.array([10.0, 10.3]), np.zeros((2, 3)),
@@ -225,7 +225,8 @@ def test_real_tum_keyframes_parse_and_fit_their_ground_truth(shared_data, tmp_pa
     assert traj.stamps_ns[0] == round(first * 1e9)
     np.save(tmp_path / 'map.npy', np.random.default_rng(0).normal(size=(100, 3)))
     t_s = np.arange(first, first + 5.0, 1 / 30)  # HMR at 30 Hz between the keyframes
-    joints_npz(tmp_path / 'j.npz', t_s, np.ones((len(t_s), 1, 24, 3)))
+    body = np.random.default_rng(0).normal(scale=0.3, size=(1, 24, 3)) + [0.0, 0.0, 3.0]
+    joints_npz(tmp_path / 'j.npz', t_s, np.repeat(body[None], len(t_s), axis=0))
     rec = tmp_path / 'rec'
     assert hac(['import', '-o', str(rec), '--trajectory', str(kf), '--map',
                 str(tmp_path / 'map.npy'), '--joints', str(tmp_path / 'j.npz'), '--gt-trajectory',

@@ -184,8 +184,10 @@ def _calibrate(job: Job) -> Row:
     summary = replay(job.input_path, output, params, mode=job.mode, progress=False)
     log.info('%s', summary.text())
     status = summary.status
-    row = Row(job.input, 'ok', frames=status.frames, final_scale=status.scale,
-              spread=status.spread, fallback_pct=100.0 * status.fallback_rate,
+    if summary.last_scale is None:  # as hac replay's exit 3: the row fails with the reason
+        raise HacError(summary.why_not_calibrated())
+    row = Row(job.input, 'ok', frames=status.frames, final_scale=summary.last_scale.scale,
+              spread=summary.last_scale.spread, fallback_pct=100.0 * status.fallback_rate,
               resets=status.resets)
     if has_ground_truth(job.input_path):
         evaluation = evaluate(output, job.input_path, params, references=False)

@@ -15,7 +15,7 @@ from collections.abc import Iterator
 from typing import Any
 
 from hac_ros.batch.jobs import Job, Row, one_line, run_job
-from hac_ros.batch.pool import OnRow
+from hac_ros.batch.pool import SIGNAL_POLL_S, STOP_WAIT_S, OnRow, clean_up
 from hac_ros.core.errors import ArgumentError, HacError
 
 # Ray: a task whose worker process (or node) dies is run again this many times; staging and the
@@ -51,7 +51,7 @@ def run_ray(ray: Any, jobs: list[Job], on_row: OnRow) -> None:
         refs = {task.remote(job): job for job in jobs}
         pending = list(refs)
         while pending:
-            ready, pending = ray.wait(pending, num_returns=1)
+            ready, pending = ray.wait(pending, num_returns=1, timeout=SIGNAL_POLL_S)
             for ref in ready:
                 job = refs[ref]
                 try:
@@ -60,9 +60,17 @@ def run_ray(ray: Any, jobs: list[Job], on_row: OnRow) -> None:
                     row = Row(job.input, 'failed', f'Ray task failed after {RAY_MAX_RETRIES} '
                               f'retries: {one_line(exc)}')
                 on_row(job, row)
-    except KeyboardInterrupt:
+    except BaseException:  # a signal (Interrupted, Ctrl-C): no new task, the running ones stop
+        done = set()
         for ref in refs:
             ray.cancel(ref)  # KeyboardInterrupt in the task: its replay removes its staging
+        with contextlib.suppress(Exception):
+            finished, _ = ray.wait(list(refs), num_returns=len(refs), timeout=STOP_WAIT_S)
+            done = set(finished)
+        for ref, job in refs.items():
+            if ref not in done:
+                ray.cancel(ref, force=True)
+            clean_up(job)  # what a task killed half-way left (a finished one is kept)
         raise
 
 

@@ -3,8 +3,11 @@
 Thin: each sub-command is a module of this package with ``add_arguments(parser)`` and
 ``run(args) -> int``, and only argument parsing in it; the work is done by the library modules
 (:mod:`hac_ros.replay.replayer`, :mod:`hac_ros.evaluation.evaluate`, ...). Errors the user can fix
-(:class:`~hac_ros.core.errors.HacError`, :class:`~msg_adapters.MessageError`) print one line and
-exit 2; Ctrl-C exits 130. What the library logs is shown on stderr (:mod:`hac_ros.cli.terminal`).
+(:class:`~hac_ros.core.errors.HacError`, :class:`~msg_adapters.MessageError`, and a file that
+cannot be written: a read-only path, a full disk) print one line and exit 2, leaving nothing
+partial. SIGINT (Ctrl-C), SIGTERM and SIGHUP (``timeout``, systemd, Slurm, a closed terminal) all
+end a command the same way: what it was writing is removed, one line, exit 128 + the signal's
+number (130, 143, 129). What the library logs is shown on stderr (:mod:`hac_ros.cli.terminal`).
 
 The library knows nothing of flags: its errors name function arguments and parameters
 (:class:`~hac_ros.core.errors.ArgumentError`), and this package says them as the sub-command's
@@ -13,14 +16,18 @@ options (``pose_type`` -> ``--pose-type``, :func:`option_names`) where the comma
 from __future__ import annotations
 
 import argparse
+import contextlib
+import errno
 import importlib
+import signal
 import sys
-from collections.abc import Sequence
+import threading
+from collections.abc import Iterator, Sequence
+from types import FrameType
 
 from hac_ros import __version__
 from hac_ros.cli.terminal import terminal_logging
-from hac_ros.core.errors import ArgumentError, ArgumentText, HacError
-from msg_adapters import MessageError
+from hac_ros.core.errors import STOP_SIGNALS, ArgumentError, ArgumentText, HacError, Interrupted
 
 # sub-command -> (module in this package, one-line help)
 COMMANDS = {
@@ -65,17 +72,68 @@ def say(text: str, args: argparse.Namespace) -> str:
 def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     only = argv[0] if argv and argv[0] in COMMANDS else None
-    args = build_parser(only).parse_args(argv)
+    command = f'hac {only}' if only else 'hac'
+    with stop_on_signals():  # from the start: an early Ctrl-C is one line too
+        try:
+            args = build_parser(only).parse_args(argv)
+            with terminal_logging(args.command):
+                return int(args._run(args) or 0)
+        except KeyboardInterrupt as exc:  # Interrupted: SIGINT, SIGTERM or SIGHUP
+            signum = exc.signum if isinstance(exc, Interrupted) else signal.SIGINT
+            print(f'{command}: interrupted ({signal.Signals(signum).name}): nothing partial '
+                  'left behind', file=sys.stderr)
+            return 128 + signum
+        except Exception as exc:
+            reason = user_error(exc, args if 'args' in locals() else None)
+            if reason is None:
+                raise
+            print(f'{command}: error: {reason}', file=sys.stderr)
+            return 2
+
+
+def user_error(exc: BaseException, args: argparse.Namespace | None) -> str | None:
+    """One line for an error the user can fix: hac_ros's own (arguments named as this
+    command's options) and msg_adapters', or a file that cannot be written or read (an OSError
+    anywhere in the chain: a read-only path, a full disk, a missing permission). None for
+    anything else (a bug: its traceback is shown)."""
+    from msg_adapters import MessageError
+
+    if isinstance(exc, ArgumentError) and args is not None:
+        return say(exc.text, args)
+    if isinstance(exc, (HacError, MessageError)):
+        return str(exc)
+    cause: BaseException | None = exc
+    while cause is not None and not isinstance(cause, OSError):
+        cause = cause.__cause__ or cause.__context__
+    if cause is None:
+        return None
+    assert isinstance(cause, OSError)
+    what = errno.errorcode.get(cause.errno or 0, '') if cause.errno else ''
+    where = f': {cause.filename}' if cause.filename else ''
+    text = cause.strerror or str(cause) or type(cause).__name__
+    return f'{text}{where}' + (f' ({what})' if what else '')
+
+
+@contextlib.contextmanager
+def stop_on_signals() -> Iterator[None]:
+    """SIGINT, SIGTERM and SIGHUP raise :class:`~hac_ros.core.errors.Interrupted` in the main
+    thread: the first one only (the command is cleaning up after it; later ones are ignored).
+    The previous handlers come back afterwards. Nothing changes off the main thread."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def stop(signum: int, frame: FrameType | None) -> None:
+        for each in STOP_SIGNALS:
+            signal.signal(each, signal.SIG_IGN)
+        raise Interrupted(signum)
+
+    previous = {each: signal.signal(each, stop) for each in STOP_SIGNALS}
     try:
-        with terminal_logging(args.command):
-            return int(args._run(args) or 0)
-    except KeyboardInterrupt:
-        print('hac: interrupted', file=sys.stderr)
-        return 130
-    except (HacError, MessageError) as exc:
-        text = say(exc.text, args) if isinstance(exc, ArgumentError) else str(exc)
-        print(f'hac {args.command}: error: {text}', file=sys.stderr)
-        return 2
+        yield
+    finally:
+        for each, handler in previous.items():
+            signal.signal(each, handler)
 
 
 # ---------------------------------------------------------------- arguments several commands share

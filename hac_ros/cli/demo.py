@@ -14,6 +14,7 @@ directory.
 from __future__ import annotations
 
 import argparse
+import json
 import shutil
 import tempfile
 import time
@@ -82,19 +83,22 @@ def demo(out_dir: Path, recording: str | None = None) -> int:
         source = recording_or_simulated(recording, Path(tmp))
         out_dir.mkdir(parents=True, exist_ok=True)
         clear_results(out_dir)
-        summary = replay(source, out_dir / 'replay', mode='offline', export_tum=out_dir / 'tum')
-        print(summary.text())
-        print()
-        result = evaluate(out_dir / 'replay', source)
-        print(result.text())
-        import json
-
-        (out_dir / 'eval.json').write_text(json.dumps(result.as_dict(), indent=2) + '\n',
-                                           encoding='utf-8')
-        (out_dir / 'eval.md').write_text(result.markdown() + '\n', encoding='utf-8')
-        print()
-        for name, path in make_plots(out_dir / 'replay', out_dir, source).items():
-            print(f'figure {name}: {path}')
+        try:
+            summary = replay(source, out_dir / 'replay', mode='offline',
+                             export_tum=out_dir / 'tum')
+            print(summary.text())
+            print()
+            result = evaluate(out_dir / 'replay', source)
+            print(result.text())
+            (out_dir / 'eval.json').write_text(json.dumps(result.as_dict(), indent=2) + '\n',
+                                               encoding='utf-8')
+            (out_dir / 'eval.md').write_text(result.markdown() + '\n', encoding='utf-8')
+            print()
+            for name, path in make_plots(out_dir / 'replay', out_dir, source).items():
+                print(f'figure {name}: {path}')
+        except BaseException:  # interrupted or failed: no half set of results
+            clear_results(out_dir)
+            raise
     print(f'\ndemo done in {time.perf_counter() - start:.1f} s; results in {out_dir}/')
     return 0
 

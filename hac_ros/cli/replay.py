@@ -2,10 +2,13 @@
 from __future__ import annotations
 
 import argparse
+import sys
 
 from hac_ros.cli import add_mode_and_params, add_output_recording
 from hac_ros.core.params import POSE_MSGTYPES
 from hac_ros.files.params_file import load_params
+
+NOT_CALIBRATED = 3  # exit code: the replay ran but wrote no scale
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -40,4 +43,7 @@ def run(args: argparse.Namespace) -> int:
                      copy_inputs=args.copy_inputs, export_tum=args.export_tum,
                      progress=False if args.no_progress else None)
     print(summary.text())
+    if not summary.calibrated:  # a replay that calibrated nothing is not a success
+        print(f'hac replay: {summary.why_not_calibrated()}', file=sys.stderr)
+        return NOT_CALIBRATED
     return 0

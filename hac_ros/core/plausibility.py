@@ -64,7 +64,19 @@ def body_unit_problem(joints_cam: np.ndarray) -> str:
     joints_cam: (K, 3) finite, the HMR joints of one person (metres if all is well). The reason
     names the likely unit from the ratio of the spread to an adult's.
     """
-    span = math.dist(joints_cam.min(axis=0).tolist(), joints_cam.max(axis=0).tolist())
+    return span_problem(float(np.linalg.norm(joints_cam.max(axis=0) - joints_cam.min(axis=0))))
+
+
+def body_spans(joints: np.ndarray) -> np.ndarray:
+    """The spread (box diagonal, metres if all is well) of every person whose joints are all
+    finite: joints (..., K, 3) -> (M,) for the M such people."""
+    people = np.asarray(joints, dtype=float).reshape(-1, *np.shape(joints)[-2:])
+    people = people[np.isfinite(people).all(axis=(1, 2))]
+    return np.linalg.norm(people.max(axis=1) - people.min(axis=1), axis=1)
+
+
+def span_problem(span: float) -> str:
+    """:func:`body_unit_problem` of a person spread over ``span`` (metres if all is well)."""
     if BODY_SPAN_MIN_M <= span <= BODY_SPAN_MAX_M:
         return ''
     if span <= 0.0:

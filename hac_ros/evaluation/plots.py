@@ -17,12 +17,15 @@ visible; the raw SLAM track gets the same placement (the metric frame is the SLA
 """
 from __future__ import annotations
 
+import os
+import shutil
+import tempfile
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from hac_ros.core.errors import HacError
+from hac_ros.core.errors import HacError, signals_held
 from hac_ros.core.layouts import SMPL24, JointLayout
 from hac_ros.core.numeric import NS
 from hac_ros.core.params import POSE_MSGTYPES
@@ -366,10 +369,25 @@ def make_plots(output_path: str | Path, directory: str | Path,
     slam = read_slam(gt_path) if gt_path is not None else read_slam(output_path)
     if not len(run.camera) and not len(run.scale) and not run.diagnostics:
         raise HacError(f'{output_path} has nothing to plot (no odometry, scale or diagnostics)')
+    created = not directory.exists()
     directory.mkdir(parents=True, exist_ok=True)
     paths = {name: directory / f'{name}.png' for name in FIGSIZE}
-    plot_trajectories(paths['trajectories'], run, truth, slam)
-    plot_scale(paths['scale'], run, truth)
-    plot_fallback(paths['fallback'], run, truth)
-    plot_heights(paths['heights'], run, truth)
+    # drawn beside, moved in once all are done: an interrupted plot leaves no half set
+    staging: Path | None = None
+    try:
+        with signals_held():  # made and known, or neither
+            staging = Path(tempfile.mkdtemp(prefix='.hac_plot.', suffix='.partial',
+                                            dir=directory))
+        staged = {name: staging / path.name for name, path in paths.items()}
+        plot_trajectories(staged['trajectories'], run, truth, slam)
+        plot_scale(staged['scale'], run, truth)
+        plot_fallback(staged['fallback'], run, truth)
+        plot_heights(staged['heights'], run, truth)
+        for name, path in staged.items():
+            os.replace(path, paths[name])
+    finally:
+        if staging is not None:
+            shutil.rmtree(staging, ignore_errors=True)
+        if created and not any(directory.iterdir()):
+            directory.rmdir()
     return paths

@@ -41,6 +41,7 @@ from hac_ros.core.errors import ArgumentText, HacError, InputError
 from hac_ros.core.layouts import BUILT_IN, joints_per_person
 from hac_ros.core.numeric import NS
 from hac_ros.core.params import NODE_NAME, HacParams
+from hac_ros.core.plausibility import body_spans, span_problem
 from hac_ros.evaluation.metrics import umeyama
 from hac_ros.files.map_files import read_map
 from hac_ros.files.readers import (
@@ -135,6 +136,42 @@ def _fit_scale(traj: Trajectory, gt: Trajectory, max_gap_ns: int
     return idx, positions, rotations, s, float(np.linalg.norm(fitted - positions, axis=1).mean())
 
 
+def check_joints(traj: Trajectory, hmr: Joints, params: HacParams) -> list[str]:
+    """The joints as the calibrator will judge them: InputError when they are not metres (the
+    median body's spread, hac_ros.core.plausibility) or share no time with the trajectory;
+    warnings for a few such bodies and for stamps the replay will find no pose for."""
+    spans = body_spans(hmr.joints)
+    problem = span_problem(float(np.median(spans))) if len(spans) else ''
+    if problem:
+        raise InputError(f'joints {hmr.path}: {problem} (the median of {len(spans)} people)')
+    warnings = []
+    odd = sum(bool(span_problem(float(span))) for span in spans)
+    if odd:
+        warnings.append(f'{odd} of {len(spans)} people in {hmr.path} are not the size of a body '
+                        'in metres: hac replay refuses them (joints_not_metres)')
+    slop_ns = int(round(params.sync_slop_s * NS))
+    first, last = int(traj.stamps_ns[0]) - slop_ns, int(traj.stamps_ns[-1]) + slop_ns
+    if not ((hmr.stamps_ns >= first) & (hmr.stamps_ns <= last)).any():
+        raise InputError(f'the joints {hmr.path} (stamps {hmr.stamps_ns[0] / NS:.3f} to '
+                         f'{hmr.stamps_ns[-1] / NS:.3f} s) and the trajectory {traj.path} '
+                         f'({traj.stamps_ns[0] / NS:.3f} to {traj.stamps_ns[-1] / NS:.3f} s) share '
+                         'no time: do the two files use the same clock?')
+    bad, gap = unpaired_joint_stamps(traj.stamps_ns, hmr.stamps_ns, slop_ns,
+                                     int(round(params.interp_max_gap_s * NS)))
+    if bad and np.isinf(gap):
+        warnings.append(f'{bad} of {len(hmr.stamps_ns)} joints stamps of {hmr.path} lie outside '
+                        f'the trajectory {traj.path} (or in gaps over interp_max_gap_s = '
+                        f'{params.interp_max_gap_s} s): hac replay drops those frames (do the '
+                        'files cover the same time?)')
+    elif bad:
+        warnings.append(f'the trajectory {traj.path} is too sparse for the joints: {bad} of '
+                        f'{len(hmr.stamps_ns)} joints stamps have no SLAM pose within sync_slop_s '
+                        f'and lie in gaps up to {gap:.2f} s (over interp_max_gap_s = '
+                        f'{params.interp_max_gap_s} s): hac replay drops those frames (keyframes '
+                        'only? export every frame\'s pose)')
+    return warnings
+
+
 def write_params(path: Path, layout: str, k: int) -> None:
     """``params.yaml``, a parameters file for the replay: the joint layout (and K for
     ``custom``)."""
@@ -183,15 +220,7 @@ def import_files(output: str | Path, trajectory: str | Path, map_file: str | Pat
             f'{hmr.path} has {k} joints per person, not SMPL-24\'s 24: give {{joint_layout}} '
             '(coco17, h36m17 or custom) so that OUT gets a params.yaml saying it for the replay',
             'joint_layout'))
-    bad, gap = unpaired_joint_stamps(traj.stamps_ns, hmr.stamps_ns,
-                                     int(round(params.sync_slop_s * NS)), max_gap_ns)
-    if bad:
-        where = 'outside the trajectory' if np.isinf(gap) else f'in gaps up to {gap:.2f} s'
-        warnings.append(f'the trajectory {traj.path} is too sparse for the joints: {bad} of '
-                        f'{len(hmr.stamps_ns)} joints stamps have no SLAM pose within sync_slop_s '
-                        f'and lie {where} (over interp_max_gap_s = {params.interp_max_gap_s} s): '
-                        'hac replay drops those frames (keyframes only? export every frame\'s '
-                        'pose)')
+    warnings += check_joints(traj, hmr, params)
 
     types = rosbags_types()
     messages: list[tuple[int, int, str, Any]] = []

@@ -92,10 +92,15 @@ def write_tum_exports(directory: Path, metric: list,
                       rotations_to_quats(np.asarray(rotations, dtype=float)))
             written[kind] = path
 
-    export('metric', [o.stamp_ns for o in metric], [o.rotation_metric for o in metric],
-           [o.position_metric for o in metric])
-    export('slam', [p[0] for p in poses], [p[1] for p in poses], [p[2] for p in poses])
-    if recording.has(*GT_CAMERA):
-        gt = read_camera(recording, GT_CAMERA[0])
-        export('gt', gt.stamps_ns, gt.rotations, gt.positions)
+    try:
+        export('metric', [o.stamp_ns for o in metric], [o.rotation_metric for o in metric],
+               [o.position_metric for o in metric])
+        export('slam', [p[0] for p in poses], [p[1] for p in poses], [p[2] for p in poses])
+        if recording.has(*GT_CAMERA):
+            gt = read_camera(recording, GT_CAMERA[0])
+            export('gt', gt.stamps_ns, gt.rotations, gt.positions)
+    except BaseException:  # interrupted, or a full disk: none of the files
+        for kind in TUM_FILES:
+            (directory / TUM_FILES[kind]).unlink(missing_ok=True)
+        raise
     return written

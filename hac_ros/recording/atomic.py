@@ -5,6 +5,9 @@
 recording) there, and at the end it is renamed to ``target``, on the same file system, in one
 step. Missing parent directories of ``target`` are created. On an error or KeyboardInterrupt the
 temporary directory (and the parents it created) is removed and ``target`` is left as it was.
+SIGINT, SIGTERM and SIGHUP are held back while the temporary directory is made and while it is
+renamed, so a signal never leaves one unknown to the clean-up. A read-only path or a full disk is a
+HacError naming ``target`` (one line for the command line).
 
 Recordings (replay, import, simulate), exported arrays, ``hac batch``'s summary and its completion
 markers are all written this way.
@@ -17,7 +20,7 @@ import tempfile
 from pathlib import Path
 from types import TracebackType
 
-from hac_ros.core.errors import HacError
+from hac_ros.core.errors import HacError, signals_held
 
 PARTIAL_SUFFIX = '.partial'  # of the temporary directory; `hac batch` removes a killed attempt's
 
@@ -36,14 +39,22 @@ class staged_output:
         self.created: list[Path] = []  # parent directories made here, innermost first
 
     def __enter__(self) -> Path:
-        parent = self.target.parent
-        while not parent.exists():
-            self.created.append(parent)
-            parent = parent.parent
-        self.target.parent.mkdir(parents=True, exist_ok=True)
-        self.tmp = Path(tempfile.mkdtemp(prefix=f'.{self.target.name}.', suffix=PARTIAL_SUFFIX,
-                                         dir=self.target.parent))
-        return self.tmp / self.target.name
+        try:
+            with signals_held():  # the directory made and its name kept, or neither
+                parent = self.target.parent
+                while not parent.exists():
+                    self.created.append(parent)
+                    parent = parent.parent
+                self.target.parent.mkdir(parents=True, exist_ok=True)
+                self.tmp = Path(tempfile.mkdtemp(prefix=f'.{self.target.name}.',
+                                                 suffix=PARTIAL_SUFFIX, dir=self.target.parent))
+            return self.tmp / self.target.name
+        except OSError as exc:  # a read-only path, a full disk
+            self._remove(done=False)
+            raise HacError(f'cannot write {self.target}: {exc.strerror or exc}') from exc
+        except BaseException:  # a signal held back until now
+            self._remove(done=False)
+            raise
 
     def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
                  tb: TracebackType | None) -> None:
@@ -51,19 +62,24 @@ class staged_output:
         done = False
         try:
             if exc_type is None:
-                if self.replace:
+                if not self.replace and (self.target.exists() or self.target.is_symlink()):
+                    raise HacError(f'output {self.target} appeared while writing it: not '
+                                   'overwritten')
+                with signals_held():  # renamed and known to be: a signal now is too late
                     os.replace(self.tmp / self.target.name, self.target)
-                else:
-                    if self.target.exists() or self.target.is_symlink():
-                        raise HacError(f'output {self.target} appeared while writing it: not '
-                                       'overwritten')
-                    os.rename(self.tmp / self.target.name, self.target)
-                done = True
+                    done = True
         finally:
+            self._remove(done)
+        if isinstance(exc, OSError):  # a full disk, a read-only path: one line naming it
+            raise HacError(f'cannot write {self.target}: {exc.strerror or exc}') from exc
+
+    def _remove(self, done: bool) -> None:
+        """The temporary directory, and unless ``target`` appeared the parents made for it."""
+        if self.tmp is not None:
             shutil.rmtree(self.tmp, ignore_errors=True)
-            if not done:
-                for directory in self.created:  # innermost first
-                    try:
-                        directory.rmdir()
-                    except OSError:
-                        break
+        if not done:
+            for directory in self.created:  # innermost first
+                try:
+                    directory.rmdir()
+                except OSError:
+                    break

@@ -49,7 +49,16 @@ from hac_ros.core.calibrator import Calibrator
 from hac_ros.core.errors import ArgumentError
 from hac_ros.core.numeric import NS
 from hac_ros.core.offline import OfflineScale, resolve_offline
-from hac_ros.core.outputs import NoticeOut, Output, PoseOut, ResetOut, SampleOut, Status
+from hac_ros.core.outputs import (
+    REASONS,
+    NoticeOut,
+    Output,
+    PoseOut,
+    ResetOut,
+    SampleOut,
+    ScaleOut,
+    Status,
+)
 from hac_ros.core.params import HacParams
 from hac_ros.files.tum import write_tum_exports
 from hac_ros.recording.atomic import staged_output
@@ -75,6 +84,7 @@ class OutputHandler:
         self.notices = notices
         self.resets: list[ResetOut] = []
         self.poses: list[PoseOut] | None = [] if keep_poses else None  # /hac/pose, for TUM
+        self.last_scale: ScaleOut | None = None  # the last /hac/scale written
 
     def __call__(self, outputs: list[Output], progress: Any = None) -> None:
         """Write the messages of ``outputs``; ``progress``: a bar advanced as they are written."""
@@ -96,6 +106,8 @@ class OutputHandler:
                 continue
             if isinstance(output, PoseOut) and self.poses is not None:
                 self.poses.append(output)
+            if isinstance(output, ScaleOut):
+                self.last_scale = output
             for message in self.messages.convert(output):
                 self._write(message)
         if frame_samples:
@@ -152,6 +164,28 @@ class ReplaySummary:
     offline: OfflineScale | None = None
     tum: dict[str, Path] = field(default_factory=dict)
     start_ns: int = 0  # the recording's first log time: times are printed relative to it
+    last_scale: ScaleOut | None = None  # the last /hac/scale written (None: none was)
+
+    @property
+    def final_scale(self) -> float | None:
+        """The last scale written to /hac/scale, metres per SLAM unit (None: nothing was
+        calibrated). The summary, ``hac batch`` and ``hac eval`` all report this one."""
+        return None if self.last_scale is None else self.last_scale.scale
+
+    @property
+    def calibrated(self) -> bool:
+        return self.last_scale is not None
+
+    def why_not_calibrated(self) -> str:
+        """One line: why no scale was written (the estimate never converged, and the input
+        rejected most often)."""
+        s = self.status
+        text = (f'nothing calibrated: no /hac/scale written ({s.frames} frames, {s.samples} '
+                'samples: the estimate never converged)')
+        if s.rejected:
+            reason, count = max(s.rejected.items(), key=lambda item: item[1])
+            text += f'; rejected most: {reason} {count} ({REASONS.get(reason, reason)})'
+        return text
 
     @property
     def frames_per_s(self) -> float:
@@ -163,11 +197,16 @@ class ReplaySummary:
                  f'  frames {s.frames}, people {s.people}, input messages {self.input_messages}']
         if self.offline is not None:
             for k, segment in enumerate(self.offline.segments):
-                lines.append(f'  segment {k} (from {_seconds(segment.start_ns, self.start_ns)}): '
-                             f'{segment.describe()}')
-        lines.append(f'  final scale {s.scale:.6g} m/SLAM unit, spread {s.spread:.3g} '
-                     f'({s.samples} samples in the window, '
-                     f'{"converged" if s.converged else "not converged"})')
+                start = ('the start' if segment.start_ns < self.start_ns
+                         else _seconds(segment.start_ns, self.start_ns))
+                lines.append(f'  segment {k} (from {start}): {segment.describe()}')
+        if self.last_scale is None:
+            lines.append(f'  final scale: none ({self.why_not_calibrated()})')
+        else:
+            lines.append(f'  final scale {self.last_scale.scale:.6g} m/SLAM unit, spread '
+                         f'{self.last_scale.spread:.3g} (the last /hac/scale written)')
+        lines.append(f'  estimator at the end: {s.samples} samples in the window, '
+                     f'{"converged" if s.converged else "not converged"}')
         lines.append(f'  fallback rate {100 * s.fallback_rate:.1f} % (map hits {s.map_hits}, '
                      f'ground plane {s.ground_fallbacks})')
         rejected = ', '.join(f'{k} {v}' for k, v in sorted(s.rejected.items())) or 'none'
@@ -247,7 +286,7 @@ def replay(input_path: str | Path, output_path: str | Path, params: HacParams | 
                                         recording)
     return ReplaySummary(mode, input_path, output_path, status, time.perf_counter() - start,
                          n_inputs, dict(writer.counts), list(handler.resets), schedule, tum,
-                         start_ns)
+                         start_ns, handler.last_scale)
 
 
 def _offline(feeder: CoreFeeder, handler: OutputHandler,
