@@ -3,7 +3,7 @@
 Each worker is a process of its own that runs one job at a time
 (:func:`hac_ros.batch.jobs.run_job`) and asks for the next; a worker that dies fails only its own
 recording, and a new one takes its place. The pool stops on a signal the way the command does
-(:class:`~hac_ros.core.errors.Interrupted`, or Ctrl-C, in the caller): no new recording starts,
+(:class:`~hac_ros.recording.atomic.Interrupted`, or Ctrl-C, in the caller): no new recording starts,
 every running worker gets SIGTERM (its replay removes what it was writing) and is waited for
 STOP_WAIT_S at most (then killed, and its half-written output removed here), so that no process
 is left behind; what finished is kept. Workers ignore SIGINT and SIGHUP themselves (a terminal
@@ -27,7 +27,7 @@ from pathlib import Path
 from types import FrameType
 
 from hac_ros.batch.jobs import Job, Row, completed_row, one_line, run_job
-from hac_ros.core.errors import Interrupted
+from hac_ros.recording.atomic import Interrupted
 
 STOP_WAIT_S = 10.0  # a stopped worker has this long to clean up before it is killed
 PARENT_POLL_S = 1.0  # a worker checks this often that its caller is alive

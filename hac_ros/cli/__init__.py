@@ -27,7 +27,8 @@ from types import FrameType
 
 from hac_ros import __version__
 from hac_ros.cli.terminal import terminal_logging
-from hac_ros.core.errors import STOP_SIGNALS, ArgumentError, ArgumentText, HacError, Interrupted
+from hac_ros.core.errors import ArgumentError, ArgumentText, HacError
+from hac_ros.recording.atomic import STOP_SIGNALS, Interrupted
 
 # sub-command -> (module in this package, one-line help)
 COMMANDS = {
@@ -116,7 +117,7 @@ def user_error(exc: BaseException, args: argparse.Namespace | None) -> str | Non
 
 @contextlib.contextmanager
 def stop_on_signals() -> Iterator[None]:
-    """SIGINT, SIGTERM and SIGHUP raise :class:`~hac_ros.core.errors.Interrupted` in the main
+    """SIGINT, SIGTERM and SIGHUP raise :class:`~hac_ros.recording.atomic.Interrupted` in the main
     thread: the first one only (the command is cleaning up after it; later ones are ignored).
     The previous handlers come back afterwards. Nothing changes off the main thread."""
     if threading.current_thread() is not threading.main_thread():

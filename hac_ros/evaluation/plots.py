@@ -25,11 +25,12 @@ from typing import Any
 
 import numpy as np
 
-from hac_ros.core.errors import HacError, signals_held
+from hac_ros.core.errors import HacError
 from hac_ros.core.layouts import SMPL24, JointLayout
 from hac_ros.core.numeric import NS
 from hac_ros.core.params import POSE_MSGTYPES
 from hac_ros.evaluation.evaluate import match, person_tracks
+from hac_ros.recording.atomic import signals_held
 from hac_ros.recording.reader import Recording
 from hac_ros.recording.tracks import (
     CameraTrack,

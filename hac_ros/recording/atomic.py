@@ -14,14 +14,19 @@ markers are all written this way.
 """
 from __future__ import annotations
 
+import contextlib
 import os
 import shutil
+import signal
 import tempfile
+from collections.abc import Iterator
 from pathlib import Path
 from types import TracebackType
 
-from hac_ros.core.errors import HacError, signals_held
+from hac_ros.core.errors import HacError
 
+# the signals that end a command (hac_ros.cli) and that signals_held holds back
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 PARTIAL_SUFFIX = '.partial'  # of the temporary directory; `hac batch` removes a killed attempt's
 
 
@@ -83,3 +88,25 @@ class staged_output:
                     directory.rmdir()
                 except OSError:
                     break
+
+
+class Interrupted(KeyboardInterrupt):
+    """A signal that ends a command (SIGINT, SIGTERM, SIGHUP), raised where the command is so that
+    everything it was writing is removed on the way out, as for Ctrl-C (every writer of hac_ros
+    cleans up on KeyboardInterrupt). ``signum``: the signal's number."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+@contextlib.contextmanager
+def signals_held() -> Iterator[None]:
+    """Hold SIGINT, SIGTERM and SIGHUP back for a few statements that must not be cut in two
+    (a temporary file created and its name kept for the clean-up): they are delivered when the
+    block ends, where the caller's clean-up sees them."""
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
