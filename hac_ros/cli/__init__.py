@@ -15,20 +15,31 @@ options (``pose_type`` -> ``--pose-type``, :func:`option_names`) where the comma
 """
 from __future__ import annotations
 
-import argparse
-import contextlib
-import errno
-import importlib
+import os
 import signal
 import sys
-import threading
-from collections.abc import Iterator, Sequence
-from types import FrameType
 
-from hac_ros import __version__
-from hac_ros.cli.terminal import terminal_logging
-from hac_ros.core.errors import ArgumentError, ArgumentText, HacError
-from hac_ros.recording.atomic import STOP_SIGNALS, Interrupted
+# A signal while the command is still starting (importing numpy and the sub-command's modules: a
+# second or more on a busy machine) is held until main() ends the command with its one line. Only
+# when this is the program (the ``hac`` script, ``python -m hac_ros.cli``), never when another
+# program imports this package.
+EARLY_SIGNALS: list[int] = []
+if sys.argv and (sys.argv[0] == '-m' or os.path.basename(sys.argv[0]) == 'hac'):
+    for _signum in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        signal.signal(_signum, lambda signum, frame: EARLY_SIGNALS.append(signum))
+
+import argparse  # noqa: E402
+import contextlib  # noqa: E402
+import errno  # noqa: E402
+import importlib  # noqa: E402
+import threading  # noqa: E402
+from collections.abc import Iterator, Sequence  # noqa: E402
+from types import FrameType  # noqa: E402
+
+from hac_ros import __version__  # noqa: E402
+from hac_ros.cli.terminal import terminal_logging  # noqa: E402
+from hac_ros.core.errors import ArgumentError, ArgumentText, HacError  # noqa: E402
+from hac_ros.recording.atomic import STOP_SIGNALS, Interrupted  # noqa: E402
 
 # sub-command -> (module in this package, one-line help)
 COMMANDS = {
@@ -76,6 +87,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     command = f'hac {only}' if only else 'hac'
     with stop_on_signals():  # from the start: an early Ctrl-C is one line too
         try:
+            if EARLY_SIGNALS:  # it came while the command was starting
+                raise Interrupted(EARLY_SIGNALS[0])
             args = build_parser(only).parse_args(argv)
             with terminal_logging(args.command):
                 return int(args._run(args) or 0)

@@ -1,8 +1,8 @@
 """Header time that jumps: a recording played again, a clock reset, one stamp far off.
 
-Stamps are the clock (SPEC, processing order), so the calibrator must tell a late message from
-time itself jumping. :class:`Timeline` judges each SLAM pose's stamp against the newest stamp of
-the stream so far:
+Stamps are the clock (docs/interface.md, "Processing order"), so the calibrator must tell a late
+message from time itself jumping. :class:`Timeline` judges each SLAM pose's stamp against the
+newest stamp of the stream so far:
 
 - not after it by at most ``time_jump_back_s``: a late pose (refused, ``pose_out_of_order``; a
   late joints frame is ``late_frame``);
