@@ -172,6 +172,61 @@ def test_round_trip_import_replay_eval_export(files, tmp_path, capsys):
     assert abs(true_error - simulated['scale_error_pct']) < 0.75
 
 
+def test_a_droid_slam_npz_trajectory_imports_as_its_tum_file(files, tmp_path, capsys):
+    """``--trajectory traj.npz``: DROID-SLAM-style arrays (traj (N, 7) camera-to-world tx ty tz qx
+    qy qz qw, tstamp seconds) give the TUM file's recording; frame indices need --fps."""
+    sc = files['sc']
+    traj = np.concatenate([sc.slam_c, rotations_to_quats(sc.slam_R_wc)], axis=1)
+    np.savez(tmp_path / 'droid.npz', traj=traj, tstamp=files['t_s'], disps=np.zeros((2, 3)))
+    assert hac(import_args(files, tmp_path / 'tum')) == 0
+    assert hac(import_args(files, tmp_path / 'droid', **{'--trajectory':
+                                                         str(tmp_path / 'droid.npz')})) == 0
+    tum, droid = read_bag(tmp_path / 'tum'), read_bag(tmp_path / 'droid')
+    assert [t for t, _ in droid['/slam/pose']] == [t for t, _ in tum['/slam/pose']]
+    for (_, a), (_, b) in zip(droid['/slam/pose'], tum['/slam/pose']):
+        pa, pb = a.pose.position, b.pose.position
+        assert np.allclose([pa.x, pa.y, pa.z], [pb.x, pb.y, pb.z], atol=1e-9)  # TUM: 12 digits
+        qa, qb = a.pose.orientation, b.pose.orientation
+        assert abs(abs(np.dot([qa.x, qa.y, qa.z, qa.w], [qb.x, qb.y, qb.z, qb.w])) - 1) < 1e-9
+    capsys.readouterr()
+
+    # frame indices at 30 Hz, the joints stamped alike (frame k at k / 30 s)
+    k = np.arange(len(traj))
+    np.savez(tmp_path / 'frames.npz', traj=traj, tstamp=k)
+    np.savez(tmp_path / 'joints_k.npz', stamps=k / 30.0, joints=np.load(files['joints'])['joints'])
+    base = {'--joints': str(tmp_path / 'joints_k.npz'), '--gt-trajectory': None,
+            '--gt-joints': None}
+    assert hac(import_args(files, tmp_path / 'fps', **base, **{
+        '--trajectory': str(tmp_path / 'frames.npz'), '--fps': '30'})) == 0
+    poses = read_bag(tmp_path / 'fps')['/slam/pose']
+    assert np.array_equal([t for t, _ in poses], seconds_to_ns(k / 30.0))
+    assert len(read_bag(tmp_path / 'fps')['/hmr/joints']) == len(sc.joints_stamps_ns)
+    capsys.readouterr()
+    # ... and without --fps they are taken as seconds, with a warning saying so
+    assert hac(import_args(files, tmp_path / 'secs', **base, **{
+        '--trajectory': str(tmp_path / 'frames.npz')})) == 0
+    assert 'tstamp holds whole numbers' in capsys.readouterr().err
+
+    # what is wrong is said in one line, naming the array
+    np.savez(tmp_path / 'no_traj.npz', poses=traj)
+    np.savez(tmp_path / 'short.npz', traj=traj[:, :6], tstamp=files['t_s'])
+    np.savez(tmp_path / 'no_tstamp.npz', traj=traj)
+    np.savez(tmp_path / 'back.npz', traj=traj, tstamp=files['t_s'][::-1])
+    for name, extra, fragment in [('no_traj', {}, "no 'traj' array (it holds: poses)"),
+                                  ('short', {}, 'traj must be (N, 7)'),
+                                  ('no_tstamp', {}, "no 'tstamp' array: give the frame rate"),
+                                  ('back', {}, 'stamps must increase'),
+                                  ('droid', {'--fps': '0'}, 'fps must be a number > 0')]:
+        out = tmp_path / f'bad_{name}'
+        assert hac(import_args(files, out, **extra, **{
+            '--trajectory': str(tmp_path / f'{name}.npz')})) == 2, name
+        err = capsys.readouterr().err
+        assert err.count('\n') == 1 and fragment in err, err
+        assert not out.exists()
+    assert hac(import_args(files, tmp_path / 'bad_tum', **{'--fps': '30'})) == 2
+    assert 'fps applies to the frame indices' in capsys.readouterr().err
+
+
 def test_people_frames_layouts_and_storage(files, tmp_path, capsys):
     """Two people (NaN blocks left out, an empty frame not written), a COCO-17 layout, sqlite3,
     a text map, and a trajectory too sparse for the joints (a warning, not a failure)."""

@@ -21,7 +21,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_output_recording(parser)
     parser.add_argument('--trajectory', metavar='T', required=True,
                         help='TUM file: stamp tx ty tz qx qy qz qw, camera-to-map, SLAM units, '
-                        'optical axes (x right, y down, z forward); # comments')
+                        'optical axes (x right, y down, z forward); # comments. Or a '
+                        'DROID-SLAM-style .npz: traj (N, 7) camera-to-world tx ty tz qx qy qz qw '
+                        'and tstamp (N,) seconds, or frame indices with --fps')
+    parser.add_argument('--fps', type=float, metavar='HZ',
+                        help='frame rate of a .npz trajectory\'s tstamp frame indices (seconds = '
+                        'index / HZ; without tstamp, frame i at i / HZ)')
     parser.add_argument('--map', metavar='M', required=True,
                         help='map points in SLAM units, map frame: .ply (ASCII or binary, vertex '
                         'x y z), .npy (N, 3) or text (x y z per line); published once at the '
@@ -58,7 +63,7 @@ def run(args: argparse.Namespace) -> int:
                           gt_trajectory=args.gt_trajectory, gt_joints=args.gt_joints,
                           joint_layout=args.joint_layout, storage=args.storage,
                           map_frame=args.map_frame, camera_frame=args.camera_frame,
-                          world_frame=args.world_frame)
+                          world_frame=args.world_frame, fps=args.fps)
     print(result.text())
     if result.params_file is not None:
         print(f'  parameters: {result.params_file} (for hac replay --params)')

@@ -3,7 +3,8 @@ files (docs/interface.md, "Topics"; docs/inputs.md).
 
 Inputs (checked by :mod:`hac_ros.files.readers` and :mod:`hac_ros.files.map_files`):
 
-- trajectory T: TUM, camera-to-map poses in SLAM units, optical axes → ``/slam/pose``
+- trajectory T: TUM, or a DROID-SLAM-style ``.npz`` (``traj`` (N, 7), ``tstamp`` seconds or frame
+  indices with ``fps``), camera-to-map poses in SLAM units, optical axes → ``/slam/pose``
   (``geometry_msgs/msg/PoseStamped``, ``header.frame_id`` = ``map_frame``, default ``map`` as the
   simulator's), one message per line at its stamp;
 - map M (PLY, ``.npy`` or text; SLAM units, map frame) → one ``/slam/cloud`` (``PointCloud2``,
@@ -49,6 +50,7 @@ from hac_ros.files.readers import (
     Trajectory,
     parse_camera,
     poses_at,
+    read_any_trajectory,
     read_joints,
     read_trajectory,
     unpaired_joint_stamps,
@@ -189,17 +191,19 @@ def import_files(output: str | Path, trajectory: str | Path, map_file: str | Pat
                  gt_trajectory: str | Path | None = None, gt_joints: str | Path | None = None,
                  joint_layout: str | None = None, storage: str = 'mcap', map_frame: str = 'map',
                  camera_frame: str = 'camera_optical', world_frame: str = 'world',
-                 params: HacParams | None = None) -> ImportResult:
+                 params: HacParams | None = None, fps: float | None = None) -> ImportResult:
     """Write the recording ``output`` from the files (see the module docstring). ``params``: the
     ``interp_max_gap_s`` and ``sync_slop_s`` of the sparse-trajectory warning and the ground-truth
-    interpolation (defaults otherwise). Raises HacError before anything is written."""
+    interpolation (defaults otherwise); ``fps``: the frame rate of a DROID-SLAM-style ``.npz``
+    trajectory's frame indices. Raises HacError before anything is written."""
     out = Path(output)
     if out.exists() or out.is_symlink():
         raise HacError(f'output {out} already exists (hac never overwrites a recording: remove it '
                        'or choose another name)')
     params = params or HacParams()
     k_layout = joints_per_person(joint_layout) if joint_layout else None
-    traj = read_trajectory(trajectory, 'trajectory')
+    warnings: list[str] = []
+    traj = read_any_trajectory(trajectory, 'trajectory', fps, warnings)
     points = read_map(map_file)
     hmr: Joints = read_joints(joints, 'joints', k_layout)
     k = hmr.joints_per_person
@@ -210,7 +214,6 @@ def import_files(output: str | Path, trajectory: str | Path, map_file: str | Pat
     gt_hmr = read_joints(gt_joints, 'ground-truth joints', k) if gt_joints else None
     max_gap_ns = int(round(params.interp_max_gap_s * NS))
 
-    warnings = []
     if gt is not None and repeated:
         warnings.append(f'the ground-truth trajectory {gt.path} repeats the stamp of the line '
                         f'before on {len(repeated)} line(s) (first: line {repeated[0]}): the first '

@@ -128,19 +128,85 @@ def read_trajectory(path: str | Path, what: str = 'trajectory',
     return Trajectory(path, stamps, data[:, 1:4], quats / norms[:, None])
 
 
-def read_joints(path: str | Path, what: str = 'joints',
-                joints_per_person: int | None = None) -> Joints:
-    """A ``.npz`` with ``stamps`` (T,) float seconds and ``joints`` (T, P, K, 3) metres (NaN blocks
-    for absent people); K checked against ``joints_per_person`` when given."""
-    path = existing_file(path, what)
+def _load_npz(path: Path, what: str) -> dict[str, np.ndarray]:
+    """The named arrays of a ``.npz`` (no pickles); InputError when it cannot be read."""
     try:
         npz = np.load(path, allow_pickle=False)
         if not isinstance(npz, np.lib.npyio.NpzFile):
             raise ValueError('a single array, not an archive of named arrays')
         with npz:
-            arrays = {name: npz[name] for name in npz.files}
+            return {name: npz[name] for name in npz.files}
     except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
         raise InputError(f'{what} {path}: not a readable .npz ({exc})') from exc
+
+
+def read_any_trajectory(path: str | Path, what: str = 'trajectory', fps: float | None = None,
+                        warnings: list[str] | None = None) -> Trajectory:
+    """A TUM file, or a DROID-SLAM-style ``.npz`` (:func:`read_droid_trajectory`) when the name
+    ends in ``.npz``; ``fps`` (frames per second) applies to the ``.npz``'s frame indices only."""
+    if Path(path).suffix.lower() == '.npz':
+        return read_droid_trajectory(path, what, fps, warnings)
+    if fps is not None:
+        raise InputError(f'{what} {path}: fps applies to the frame indices of a DROID-SLAM-style '
+                         '.npz trajectory, not to a TUM file (whose stamps are seconds)')
+    return read_trajectory(path, what)
+
+
+def read_droid_trajectory(path: str | Path, what: str = 'trajectory', fps: float | None = None,
+                          warnings: list[str] | None = None) -> Trajectory:
+    """A DROID-SLAM-style ``.npz`` (as the HAC authors' ``masked_droid_slam.npz``): ``traj``
+    (N, 7) camera-to-world poses ``tx ty tz qx qy qz qw`` (SLAM units, optical axes) and
+    ``tstamp`` (N,) seconds, or frame indices when ``fps`` is given (seconds = index / fps; without
+    ``tstamp`` frame i is at i / fps). Stamps must increase; quaternions are normalised (a zero
+    one is an error). Stamps that are all whole numbers without ``fps`` look like frame indices:
+    a warning is appended to ``warnings``."""
+    path = existing_file(path, what)
+    arrays = _load_npz(path, what)
+    if 'traj' not in arrays:
+        raise InputError(f'{what} {path}: no \'traj\' array (it holds: '
+                         f'{", ".join(sorted(arrays)) or "nothing"}); expected traj (N, 7) '
+                         'camera-to-world tx ty tz qx qy qz qw and tstamp (N,)')
+    traj = arrays['traj']
+    if traj.ndim != 2 or traj.shape[1] != 7 or traj.dtype.kind not in 'iuf' or not len(traj):
+        raise InputError(f'{what} {path}: traj must be (N, 7) numbers (tx ty tz qx qy qz qw), '
+                         f'got shape {traj.shape} of {traj.dtype}')
+    traj = traj.astype(float)
+    if fps is not None and not 0.0 < fps < float('inf'):
+        raise InputError(f'{what} {path}: fps must be a number > 0, got {fps!r}')
+    if 'tstamp' in arrays:
+        tstamp = arrays['tstamp']
+        if tstamp.shape != (len(traj),) or tstamp.dtype.kind not in 'iuf':
+            raise InputError(f'{what} {path}: tstamp must be ({len(traj)},) numbers like traj\'s '
+                             f'rows, got shape {tstamp.shape} of {tstamp.dtype}')
+        t = tstamp.astype(float)
+    elif fps is not None:
+        t = np.arange(len(traj), dtype=float)
+    else:
+        raise InputError(f'{what} {path}: no \'tstamp\' array: give the frame rate (fps) to '
+                         'stamp frame i at i / fps')
+    labels = [f'row {i}' for i in range(len(traj))]
+    bad = ~np.isfinite(traj).all(axis=1) | ~np.isfinite(t)
+    if bad.any():
+        raise InputError(f'{what} {path}: {labels[int(np.argmax(bad))]}: a value is not finite')
+    if fps is None and warnings is not None and len(t) > 1 and np.all(t == np.round(t)):
+        warnings.append(f'{what} {path}: tstamp holds whole numbers ({t[0]:g}, {t[1]:g}, ...), '
+                        'taken as seconds: if they are frame indices, give the frame rate (fps)')
+    stamps = seconds_to_ns(t / fps if fps is not None else t, f'{what} {path}', labels)
+    _check_increasing(path, what, stamps, labels)
+    quats = traj[:, 3:7]
+    norms = np.linalg.norm(quats, axis=1)
+    if (norms < 1e-6).any():
+        raise InputError(f'{what} {path}: {labels[int(np.argmax(norms < 1e-6))]}: the quaternion '
+                         'is zero')
+    return Trajectory(path, stamps, traj[:, :3], quats / norms[:, None])
+
+
+def read_joints(path: str | Path, what: str = 'joints',
+                joints_per_person: int | None = None) -> Joints:
+    """A ``.npz`` with ``stamps`` (T,) float seconds and ``joints`` (T, P, K, 3) metres (NaN blocks
+    for absent people); K checked against ``joints_per_person`` when given."""
+    path = existing_file(path, what)
+    arrays = _load_npz(path, what)
     missing = [name for name in ('stamps', 'joints') if name not in arrays]
     if missing:
         raise InputError(f'{what} {path}: no {" or ".join(repr(m) for m in missing)} array (it '
