@@ -17,10 +17,11 @@ turned into the calibrator's inputs in SPEC's order plus the truth. Per run:
   (``w_mpjpe_literal``): W-MPJPE aligns each 100-frame chunk on its first two frames, so one frame
   more or less at the start shifts every chunk and moves the figure by tens of millimetres.
 
-The literal authors' method (their code, as issue 19 states it): per frame every joint's ray
-against every map point (cone cos > 0.999, the median distance of the points in the cone), the
-largest ratio over the joints is the frame's scale, one median over the frames; world joints
-``R_wc J + s c`` in the SLAM frame.
+The literal authors' method (their code, as issue 19 states it; the library's
+:mod:`hac_ros.core.literal`, which ``calibrate(..., literal=True)`` runs too): per frame every
+joint's ray against every map point (cone cos > 0.999, the median distance of the points in the
+cone), the largest ratio over the joints is the frame's scale, one median over the frames; world
+joints ``R_wc J + s c`` in the SLAM frame. Here each frame uses the latest map of the recording.
 """
 from __future__ import annotations
 
@@ -31,7 +32,9 @@ from typing import Any
 import numpy as np
 
 from hac_ros.core.calibrator import Calibrator
+from hac_ros.core.estimator import sequence_scale
 from hac_ros.core.human_filter import smooth_outputs
+from hac_ros.core.literal import max_ratio, world_joints
 from hac_ros.core.offline import resolve_offline
 from hac_ros.core.outputs import (
     DiagnosticsOut,
@@ -45,7 +48,6 @@ from hac_ros.core.params import HacParams
 from hac_ros.evaluation import metrics
 from hac_ros.simulate.feed import feed_events
 
-AUTHORS_COS = 0.999
 CONVERGED_REL = 0.05
 
 
@@ -269,35 +271,19 @@ def run_literal(scene: Scene) -> tuple[dict[str, float], World]:
         elif maps and stamp in poses:
             R, c = poses[stamp]
             for person in payload[0]:
-                frames.append((stamp, person, _max_ratio(maps[-1][1], R, c, person)))
+                frames.append((stamp, person, max_ratio(maps[-1][1], R, c, person)))
     samples = np.array([s for _, _, s in frames])
     samples = samples[np.isfinite(samples)]
     if not samples.size:
         return {'scale_err': math.nan, 'scale_bias': math.nan, 'w_mpjpe': math.nan}, {}
-    s = float(np.median(samples))
+    s = sequence_scale(samples)
     signed = 100.0 * (s / scene.true_scale_at(np.array(sorted(poses))) - 1.0)
     world: dict[int, list[np.ndarray]] = {}
     for stamp, person, _ in frames:
         R, c = poses[stamp]
-        world.setdefault(stamp, []).append(person @ R.T + s * c)
+        world.setdefault(stamp, []).append(world_joints(person, R, c, s))
     stamps = sorted(world)
     joints = {t: np.array(world[t]) for t in stamps}
     return {'scale_bias': float(np.median(signed)), 'scale_err': float(np.median(np.abs(signed))),
             'w_mpjpe': w_mpjpe(scene, stamps, [joints[t] for t in stamps]),
             'samples': int(samples.size)}, joints
-
-
-def _max_ratio(points: np.ndarray, R_wc: np.ndarray, c: np.ndarray, joints: np.ndarray) -> float:
-    """The authors' per-frame scale: every joint's cone median over every map point, the largest
-    ratio ||J|| / d_S; NaN when no joint's cone holds a point."""
-    v = points - c
-    dist = np.linalg.norm(v, axis=1)
-    depth = np.linalg.norm(joints, axis=1)
-    rays = (joints / depth[:, None]) @ R_wc.T  # (24, 3) unit, map frame
-    inside = (v @ rays.T) > AUTHORS_COS * dist[:, None]  # (N, 24)
-    best = math.nan
-    for j in range(len(joints)):
-        if joints[j, 2] > 0.0 and inside[:, j].any():
-            ratio = depth[j] / float(np.median(dist[inside[:, j]]))
-            best = ratio if not ratio <= best else best
-    return best
