@@ -9,6 +9,7 @@ from hac_ros.core.errors import HacError
 from hac_ros.core.layouts import BUILT_IN
 from hac_ros.core.params import POSE_TYPES
 from hac_ros.simulate.scenarios import SCENARIOS
+from hac_ros.simulate.writer import POSE_FRAMES, POSE_SOURCES
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -20,6 +21,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help='seconds (default: the scenario\'s own)')
     parser.add_argument('--rate', type=float, default=30.0, help='camera rate, Hz')
     parser.add_argument('--pose-type', choices=POSE_TYPES, default='PoseStamped')
+    parser.add_argument('--pose-frame', choices=POSE_FRAMES, default='optical',
+                        help='base: the SLAM pose of a robot base (x forward, z up) 1.2 below and '
+                        '0.3 behind the camera, as a wrapper reporting base_link writes it; '
+                        'replay with pose_to_optical [0.3, 0, 1.2, -0.5, 0.5, -0.5, 0.5]')
+    parser.add_argument('--pose-source', choices=POSE_SOURCES, default='topic',
+                        help='tf: the SLAM pose only on /tf (map -> camera_optical, or -> '
+                        'base_link with /tf_static base_link -> camera_optical); replay with '
+                        'pose_source tf')
     parser.add_argument('--hmr-bias', type=float, default=None,
                         help=escape_help('HMR depth bias (0.03 = 3 % too far); default: random '
                                          'few %; 0: none'))
@@ -43,7 +52,8 @@ def run(args: argparse.Namespace) -> int:
                        hmr_bias=args.hmr_bias,
                        motion=str(args.motion) if args.motion is not None else None,
                        joint_layout=args.joint_layout)
-    write_recording(sc, output, storage=args.storage, pose_type=args.pose_type)
+    write_recording(sc, output, storage=args.storage, pose_type=args.pose_type,
+                    pose_frame=args.pose_frame, pose_source=args.pose_source)
     print(f'{args.output}: {args.scenario}, {sc.duration_s:.1f} s, {len(sc.pose_stamps_ns)} poses, '
           f'{len(sc.joints_stamps_ns)} joints frames, {len(sc.maps)} maps, true scale '
           f'{sc.true_scale[0]:.4g} m/unit, HMR bias {sc.hmr_bias:+.3f}')

@@ -167,10 +167,10 @@ class Calibrator:
 
         Its stamp is judged first (hac_ros.core.timeline: late, a jump back that starts a new
         stream, one stamp far ahead, a jump ahead), then the pose in its stream (pose_stream)."""
-        R_wc = self.conventions.pose(np.asarray(R_wc, dtype=float))
-        c_map = np.asarray(c_map, dtype=float)
+        R_wc, c_map = np.asarray(R_wc, dtype=float), np.asarray(c_map, dtype=float)
         if not (is_rotation(R_wc, 1e-3) and c_map.shape == (3,) and np.all(np.isfinite(c_map))):
             return self._reject('pose_nonfinite', stamp_ns)
+        R_wc, c_map = self.conventions.pose(R_wc, c_map)
         item = Stamped(Pose(int(stamp_ns), R_wc, c_map), frame_id, child_frame_id)
         verdict = self.timeline.judge(item, self.track.newest_stamp_ns)
         out: list[Record] = []

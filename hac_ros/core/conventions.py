@@ -1,5 +1,6 @@
 """Input conventions other than the defaults (docs/inputs.md): body-frame SLAM poses
-(``pose_to_optical``) and an HMR model that assumed another focal length (``hmr_focal_px``).
+(``pose_to_optical``: a rotation, or a full transform for a body or base frame) and an HMR model
+that assumed another focal length (``hmr_focal_px``).
 
 Both are applied where the inputs enter the :class:`~hac_ros.core.calibrator.Calibrator`, so
 everything after sees optical-frame poses and depths at the camera's own focal length. Pure numpy.
@@ -13,19 +14,30 @@ from hac_ros.core.layouts import JointLayout
 from hac_ros.core.outputs import NoticeOut, Output
 
 
-def optical_rotation(pose_to_optical: list[float]) -> np.ndarray | None:
-    """R(q) (3, 3), the camera optical frame in the SLAM pose's child frame (q = x, y, z, w); None
-    for the identity (the SLAM publishes optical-frame poses)."""
-    q = np.asarray(pose_to_optical, dtype=float)
-    q = q / np.linalg.norm(q)
-    if abs(abs(q[3]) - 1.0) < 1e-12:
+def optical_transform(pose_to_optical: list[float]
+                      ) -> tuple[np.ndarray, np.ndarray] | None:
+    """The camera optical frame in the SLAM pose's child frame: R (3, 3) optical to child and t
+    (3,) the optical origin in the child frame, in the pose's own units (zero for the 4-number
+    form, x y z w: the position unchanged; the 7-number form is x y z qx qy qz qw). None for the
+    identity (the SLAM publishes optical-frame poses)."""
+    values = np.asarray(pose_to_optical, dtype=float)
+    q = values[-4:] / np.linalg.norm(values[-4:])
+    t = values[:3] if len(values) == 7 else np.zeros(3)
+    if abs(abs(q[3]) - 1.0) < 1e-12 and not t.any():
         return None
-    return Rotation.from_quat(q).as_matrix()
+    return Rotation.from_quat(q).as_matrix(), t
 
 
-def to_optical(R_map_child: np.ndarray, R_child_optical: np.ndarray | None) -> np.ndarray:
-    """R_map_optical = R_map_child · R(q) (3, 3); the position is unchanged."""
-    return R_map_child if R_child_optical is None else R_map_child @ R_child_optical
+def to_optical(R_map_child: np.ndarray, c_map_child: np.ndarray,
+               child_optical: tuple[np.ndarray, np.ndarray] | None
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """The pose a wrapper reported for its child frame (pose_child = pose_camera · T⁻¹) back to the
+    camera optical frame's, as it was before: R_map_optical = R_map_child · R (3, 3) and
+    c_optical = c_child + R_map_child · t (3,), SLAM units."""
+    if child_optical is None:
+        return R_map_child, c_map_child
+    R, t = child_optical
+    return R_map_child @ R, c_map_child + R_map_child @ t
 
 
 def refocus_depth(joints_cam: np.ndarray, fx: float, hmr_focal_px: float,
@@ -60,7 +72,7 @@ class Conventions:
 
     def __init__(self, pose_to_optical: list[float], hmr_focal_px: float,
                  layout: JointLayout) -> None:
-        self.R_child_optical = optical_rotation(pose_to_optical)
+        self.child_optical = optical_transform(pose_to_optical)
         self.layout = layout
         self.hmr_focal_px = float(hmr_focal_px)
         self._warned = False
@@ -68,11 +80,12 @@ class Conventions:
     @property
     def optical_poses(self) -> bool:
         """The SLAM poses are the optical frame's (their child frame names the camera)."""
-        return self.R_child_optical is None
+        return self.child_optical is None
 
-    def pose(self, R_map_child: np.ndarray) -> np.ndarray:
-        """The SLAM pose's rotation (3, 3) -> the optical frame's in the map."""
-        return to_optical(R_map_child, self.R_child_optical)
+    def pose(self, R_map_child: np.ndarray, c_map_child: np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray]:
+        """The SLAM pose (R (3, 3) child to map, c (3,) SLAM units) -> the optical frame's."""
+        return to_optical(R_map_child, c_map_child, self.child_optical)
 
     def camera_info_notes(self, stamp_ns: int, K: np.ndarray) -> list[Output]:
         """The first CameraInfo: one line saying which focal length the HMR depth is taken at."""

@@ -33,10 +33,11 @@ CLOUD_QOS = ('transient_local', 'volatile')
 
 
 def _p(default: Any, description: str, *, choices: tuple[str, ...] | None = None,
-       low: float | None = None, high: float | None = None, length: int | None = None,
-       kind: str = '') -> Any:
+       low: float | None = None, high: float | None = None,
+       length: int | tuple[int, ...] | None = None, kind: str = '') -> Any:
     """A dataclass field carrying its ROS parameter description and its allowed range
-    (``kind='indices'``: a list of any length of joint indices, integers >= 0)."""
+    (``length``: of a list of numbers, or the lengths it may have; ``kind='indices'``: a list of
+    any length of joint indices, integers >= 0)."""
     meta = {'description': description, 'choices': choices, 'low': low, 'high': high,
             'length': length, 'kind': kind}
     if isinstance(default, list):
@@ -178,9 +179,12 @@ class HacParams:
                          'the camera')
     base_to_camera: list = _p([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0],
                               'camera pose in base_frame: x y z qx qy qz qw (metres)', length=7)
-    pose_to_optical: list = _p([0.0, 0.0, 0.0, 1.0], 'rotation (x y z w) of the camera optical '
-                               'frame in the SLAM pose\'s child frame; [-0.5, 0.5, -0.5, 0.5] for '
-                               'an x-forward, z-up camera body frame', length=4)
+    pose_to_optical: list = _p([0.0, 0.0, 0.0, 1.0], 'the camera optical frame in the SLAM '
+                               'pose\'s child frame: a rotation x y z w, the position unchanged '
+                               '([-0.5, 0.5, -0.5, 0.5] for an x-forward, z-up camera body frame), '
+                               'or x y z qx qy qz qw: the transform a wrapper composed its camera '
+                               'pose with to report a body or base frame, the translation in the '
+                               'pose\'s own (SLAM) units', length=(4, 7))
     hmr_focal_px: float = _p(0.0, 'focal length (pixels, CameraInfo\'s resolution) the HMR model '
                              'assumed when placing people in depth; 0 = the camera\'s own '
                              '(needs CameraInfo)', low=0.0, high=1e6)
@@ -204,8 +208,9 @@ class HacParams:
             raise ParameterError('cone_min_points: must be >= 1')
         if self.obstacle_min_height >= self.obstacle_max_height:
             raise ParameterError('obstacle_min_height: must be below obstacle_max_height')
-        if abs(math.sqrt(sum(x * x for x in self.pose_to_optical)) - 1.0) > 1e-3:
-            raise ParameterError('pose_to_optical: the quaternion (x y z w) must be unit')
+        if abs(math.sqrt(sum(x * x for x in self.pose_to_optical[-4:])) - 1.0) > 1e-3:
+            raise ParameterError('pose_to_optical: the quaternion (its last 4 values, x y z w) '
+                                 'must be unit')
         self.layout()  # a custom layout raises on missing roles or indices outside the person
         q = self.base_to_camera[3:]
         if abs(math.sqrt(sum(x * x for x in q)) - 1.0) > 1e-3:
@@ -250,6 +255,12 @@ def describe(name: str) -> dict[str, Any]:
     raise ParameterError(f'unknown parameter: {name}')
 
 
+def lengths_text(length: int | tuple[int, ...]) -> str:
+    """'7', or '4 or 7': the lengths a list parameter may have."""
+    lengths = length if isinstance(length, tuple) else (length,)
+    return ' or '.join(str(n) for n in lengths)
+
+
 def _coerce(name: str, value: Any) -> Any:
     """Accept what YAML and ROS hand us (ints for floats, tuples for lists)."""
     ref = describe(name)['default']
@@ -292,9 +303,11 @@ def _check(f: dataclasses.Field, value: Any) -> None:
                                  f'got {value!r}')
         return
     if isinstance(ref, list):
-        if not isinstance(value, list) or len(value) != meta['length'] or not all(
+        lengths = meta['length'] if isinstance(meta['length'], tuple) else (meta['length'],)
+        if not isinstance(value, list) or len(value) not in lengths or not all(
                 isinstance(v, (int, float)) and math.isfinite(v) for v in value):
-            raise ParameterError(f'{name}: expected {meta["length"]} finite numbers, got {value!r}')
+            raise ParameterError(f'{name}: expected {lengths_text(meta["length"])} finite numbers, '
+                                 f'got {value!r}')
         return
     if isinstance(ref, int) and (not isinstance(value, int) or isinstance(value, bool)):
         raise ParameterError(f'{name}: expected an integer, got {value!r}')

@@ -13,7 +13,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from hac_ros.core.errors import ParameterError
-from hac_ros.core.params import describe, names
+from hac_ros.core.params import describe, lengths_text, names
 from hac_ros.files.params_file import (
     ROS_OWN_PARAMETERS,
     ROS_OWN_PREFIXES,
@@ -83,7 +83,7 @@ def parameter_descriptor(name: str) -> Any:
     elif isinstance(default, list):
         descriptor.type = ParameterType.PARAMETER_DOUBLE_ARRAY
         descriptor.dynamic_typing = INTEGERS_FOR_DOUBLES
-        descriptor.additional_constraints = f"exactly {info['length']} finite numbers"
+        descriptor.additional_constraints = f"{lengths_text(info['length'])} finite numbers"
     else:
         descriptor.type = ParameterType.PARAMETER_STRING
     if info['choices']:
@@ -155,7 +155,7 @@ def parameter_table() -> str:
         elif info['kind'] == 'indices':
             allowed = 'joint indices'
         elif info['length']:
-            allowed = f"{info['length']} numbers"
+            allowed = f"{lengths_text(info['length'])} numbers"
         elif isinstance(info['default'], bool):
             allowed = '`true`, `false`'
         else:

@@ -4,12 +4,21 @@ Inputs: /slam/pose (PoseStamped or Odometry), /slam/cloud, /hmr/joints, /camera/
 ground truth: /gt/camera_pose, /gt/human_joints, /gt/scale. Every message is logged at its
 header stamp (/gt/scale, which has none, at the stamp of the pose it belongs to); at one stamp the
 map comes first, then the pose, the camera info, the joints, the ground truth.
+
+The SLAM pose as different wrappers report it, for the tests of ``pose_to_optical`` and
+``pose_source``: ``pose_frame='base'`` reports the pose of a robot base (x forward, z up) whose
+camera stands 1.2 above and 0.3 ahead of it (:data:`BASE_TO_OPTICAL`), composed as a wrapper
+composes its extrinsic with a monocular trajectory: pose_base = pose_camera · T⁻¹, the translation
+taken in SLAM units; ``pose_source='tf'`` writes no /slam/pose but ``tf2_msgs/msg/TFMessage`` on
+/tf (the map frame → the camera or the base, at every pose stamp) and, for the base, the static
+base → camera optical transform on /tf_static (latched, at the first stamp).
 """
 from __future__ import annotations
 
 from pathlib import Path
 from typing import Any
 
+from hac_ros.core.conventions import optical_transform
 from hac_ros.core.errors import HacError
 from hac_ros.core.layouts import BUILT_IN
 from hac_ros.core.params import POSE_MSGTYPES
@@ -22,12 +31,15 @@ from msg_adapters import (
     rosbags_types,
     rt_to_odometry,
     rt_to_pose_stamped,
+    rt_to_transform_stamped,
     xyz_to_cloud,
 )
 
 TOPICS = {
     '/slam/cloud': 'sensor_msgs/msg/PointCloud2',
+    '/tf_static': 'tf2_msgs/msg/TFMessage',  # pose_source tf
     '/slam/pose': None,  # by pose_type
+    '/tf': 'tf2_msgs/msg/TFMessage',  # pose_source tf
     '/camera/camera_info': 'sensor_msgs/msg/CameraInfo',
     '/hmr/joints': 'geometry_msgs/msg/PoseArray',
     '/gt/camera_pose': 'geometry_msgs/msg/PoseStamped',
@@ -35,20 +47,36 @@ TOPICS = {
     '/gt/scale': 'std_msgs/msg/Float64',
 }
 ORDER = {topic: k for k, topic in enumerate(TOPICS)}
+POSE_FRAMES = ('optical', 'base')
+POSE_SOURCES = ('topic', 'tf')
+# the camera optical frame in the base frame (x forward, z up): 0.3 ahead, 1.2 above, looking
+# forward; x y z qx qy qz qw, as pose_to_optical takes it
+BASE_TO_OPTICAL = [0.3, 0.0, 1.2, -0.5, 0.5, -0.5, 0.5]
+BASE_FRAME = 'base_link'
 
 
 def write_recording(sc: Any, out_path: str | Path, storage: str = 'mcap',
-                    pose_type: str = 'PoseStamped') -> Path:
+                    pose_type: str = 'PoseStamped', pose_frame: str = 'optical',
+                    pose_source: str = 'topic') -> Path:
     """Write ``sc`` to a new recording at ``out_path`` (refused if the path exists; it appears
     whole or not at all). storage: ``mcap`` or ``sqlite3``; pose_type: ``PoseStamped`` or
-    ``Odometry``."""
+    ``Odometry``; pose_frame: ``optical`` or ``base``, pose_source: ``topic`` or ``tf`` (module
+    docstring)."""
     out = Path(out_path)
     if out.exists():
         raise HacError(f'{out} exists: refusing to overwrite it')
     if pose_type not in POSE_MSGTYPES:
         raise HacError(f'pose type must be one of {", ".join(POSE_MSGTYPES)}, got {pose_type!r}')
+    if pose_frame not in POSE_FRAMES:
+        raise HacError(f'pose frame must be one of {", ".join(POSE_FRAMES)}, got {pose_frame!r}')
+    if pose_source not in POSE_SOURCES:
+        raise HacError(f'pose source must be one of {", ".join(POSE_SOURCES)}, got '
+                       f'{pose_source!r}')
     types = rosbags_types()
     pose_msgtype = POSE_MSGTYPES[pose_type]
+    base = optical_transform(BASE_TO_OPTICAL) if pose_frame == 'base' else None
+    child = BASE_FRAME if base is not None else sc.camera_frame
+    tf_message = types.get(TOPICS['/tf'] or '')
     messages: list[tuple[int, int, str, str, Any]] = []
 
     def add(stamp: int, topic: str, msg: Any) -> None:
@@ -61,11 +89,20 @@ def write_recording(sc: Any, out_path: str | Path, storage: str = 'mcap',
     for i, stamp in enumerate(sc.pose_stamps_ns):
         stamp = int(stamp)
         R, c, frame = sc.slam_R_wc[i], sc.slam_c[i], sc.slam_frame_ids[i]
-        if pose_type == 'Odometry':
-            msg = rt_to_odometry(R, c, stamp, frame, sc.camera_frame, types)
+        if base is not None:  # pose_base = pose_camera · T⁻¹, T's translation in SLAM units
+            R_bo, t_bo = base
+            R = R @ R_bo.T
+            c = c - R @ t_bo
+        if pose_source == 'tf':
+            add(stamp, '/tf', tf_message(transforms=[
+                rt_to_transform_stamped(R, c, stamp, frame, child, types)]))
+            if base is not None and i == 0:
+                add(stamp, '/tf_static', tf_message(transforms=[
+                    rt_to_transform_stamped(*base, stamp, BASE_FRAME, sc.camera_frame, types)]))
+        elif pose_type == 'Odometry':
+            add(stamp, '/slam/pose', rt_to_odometry(R, c, stamp, frame, child, types))
         else:
-            msg = rt_to_pose_stamped(R, c, stamp, frame, types)
-        add(stamp, '/slam/pose', msg)
+            add(stamp, '/slam/pose', rt_to_pose_stamped(R, c, stamp, frame, types))
         add(stamp, '/camera/camera_info',
             intrinsics_to_camera_info(sc.K, sc.width, sc.height, stamp, sc.camera_frame, types))
         add(stamp, '/gt/camera_pose',
@@ -86,8 +123,11 @@ def write_recording(sc: Any, out_path: str | Path, storage: str = 'mcap',
     with staged_output(out) as staged:
         writer = OutputWriter(staged, storage, layout_data(BUILT_IN[sc.joint_layout]))
         try:
+            used = {m[2] for m in messages}
             for topic, msgtype in TOPICS.items():
-                writer.connection(topic, msgtype or pose_msgtype)
+                if topic in used or topic not in ('/tf', '/tf_static', '/slam/pose'):
+                    writer.connection(topic, msgtype or pose_msgtype,
+                                      latched=topic == '/tf_static')
             for stamp, _, topic, msgtype, msg in messages:
                 writer.write(topic, msgtype, stamp, writer.typestore.serialize_cdr(msg, msgtype))
         finally:
