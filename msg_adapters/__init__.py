@@ -19,6 +19,7 @@ from msg_adapters.poses import (
                                 rt_to_pose,
                                 rt_to_pose_stamped,
                                 rt_to_transform_stamped,
+                                transform_to_rt,
 )
 from msg_adapters.stamps import make_header, ns_to_stamp, stamp_to_ns
 from msg_adapters.types import MessageTypes, rclpy_types, rosbags_types
@@ -29,5 +30,5 @@ __all__ = [
     'make_header', 'matrix_to_quat', 'ns_to_stamp', 'parse_cloud_cdr', 'pose_array_to_joints',
     'pose_msg_to_rt', 'pose_to_rt', 'quat_to_matrix', 'rclpy_types', 'rosbags_types',
     'rt_to_odometry', 'rt_to_pose', 'rt_to_pose_stamped', 'rt_to_transform_stamped',
-    'stamp_to_ns', 'xyz_from_buffer', 'xyz_to_cloud',
+    'stamp_to_ns', 'transform_to_rt', 'xyz_from_buffer', 'xyz_to_cloud',
 ]

@@ -133,6 +133,30 @@ def pose_msg_to_rt(msg: Any) -> tuple[np.ndarray, np.ndarray]:
                        f'(Stamped) or Odometry (no pose with position and orientation found)')
 
 
+def transform_to_rt(msg: Any) -> tuple[np.ndarray, np.ndarray]:
+    """``geometry_msgs/TransformStamped`` (or ``Transform``) → (R (3, 3) child-to-parent rotation,
+    t (3,) the child's origin in the parent frame, its unit).
+
+    MessageError for a non-finite translation or rotation, or a quaternion whose norm is not 1
+    within QUATERNION_NORM_TOL.
+    """
+    transform = getattr(msg, 'transform', msg)
+    try:
+        v, q = transform.translation, transform.rotation
+        t = np.array([v.x, v.y, v.z], dtype=float)
+        quat = (q.x, q.y, q.z, q.w)
+    except (AttributeError, TypeError, ValueError) as exc:
+        raise MessageError(f'Transform: expected translation (x, y, z) and rotation (x, y, z, w) '
+                           f'({exc})') from exc
+    if not np.isfinite(t).all():
+        raise MessageError(f'Transform: translation is not finite: {t.tolist()}')
+    try:
+        R = quat_to_matrix(*quat)
+    except MessageError as exc:
+        raise MessageError(f'Transform: rotation: {exc}') from exc
+    return R, t
+
+
 def _vector(v: Any, what: str) -> tuple[float, float, float]:
     """A finite 3-vector as Python floats (rclpy float fields refuse numpy scalars)."""
     try:

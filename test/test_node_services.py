@@ -192,6 +192,76 @@ def pose_msg_to_rt_parts(t: Any, q: Any) -> tuple[np.ndarray, np.ndarray]:
     return (Rotation.from_quat([q.x, q.y, q.z, q.w]).as_matrix(), np.array([t.x, t.y, t.z]))
 
 
+@pytest.mark.slow
+def test_pose_source_tf_through_a_stand_in_listener(tmp_path, walk):
+    """pose_source tf in a node process whose tf2_ros is test/standins': the SLAM's dynamic
+    transform map -> base_link on /tf_standin and the static base_link -> camera_optical on
+    /tf_static_standin (transient local, published before the node starts). The node takes a pose
+    at every SLAM transform's stamp, composed with the static one, and converges as with the
+    PoseStamped topic."""
+    from test_node import SCALE_TOL
+
+    from hac_ros.core.conventions import optical_transform
+    from hac_ros.simulate.writer import BASE_FRAME, BASE_TO_OPTICAL
+    from msg_adapters import rt_to_transform_stamped
+
+    R_bo, t_bo = optical_transform(BASE_TO_OPTICAL)
+    params = {**TEST_PARAMS, 'min_samples': 10, 'pose_source': 'tf',
+              'slam_pose_frame': walk.camera_frame}
+    standins = os.pathsep.join([str(REPO / 'test' / 'standins'), os.environ.get('PYTHONPATH', '')])
+    client = Client()
+    transform = TYPES.get('geometry_msgs/msg/TransformStamped')
+    dynamic = client.io.create_publisher(transform, '/tf_standin', RELIABLE)
+    static = client.io.create_publisher(transform, '/tf_static_standin', CLOUD_LATE)
+    first = walk.events[0].stamp_ns
+    static.publish(rt_to_transform_stamped(R_bo, t_bo, first, BASE_FRAME, walk.camera_frame,
+                                           TYPES))
+    node = start_node(tmp_path, params, env={'PYTHONPATH': standins})
+    got = client.received
+    try:
+        assert wait_for(lambda: dynamic.get_subscription_count() > 0
+                        and static.get_subscription_count() > 0
+                        and client.publishers['joints'].get_subscription_count() > 0
+                        and client.io.count_publishers('/hac/pose') > 0, STARTUP_S), 'no node'
+        time.sleep(1.0)  # the latched static transform reaches the node
+        for event in walk.events:
+            if event.kind == 'pose':  # the SLAM's pose of the base: pose_camera · T⁻¹
+                R, c = pose_msg_to_rt(event.msg)
+                R_b = R @ R_bo.T
+                dynamic.publish(rt_to_transform_stamped(
+                    R_b, c - R_b @ t_bo, event.stamp_ns, event.msg.header.frame_id, BASE_FRAME,
+                    TYPES))
+            else:
+                client.publishers[event.kind].publish(event.msg)
+            time.sleep(0.5 if event.kind == 'cloud' else 0.004 if event.kind == 'joints' else 0)
+        last = int(walk.pose_stamps[-1])
+        assert wait_for(lambda: got['/hac/pose'] and stamp_to_ns(
+            got['/hac/pose'][-1].header.stamp) == last, 15.0), 'the last pose was not taken'
+    finally:
+        client.close()
+        code, log = stop(node, signal.SIGINT)
+    assert code == 0 and 'Traceback' not in log, log
+    assert 'TF map -> camera_optical' in log
+    scale = got['/hac/scale'][-1].data
+    assert abs(scale / walk.scale_at(last) - 1.0) < SCALE_TOL
+    stamps = [stamp_to_ns(m.header.stamp) for m in got['/hac/pose']]
+    poses = [int(s) for s in walk.pose_stamps]
+    assert stamps == poses[poses.index(stamps[0]):]  # every SLAM transform once converged
+    diagnostics = {kv.key: kv.value for kv in got['/diagnostics'][-1].status[0].values}
+    assert int(diagnostics['pose_match.exact']) > 100
+    # should the latched static still come after the first SLAM transforms (a loaded machine),
+    # those are counted, never turned into poses
+    assert int(diagnostics.get('rejected.tf_unconnected', '0')) <= 10
+
+
+def test_pose_source_tf_without_tf2_ros_names_what_to_install(tmp_path):
+    node = start_node(tmp_path, {'pose_source': 'tf', 'slam_pose_frame': 'camera_optical'})
+    out, err = node.communicate(timeout=STARTUP_S)
+    assert node.returncode == 2, out + err
+    assert 'pose_source tf needs tf2_ros' in err and 'ros-jazzy-tf2-ros' in err, err
+    assert 'Traceback' not in err
+
+
 def test_a_publisher_of_another_type_on_the_pose_topic_is_counted_and_named(harness):
     """Odometry on slam/pose while pose_type is PoseStamped: DDS delivers nothing and says nothing
     (this rmw reports no incompatible-type event); the node's graph check names it."""

@@ -98,3 +98,147 @@ def test_base_frame_constant_is_the_camera_1_2_above_and_0_3_ahead():
     assert np.allclose(R @ [0, 0, 1], [1, 0, 0])  # the optical axis looks forward (base x)
     assert np.allclose(R @ [0, 1, 0], [0, 0, -1])  # image down is base down
     assert BASE_FRAME == 'base_link'
+
+
+# ================================================================================ TF
+TF_OPTICAL = {'pose_source': 'tf', 'slam_pose_frame': 'camera_optical'}
+
+
+@pytest.mark.parametrize('mode', ['offline', 'online'])
+def test_a_tf_only_recording_replays_as_the_posestamped_one(scene, optical, tmp_path, mode):
+    """Poses only on /tf (map -> camera_optical): pose_source tf gives the same run; each frame
+    found its pose at a TF message's stamp (exact), none extrapolated."""
+    source = write_recording(scene, tmp_path / 'tf', pose_source='tf')
+    summary = replay(source, tmp_path / 'out', HacParams(**TF_OPTICAL), mode=mode,
+                     progress=False)
+    assert_same_run(outputs(summary.output_path), optical[mode])
+    assert summary.status.pose_matches == {'exact': summary.status.frames}
+    assert 'frames matched to a SLAM pose: exact' in summary.text()
+
+
+@pytest.mark.parametrize('params', [
+    TF_OPTICAL,  # base_link's static transform to camera_optical composed from /tf_static
+    {'pose_source': 'tf', 'slam_pose_frame': BASE_FRAME, 'pose_to_optical': BASE_TO_OPTICAL},
+], ids=['static-from-tf', 'seven-numbers'])
+def test_tf_of_a_base_frame_with_its_static_camera_transform(scene, optical, tmp_path, params):
+    source = write_recording(scene, tmp_path / 'tf', pose_source='tf', pose_frame='base')
+    got = outputs(replay(source, tmp_path / 'out', HacParams(**params),
+                         progress=False).output_path)
+    assert_same_run(got, optical['offline'])
+
+
+def test_joints_between_tf_messages_are_interpolated_never_extrapolated(scene, tmp_path):
+    """TF at half the rate (every other pose): frames between two TF messages are interpolated;
+    frames after the last one are not extrapolated (no_pose); each case counted."""
+    import dataclasses
+
+    keep = np.arange(0, len(scene.pose_stamps_ns) - 10, 2)  # the last 10 poses: no TF at all
+    sparse = dataclasses.replace(
+        scene, pose_stamps_ns=scene.pose_stamps_ns[keep], slam_R_wc=scene.slam_R_wc[keep],
+        slam_c=scene.slam_c[keep], slam_frame_ids=[scene.slam_frame_ids[i] for i in keep],
+        gt_R_wc=scene.gt_R_wc[keep], gt_c=scene.gt_c[keep],
+        true_scale=np.broadcast_to(scene.true_scale, (len(scene.pose_stamps_ns),))[keep])
+    source = write_recording(sparse, tmp_path / 'tf', pose_source='tf')
+    status = replay(source, tmp_path / 'out', HacParams(**TF_OPTICAL), progress=False).status
+    matches = status.pose_matches
+    assert matches['exact'] > 100 and matches['interpolated'] > 100
+    assert status.rejected['no_pose'] >= 9  # after the last TF message: never extrapolated
+    assert matches['exact'] + matches['interpolated'] == status.frames
+
+
+def write_odometry_chain(scene: Any, path: Path) -> Path:
+    """/tf as a SLAM on wheel odometry publishes it: map -> odom (the SLAM's correction) and
+    odom -> camera_optical (the odometry, dynamic too)."""
+    from hac_ros.recording.atomic import staged_output
+    from hac_ros.recording.writer import OutputWriter
+    from msg_adapters import rosbags_types, rt_to_transform_stamped
+
+    types = rosbags_types()
+    tf = types.get('tf2_msgs/msg/TFMessage')
+    msgtype = 'tf2_msgs/msg/TFMessage'
+    with staged_output(path) as staged:
+        writer = OutputWriter(staged, 'mcap')
+        try:
+            writer.connection('/tf', msgtype)
+            for i, stamp in enumerate(scene.pose_stamps_ns[:60].tolist()):
+                odom = rt_to_transform_stamped(np.eye(3), scene.slam_c[i] * 0.5, stamp, 'odom',
+                                               'camera_optical', types)
+                slam = rt_to_transform_stamped(scene.slam_R_wc[i], scene.slam_c[i] * 0.5, stamp,
+                                               'map', 'odom', types)
+                writer.write('/tf', msgtype, stamp, writer.typestore.serialize_cdr(
+                    tf(transforms=[slam, odom]), msgtype))
+            for topic, other in (('/hmr/joints', 'geometry_msgs/msg/PoseArray'),
+                                 ('/slam/cloud', 'sensor_msgs/msg/PointCloud2')):
+                writer.connection(topic, other)
+            from msg_adapters import joints_to_pose_array, xyz_to_cloud
+            first = int(scene.pose_stamps_ns[0])
+            writer.write('/slam/cloud', 'sensor_msgs/msg/PointCloud2', first,
+                         writer.typestore.serialize_cdr(xyz_to_cloud(
+                             scene.maps[0].points_slam, first, 'map', types),
+                             'sensor_msgs/msg/PointCloud2'))
+            stamp = int(scene.joints_stamps_ns[0])
+            writer.write('/hmr/joints', 'geometry_msgs/msg/PoseArray', stamp,
+                         writer.typestore.serialize_cdr(joints_to_pose_array(
+                             scene.joints_cam[0], stamp, 'camera_optical', types),
+                             'geometry_msgs/msg/PoseArray'))
+        finally:
+            writer.close()
+    return path
+
+
+def test_a_chain_through_a_second_dynamic_transform_is_refused_naming_it(scene, tmp_path,
+                                                                         capsys):
+    from hac_ros.cli import main as hac
+
+    source = write_odometry_chain(scene, tmp_path / 'odom')
+    (tmp_path / 'p.yaml').write_text('hac_node:\n  ros__parameters:\n    pose_source: tf\n'
+                                     '    slam_pose_frame: camera_optical\n')
+    assert hac(['replay', str(source), '-o', str(tmp_path / 'out'), '--params',
+                str(tmp_path / 'p.yaml'), '--no-progress']) == 2
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert 'passes through 2 dynamic transforms (map -> odom, odom -> camera_optical)' in err, err
+    assert 'slam_map_frame' in err and not (tmp_path / 'out').exists()
+
+
+def test_tf_without_the_static_transform_is_counted_unconnected(scene, tmp_path):
+    """A base-frame TF recording whose /tf_static was not recorded: slam_pose_frame
+    camera_optical cannot be reached from map: every SLAM message is counted, nothing made up."""
+    from rosbags.rosbag2 import Reader, Writer
+
+    full = write_recording(scene, tmp_path / 'full', pose_source='tf', pose_frame='base')
+    cut = tmp_path / 'cut'
+    with Reader(full) as reader, Writer(cut, version=9) as writer:
+        conns = {c.id: writer.add_connection(c.topic, c.msgtype, typestore=get_typestore(
+            Stores.ROS2_JAZZY)) for c in reader.connections if c.topic != '/tf_static'}
+        for conn, log_ns, raw in reader.messages():
+            if conn.id in conns:
+                writer.write(conns[conn.id], log_ns, raw)
+    summary = replay(cut, tmp_path / 'out', HacParams(**TF_OPTICAL), progress=False)
+    assert summary.status.rejected['tf_unconnected'] == len(scene.pose_stamps_ns)
+    assert summary.status.frames == 0
+
+
+def test_tf_poses_compose_static_transforms_on_either_side():
+    """map -> slam_map (static offset) -> camera_link (the SLAM, dynamic) -> camera_optical
+    (static): the pose of camera_optical in map at each SLAM message, ROS 1 slashes ignored."""
+    from scipy.spatial.transform import Rotation
+
+    from hac_ros.core.tf_tree import TfPoses
+
+    rng = np.random.default_rng(0)
+    T = {name: (Rotation.random(random_state=rng).as_matrix(), rng.normal(size=3))
+         for name in ('offset', 'slam', 'optical')}
+    tf = TfPoses('/map', 'camera_optical')
+    assert tf.add('map', 'slam_map', 0, *T['offset'], static=True).pose is None
+    assert tf.add('camera_link', 'camera_optical', 0, *T['optical'], static=True).pose is None
+    assert tf.add('odom', 'base', 5, np.eye(3), np.zeros(3), static=False).pose is None  # other
+    update = tf.add('/slam_map', 'camera_link', 7, *T['slam'], static=False)
+    stamp, R, c = update.pose
+    expected = np.eye(4)
+    for name in ('offset', 'slam', 'optical'):
+        step = np.eye(4)
+        step[:3, :3], step[:3, 3] = T[name]
+        expected = expected @ step
+    assert stamp == 7 and np.allclose(R, expected[:3, :3]) and np.allclose(c, expected[:3, 3])
+    bad = tf.add('slam_map', 'camera_link', 8, np.full((3, 3), np.nan), np.zeros(3), False)
+    assert bad.rejected == 'tf_invalid' and bad.pose is None

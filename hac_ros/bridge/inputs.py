@@ -1,7 +1,8 @@
 """Input messages into the calibrator, the same way for the node and the replay.
 
-SLAM poses, HMR joints and CameraInfo come as message objects (rclpy's in the node, rosbags' in
-the replay: the adapters read both alike), so that the same message gives the same calibrator call
+SLAM poses (or, with ``pose_source: tf``, the transforms of /tf and /tf_static), HMR joints and
+CameraInfo come as message objects (rclpy's in the node, rosbags' in the replay: the adapters read
+both alike), so that the same message gives the same calibrator call
 online and replayed; ``None`` stands for a message whose bytes did not deserialize. Map clouds come
 as CDR bytes: the shell reads the header
 (``parse_cloud_cdr``) where the message arrives and a :class:`MapBuilder` decodes and indexes the
@@ -22,6 +23,7 @@ import numpy as np
 from hac_ros.core.calibrator import Calibrator
 from hac_ros.core.outputs import Output
 from hac_ros.core.reference import MapIndex
+from hac_ros.core.tf_tree import TfPoses
 from msg_adapters import (
     MessageError,
     RawCloud,
@@ -30,7 +32,59 @@ from msg_adapters import (
     pose_array_to_joints,
     pose_msg_to_rt,
     stamp_to_ns,
+    transform_to_rt,
 )
+
+
+@dataclass
+class TfTaken:
+    """What TF messages gave (``pose_source: tf``): the calibrator's outputs, the poses taken
+    (stamp ns, R (3, 3) pose frame to map, c (3,) SLAM units, as read, before
+    ``pose_to_optical``) and the errors (a chain through a second dynamic transform)."""
+
+    outputs: list[Output]
+    poses: list[tuple[int, np.ndarray, np.ndarray]]
+    errors: list[str]
+
+
+def add_tf_msg(calibrator: Calibrator, tf: TfPoses, msg: Any, static: bool,
+               taken: TfTaken | None = None) -> TfTaken:
+    """A ``tf2_msgs/TFMessage`` of /tf (or /tf_static: ``static``), or None when its bytes did not
+    deserialize, through ``tf`` (:mod:`hac_ros.core.tf_tree`) into the calibrator: each message
+    of the SLAM's own transform is a pose at its stamp; rejections are counted by reason."""
+    taken = taken or TfTaken([], [], [])
+    if msg is None:
+        taken.outputs += calibrator.reject('tf_invalid', -1)
+        return taken
+    for transform in msg.transforms:
+        add_transform(calibrator, tf, transform, static, taken)
+    return taken
+
+
+def add_transform(calibrator: Calibrator, tf: TfPoses, transform: Any, static: bool,
+                  taken: TfTaken | None = None) -> TfTaken:
+    """One ``geometry_msgs/TransformStamped`` (what tf2_ros' listener hands a buffer), as
+    :func:`add_tf_msg`."""
+    taken = taken or TfTaken([], [], [])
+    stamp = -1
+    try:
+        stamp = stamp_to_ns(transform.header.stamp)
+        R, t = transform_to_rt(transform)
+        parent, child = str(transform.header.frame_id), str(transform.child_frame_id)
+    except (MessageError, AttributeError):
+        taken.outputs += calibrator.reject('tf_invalid', stamp)
+        return taken
+    update = tf.add(parent, child, stamp, R, t, static)
+    if update.rejected:
+        taken.outputs += calibrator.reject(update.rejected, stamp)
+    if update.error:
+        taken.errors.append(update.error)
+    if update.pose is not None:
+        stamp, R_map_pose, c = update.pose
+        taken.poses.append(update.pose)
+        taken.outputs += calibrator.add_pose(stamp, R_map_pose, c, tf.map_frame, tf.pose_frame)
+    return taken
+
 
 # Calibrator.build_index: (stamp_ns, points_map (N, 3) SLAM units, frame_id) -> MapIndex
 IndexBuilder = Callable[[int, Any, str], MapIndex]

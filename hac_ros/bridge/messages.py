@@ -195,6 +195,8 @@ class OutputMessages:
         values += [(f'event.{kind}', str(count)) for kind, count in sorted(status.events.items())]
         values += [(f'rejected.{reason}', str(count))
                    for reason, count in sorted(status.rejected.items())]
+        values += [(f'pose_match.{case}', str(count))
+                   for case, count in sorted(status.pose_matches.items())]
         values += [(f'suspect.{key}', text) for key, text in sorted(status.suspects.items())]
         values += [(f'condition.{key}', text) for key, text in sorted(status.conditions.items())]
         values += list(extra_values)

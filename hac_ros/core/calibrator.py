@@ -457,7 +457,8 @@ class Calibrator:
             ground_offset_slam=float('nan') if plane is None else plane.offset,
             drifting=self.estimator.drifting, frozen=self.services.holding,
             services=dict(self.services.counts), suspects=dict(self.check.suspects),
-            events=dict(self.events), conditions=self.conditions())
+            events=dict(self.events), conditions=self.conditions(),
+            pose_matches=dict(self.track.matches))
         last = self.track.last
         return PendingStatus(status, plane, None if last is None else last.c_map, self.segment)
 

@@ -117,6 +117,8 @@ class Status:
     events: dict[str, int] = field(default_factory=dict)  # time jumps, by kind (core.timeline)
     # conditions that hold now and make the status WARN: reason -> text (hac_ros.core.health)
     conditions: dict[str, str] = field(default_factory=dict)
+    # how frames found their SLAM pose: 'exact' (within sync_slop_s), 'interpolated'
+    pose_matches: dict[str, int] = field(default_factory=dict)
 
     @property
     def fallback_rate(self) -> float:
@@ -171,6 +173,12 @@ REASONS = {
     'cloud_wrong_frame': 'map cloud in a frame other than the SLAM pose frame',
     'map_late': 'map cloud older than the map in use',
     'camera_info_invalid': 'CameraInfo with invalid intrinsics',
+    # pose_source tf (hac_ros.core.tf_tree)
+    'tf_invalid': 'a TF transform that is not finite, not a rotation or has an invalid stamp',
+    'tf_unconnected': ('a transform of slam_pose_frame\'s branch while slam_map_frame cannot be '
+                       'reached in TF (a static transform missing, or a frame misnamed)'),
+    'tf_chain_dynamic': ('the TF chain from slam_map_frame to slam_pose_frame passes through a '
+                         'second dynamic transform: no pose taken'),
     # counted by hac_node from the middleware's message-lost events (never reached the node)
     'pose_lost': 'SLAM pose lost in transport (best-effort input_qos)',
     'joints_lost': 'joints message lost in transport (best-effort input_qos)',

@@ -22,6 +22,7 @@ CONTACT_MODES = ('lowest', 'max_ratio', 'lowest_gravity', 'feet', 'pelvis', 'hea
 REFERENCE_MODES = ('cone_median', 'nearest_to_ray', 'cone_plane')
 GROUND_MODES = ('hmr', 'slam_y', 'largest_plane', 'none')
 POSE_TYPES = ('PoseStamped', 'Odometry')
+POSE_SOURCES = ('topic', 'tf')
 ALIGNMENTS = ('gravity', 'slam')
 # pose_type -> the ROS message type of pose_topic
 POSE_MSGTYPES = {'PoseStamped': 'geometry_msgs/msg/PoseStamped',
@@ -57,6 +58,13 @@ class HacParams:
     camera_info_topic: str = _p('camera/camera_info',
                                 'CameraInfo of the camera; "" turns it off')
     pose_type: str = _p('PoseStamped', 'message type of pose_topic', choices=POSE_TYPES)
+    pose_source: str = _p('topic', 'where the SLAM pose comes from: topic (pose_topic) or tf (the '
+                          'transform slam_map_frame -> slam_pose_frame on /tf and /tf_static; the '
+                          'node needs tf2_ros)', choices=POSE_SOURCES)
+    slam_map_frame: str = _p('map', 'pose_source tf: the SLAM map frame')
+    slam_pose_frame: str = _p('', 'pose_source tf: the frame whose pose the SLAM publishes (the '
+                              'camera optical frame, or a body frame with pose_to_optical); '
+                              'static transforms on the way are composed')
     metric_frame: str = _p('map_metric', 'frame_id of /hac/pose, /hac/human_joints, /hac/cloud')
     camera_frame: str = _p('', 'camera optical frame; "" = from the inputs')
     odom_frame: str = _p('hac_odom', 'frame_id of /hac/odometry (continuous)')
@@ -208,6 +216,12 @@ class HacParams:
             raise ParameterError('cone_min_points: must be >= 1')
         if self.obstacle_min_height >= self.obstacle_max_height:
             raise ParameterError('obstacle_min_height: must be below obstacle_max_height')
+        if self.pose_source == 'tf' and not self.slam_pose_frame.strip('/'):
+            raise ParameterError('slam_pose_frame: pose_source tf needs the frame whose pose the '
+                                 'SLAM publishes in TF (its camera optical or body frame)')
+        if self.pose_source == 'tf' and (self.slam_pose_frame.strip('/')
+                                         == self.slam_map_frame.strip('/')):
+            raise ParameterError('slam_pose_frame: must differ from slam_map_frame')
         if abs(math.sqrt(sum(x * x for x in self.pose_to_optical[-4:])) - 1.0) > 1e-3:
             raise ParameterError('pose_to_optical: the quaternion (its last 4 values, x y z w) '
                                  'must be unit')

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import bisect
 import itertools
-from collections import deque
+from collections import Counter, deque
 from dataclasses import dataclass
 
 import numpy as np
@@ -77,6 +77,8 @@ class PoseTrack:
         self.confirm_poses = confirm_poses
         self.slop_ns = slop_ns
         self.max_gap_ns = max_gap_ns
+        # how joints stamps found their pose (:meth:`at`): 'exact' within the slop, 'interpolated'
+        self.matches: Counter[str] = Counter()
         self.poses: deque[Pose] = deque(maxlen=buffer)
         self._stamps: deque[int] = deque(maxlen=buffer)  # parallel to poses
         self.suspects: list[Pose] = []
@@ -223,7 +225,8 @@ class PoseTrack:
 
     def at(self, stamp_ns: int) -> tuple[np.ndarray, np.ndarray] | None:
         """The camera pose (R_wc, c_map) at a joints stamp: the nearest accepted pose within the
-        slop, else interpolated between its neighbours (gap <= max_gap_ns), else None."""
+        slop, else interpolated between its neighbours (gap <= max_gap_ns), else None (never
+        extrapolated); each case counted in :attr:`matches` (None: the caller's ``no_pose``)."""
         stamps = self._stamps
         if not stamps:
             return None
@@ -234,8 +237,10 @@ class PoseTrack:
                     and (best is None or abs(stamps[j] - stamp_ns) < abs(stamps[best] - stamp_ns))):
                 best = j
         if best is not None:
+            self.matches['exact'] += 1
             return self.poses[best].R_wc, self.poses[best].c_map
         if 0 < i < len(stamps) and stamps[i] - stamps[i - 1] <= self.max_gap_ns:
+            self.matches['interpolated'] += 1
             a, b = self.poses[i - 1], self.poses[i]
             return interpolate_pose(stamp_ns, a.stamp_ns, a.R_wc, a.c_map,
                                     b.stamp_ns, b.R_wc, b.c_map)

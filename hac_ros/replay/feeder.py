@@ -21,18 +21,22 @@ from hac_ros.bridge.inputs import (
     add_camera_info_msg,
     add_joints_msg,
     add_pose_msg,
+    add_tf_msg,
 )
 from hac_ros.bridge.messages import INPUT_MSGTYPES, in_root
 from hac_ros.core.calibrator import Calibrator
-from hac_ros.core.errors import ArgumentError
+from hac_ros.core.errors import ArgumentError, HacError
 from hac_ros.core.outputs import Output
 from hac_ros.core.params import POSE_MSGTYPES, HacParams
+from hac_ros.core.tf_tree import TfPoses
 from hac_ros.recording.reader import Recording
 from msg_adapters import MessageError, parse_cloud_cdr
 
 # Messages of the same log time are fed in this order (then any other topic): the camera's
 # intrinsics and the map before the frame they serve, the pose (the clock) before its joints.
-TIE_ORDER = {'camera_info': 0, 'cloud': 1, 'pose': 2, 'joints': 3}
+TIE_ORDER = {'camera_info': 0, 'cloud': 1, 'tf_static': 2, 'pose': 3, 'tf': 3, 'joints': 4}
+TF_MSGTYPE = 'tf2_msgs/msg/TFMessage'
+TF_TOPICS = ('/tf', '/tf_static')  # pose_source tf: TF as a recording holds it
 MAPS_AHEAD = 3  # map clouds decoded and indexed ahead of the calibrator
 MAP_WORKERS = 2  # threads indexing maps (scipy's k-d tree build releases the GIL)
 LOOKAHEAD_MESSAGES = 400  # at most this many messages read ahead of the calibrator (13 s at 30 Hz)
@@ -48,6 +52,8 @@ class InputTopics:
     joints: str
     cloud: str
     camera_info: str  # '' when off or absent from the recording
+    tf: str = ''  # pose_source tf: /tf ('' otherwise; then pose is '')
+    tf_static: str = ''  # pose_source tf: /tf_static when the recording holds it
 
     @classmethod
     def check(cls, recording: Recording, params: HacParams,
@@ -61,6 +67,17 @@ class InputTopics:
         """
         pose_topic, joints_topic = in_root(params.pose_topic), in_root(params.joints_topic)
         cloud_topic = in_root(params.cloud_topic)
+        if params.pose_source == 'tf':  # the SLAM pose from /tf and /tf_static
+            recording.check_topic(TF_TOPICS[0], [TF_MSGTYPE], 'TF',
+                                  ' (pose_source tf; or pose_source topic: the SLAM pose from '
+                                  'pose_topic)')
+            static = TF_TOPICS[1] if recording.has(TF_TOPICS[1], TF_MSGTYPE) else ''
+            camera_info = cls._camera_info(recording, params)
+            recording.check_topic(joints_topic, [INPUT_MSGTYPES['joints']], 'HMR joints',
+                                  ' (use {joints_topic})', ('joints_topic',))
+            recording.check_topic(cloud_topic, [INPUT_MSGTYPES['cloud']], 'map cloud',
+                                  ' (use {cloud_topic})', ('cloud_topic',))
+            return cls('', '', joints_topic, cloud_topic, camera_info, TF_TOPICS[0], static)
         recorded = recording.topics.get(pose_topic)
         if pose_type is None:
             pose_type = next((k for k, v in POSE_MSGTYPES.items() if v == recorded),
@@ -80,20 +97,27 @@ class InputTopics:
                               ' (use {joints_topic})', ('joints_topic',))
         recording.check_topic(cloud_topic, [INPUT_MSGTYPES['cloud']], 'map cloud',
                               ' (use {cloud_topic})', ('cloud_topic',))
+        camera_info = cls._camera_info(recording, params)
+        return cls(pose_topic, POSE_MSGTYPES[pose_type], joints_topic, cloud_topic, camera_info)
+
+    @staticmethod
+    def _camera_info(recording: Recording, params: HacParams) -> str:
+        """The CameraInfo topic, '' when off or absent (checked when present)."""
         camera_info = in_root(params.camera_info_topic) if params.camera_info_topic else ''
         if camera_info and camera_info in recording.topics:
             recording.check_topic(camera_info, [INPUT_MSGTYPES['camera_info']], 'CameraInfo',
                                   ' (use {camera_info_topic}, or "" to turn it off)',
                                   ('camera_info_topic',))
-        elif camera_info:
-            camera_info = ''
-        return cls(pose_topic, POSE_MSGTYPES[pose_type], joints_topic, cloud_topic, camera_info)
+            return camera_info
+        return ''
 
     def kinds(self) -> dict[str, str]:
-        """topic -> 'pose' | 'joints' | 'cloud' | 'camera_info'."""
-        out = {self.pose: 'pose', self.joints: 'joints', self.cloud: 'cloud'}
-        if self.camera_info:
-            out[self.camera_info] = 'camera_info'
+        """topic -> 'pose' | 'tf' | 'tf_static' | 'joints' | 'cloud' | 'camera_info'."""
+        out = {self.joints: 'joints', self.cloud: 'cloud'}
+        for topic, kind in ((self.pose, 'pose'), (self.camera_info, 'camera_info'),
+                            (self.tf, 'tf'), (self.tf_static, 'tf_static')):
+            if topic:
+                out[topic] = kind
         return out
 
 
@@ -111,6 +135,8 @@ class CoreFeeder:
         self.kinds = topics.kinds()
         self.calibrator = calibrator
         self.poses: list[tuple[int, np.ndarray, np.ndarray]] | None = [] if keep_poses else None
+        p = calibrator.params
+        self.tf = TfPoses(p.slam_map_frame, p.slam_pose_frame) if topics.tf else None
 
     def run(self, on_outputs: Callable[[list[Output]], None],
             on_message: Callable[[str, int, Any], None] | None = None,
@@ -168,9 +194,18 @@ class CoreFeeder:
         if kind == 'cloud':
             return item.result().hand_to(cal)
         topic = {'pose': self.topics.pose, 'joints': self.topics.joints,
-                 'camera_info': self.topics.camera_info}[kind]
+                 'camera_info': self.topics.camera_info, 'tf': self.topics.tf,
+                 'tf_static': self.topics.tf_static}[kind]
         # malformed bytes (msg None) are a counted rejection of their kind, as in the node
         msg = self.recording.deserialize_or_none(self.recording.to_cdr(item, topic, log_ns), topic)
+        if kind in ('tf', 'tf_static'):
+            assert self.tf is not None  # topics.tf is set
+            taken = add_tf_msg(cal, self.tf, msg, kind == 'tf_static')
+            if taken.errors:  # the replay stops here; the node counts and logs it
+                raise HacError(taken.errors[0])
+            if self.poses is not None:
+                self.poses += taken.poses
+            return taken.outputs
         if kind == 'pose':
             outputs, pose = add_pose_msg(cal, msg)
             if pose is not None and self.poses is not None:

@@ -209,6 +209,9 @@ class ReplaySummary:
                      f'{"converged" if s.converged else "not converged"}')
         lines.append(f'  fallback rate {100 * s.fallback_rate:.1f} % (map hits {s.map_hits}, '
                      f'ground plane {s.ground_fallbacks})')
+        if s.pose_matches:
+            lines.append('  frames matched to a SLAM pose: ' + ', '.join(
+                f'{case} {n}' for case, n in sorted(s.pose_matches.items())))
         rejected = ', '.join(f'{k} {v}' for k, v in sorted(s.rejected.items())) or 'none'
         lines.append(f'  rejected: {rejected}')
         resets = ', '.join(f'{r.cause} at {_seconds(r.stamp_ns, self.start_ns)}'

@@ -67,6 +67,7 @@ from hac_ros.ros.parameters import (
 )
 from hac_ros.ros.qos import cloud_qos, input_qos, output_qos, qos_hint
 from hac_ros.ros.tf_broadcast import TfSender
+from hac_ros.ros.tf_input import TfPoseInput, transform_listener_class
 from msg_adapters import MessageError, RawCloud, parse_cloud_cdr, rclpy_types
 
 TYPES = rclpy_types()  # rclpy's message classes by ROS name
@@ -146,6 +147,7 @@ class HacShell(_NodeMixinBase):
         self._hac_services: list[Any] = []
         self._wrong_types: set[tuple[str, str, str, str]] = set()  # publishers reported
         self.tf: TfSender | None = None
+        self.tf_input: TfPoseInput | None = None  # pose_source tf (hac_ros.ros.tf_input)
 
     def _activate(self) -> None:
         for topic, msgtype in OUTPUT_TOPICS:
@@ -161,8 +163,10 @@ class HacShell(_NodeMixinBase):
         self._type_check = self.create_timer(GRAPH_CHECK_S, self._check_input_types)
         self.active = True
         p = self.params
+        poses = (f'TF {p.slam_map_frame} -> {p.slam_pose_frame}' if p.pose_source == 'tf' else
+                 f'{self.resolve_topic_name(p.pose_topic)} ({p.pose_type})')
         self.get_logger().info(
-            f'{self.get_name()}: {self.resolve_topic_name(p.pose_topic)} ({p.pose_type}) + '
+            f'{self.get_name()}: {poses} + '
             f'{self.resolve_topic_name(p.joints_topic)} + {self.resolve_topic_name(p.cloud_topic)}'
             f' -> {self.resolve_topic_name("hac")}/* in {p.metric_frame!r} '
             f'({p.metric_frame_alignment}) and {p.odom_frame!r} (contact_mode {p.contact_mode}, '
@@ -176,6 +180,9 @@ class HacShell(_NodeMixinBase):
             self.destroy_service(service)
         self._hac_services = []
         self.destroy_timer(self._type_check)
+        if self.tf_input is not None:
+            self.tf_input.close()
+            self.tf_input = None
         for publisher in self._output_publishers.values():
             self.destroy_publisher(publisher)
         self._output_publishers = {}
@@ -195,6 +202,12 @@ class HacShell(_NodeMixinBase):
         if old is not None:
             self.destroy_subscription(old)
         p = self.params
+        if kind == 'pose' and self.tf_input is not None:
+            self.tf_input.close()
+            self.tf_input = None
+        if kind == 'pose' and p.pose_source == 'tf':  # tf2_ros' listener instead of pose_topic
+            self.tf_input = TfPoseInput(self, p, lambda: self.core, self._emit, self._guarded)
+            return
         topic = {'pose': p.pose_topic, 'joints': p.joints_topic,
                  'camera_info': p.camera_info_topic, 'cloud': p.cloud_topic}[kind]
         msg_type = TYPES.get(input_msgtype(kind, p.pose_type))
@@ -380,8 +393,10 @@ class HacShell(_NodeMixinBase):
         """All or nothing: the whole set is checked by HacParams.replace before anything changes
         (before configure, against the defaults: configure reads and checks them all)."""
         try:
-            (self.params if self.calibrator is not None else HacParams()).replace(
+            new = (self.params if self.calibrator is not None else HacParams()).replace(
                 **self._changes(parameters))
+            if new.pose_source == 'tf':
+                transform_listener_class()  # ParameterError naming what to install
         except ParameterError as exc:
             return SetParametersResult(successful=False, reason=str(exc))
         return SetParametersResult(successful=True)

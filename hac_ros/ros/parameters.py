@@ -29,7 +29,8 @@ INTEGERS_FOR_DOUBLES = True
 # What a runtime change does (docs/node.md, "Parameters at runtime"):
 # - these re-create the named subscriptions (topics and QoS cannot change on a live subscription);
 RESUBSCRIBE: dict[str, tuple[str, ...]] = {
-    'pose_topic': ('pose',), 'pose_type': ('pose',), 'joints_topic': ('joints',),
+    'pose_topic': ('pose',), 'pose_type': ('pose',), 'pose_source': ('pose',),
+    'slam_map_frame': ('pose',), 'slam_pose_frame': ('pose',), 'joints_topic': ('joints',),
     'camera_info_topic': ('camera_info',), 'cloud_topic': ('cloud',), 'cloud_qos': ('cloud',),
     'input_qos': ('pose', 'joints', 'camera_info'),
 }
