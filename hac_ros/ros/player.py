@@ -20,7 +20,8 @@ By default the topics played are hac_node's inputs present in the recording (``/
 ``/slam/cloud``, ``/hmr/joints``, ``/camera/camera_info``, and ``/tf`` and ``/tf_static`` for
 ``pose_source: tf``); ground truth and outputs are not. ``topics`` names others; ``remap`` renames
 them on the way out. A topic whose message type this Python cannot publish (``tf2_msgs`` is not in
-the ROS wheels) is left out with a warning, or refused when it was asked for by name.
+the ROS wheels) is left out (:attr:`Player.skipped` says why, for the caller to report), or
+refused when it was asked for by name.
 
 :meth:`Player.run` stops between two messages when its ``stop`` event is set (the command's
 signal handlers set it), so an interrupted play never leaves half a message. Errors name the
@@ -192,8 +193,6 @@ class Player:
         except BaseException:
             self.recording.close()
             raise
-        for reason in self.skipped:
-            log.warning('not played: %s', reason)
         self.node = rclpy.create_node(node_name, context=context,
                                       start_parameter_services=False)
         types = rclpy_types()
