@@ -1,4 +1,4 @@
-"""The authors' method as their public code does it (SPEC, the method): the literal reference.
+"""The authors' method as their public code does it (docs/method.md): the literal reference.
 
 Per frame and person, every joint's ray is cast against every map point: the points whose direction
 from the camera centre lies within a cone of cos > 0.999 (about 2.6°) of the ray, ``d_S`` the
