@@ -1,20 +1,17 @@
 """``hac play IN``: publish a recording's input topics over DDS, to drive ``hac_node``.
 
-The work is :class:`hac_ros.ros.player.Player`'s; this module parses the arguments, starts rclpy
-without its signal handlers, and turns SIGINT, SIGTERM and SIGHUP into a stop between two messages
-(exit 128 + the signal's number, one line).
+The work is :class:`hac_ros.ros.player.Player`'s; this module parses the arguments and starts
+rclpy without its signal handlers: SIGINT, SIGTERM and SIGHUP end ``hac play`` as every command
+(:func:`hac_ros.cli.main`: one line, exit 128 + the signal's number). A signal cannot cut a
+message in two: rclpy publishes it in one call, and the signal is seen between two.
 """
 from __future__ import annotations
 
 import argparse
-import signal
 import sys
-import threading
 from collections.abc import Sequence
 
 from hac_ros.core.errors import HacError
-
-STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
 
 def parse_remap(items: Sequence[str] | None) -> dict[str, str]:
@@ -54,6 +51,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    import rclpy
+    from rclpy.signals import SignalHandlerOptions
+
+    from hac_ros.ros.player import Player
+
     if not args.rate > 0:
         raise HacError(f'--rate {args.rate}: must be > 0')
     if not args.clock >= 0:
@@ -61,28 +63,6 @@ def run(args: argparse.Namespace) -> int:
     if not args.wait >= 0:
         raise HacError(f'--wait {args.wait}: must be >= 0')
     remap = parse_remap(args.remap)
-    stop = threading.Event()
-    caught: list[int] = []
-
-    def on_signal(number: int, _frame: object) -> None:
-        caught.append(number)
-        stop.set()
-
-    previous = {s: signal.signal(s, on_signal) for s in STOP_SIGNALS}
-    try:
-        return _play(args, remap, stop, caught)
-    finally:
-        for s, handler in previous.items():
-            signal.signal(s, handler)
-
-
-def _play(args: argparse.Namespace, remap: dict[str, str], stop: threading.Event,
-          caught: list[int]) -> int:
-    import rclpy
-    from rclpy.signals import SignalHandlerOptions
-
-    from hac_ros.ros.player import Player
-
     rclpy.init(args=[], signal_handler_options=SignalHandlerOptions.NO)
     try:
         with Player(args.input, rate=args.rate, loop=args.loop, clock_hz=args.clock,
@@ -93,12 +73,8 @@ def _play(args: argparse.Namespace, remap: dict[str, str], stop: threading.Event
                               else t.name for t in player.plan)
             print(f'hac play: {args.input}: {names} at {args.rate:g}x'
                   + (' (loop)' if args.loop else ''), flush=True)
-            stats = player.run(stop)
+            stats = player.run()
     finally:
         rclpy.try_shutdown()
-    if caught:
-        name = signal.Signals(caught[0]).name
-        print(f'hac play: interrupted ({name}): {stats.text()}', file=sys.stderr)
-        return 128 + caught[0]
     print(f'hac play: {stats.text()}')
     return 0
