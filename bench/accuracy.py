@@ -70,14 +70,14 @@ CONFIGS: dict[str, dict[str, Any]] = {
 ONLINE_CONFIGS = ('default', 'lowest_gravity cone_median (previous default)')
 
 
-def run_task(task: tuple[str, int, str, list[str]]) -> dict[str, Any]:
+def run_task(task: tuple[str, int, str, list[str], bool]) -> dict[str, Any]:
     """One scene (scenario, seed, condition) through every configuration and the literal method."""
     from _accuracy_runs import run_literal, run_ours, scene_from_composite, scene_from_scenario
 
     from hac_ros.core.params import HacParams
     from hac_ros.simulate import make_scenario
 
-    name, seed, condition, configs = task
+    name, seed, condition, configs, planted = task
     if name in COMPOSITES:
         from composite import build
 
@@ -85,7 +85,8 @@ def run_task(task: tuple[str, int, str, list[str]]) -> dict[str, Any]:
         sequence, motion = COMPOSITES[name]
         scene = scene_from_composite(build(SHARED, seed, bias, sequence, motion), seed, bias)
     else:
-        sc = make_scenario(name, seed=seed, hmr_bias=0.0 if condition == 'clean' else None)
+        sc = make_scenario(name, seed=seed, hmr_bias=0.0 if condition == 'clean' else None,
+                           foot_roll=not planted)
         scene = scene_from_scenario(sc)
     literal, literal_world = run_literal(scene)
     rows = {'literal': literal}
@@ -264,7 +265,7 @@ def _rounded(value: Any) -> Any:
     return value
 
 
-def _load_done(path: Path | None, tasks: list[tuple[str, int, str, list[str]]]
+def _load_done(path: Path | None, tasks: list[tuple[str, int, str, list[str], bool]]
                ) -> list[dict[str, Any]]:
     """Results of an interrupted run (one JSON per line) that belong to this run's tasks."""
     if path is None or not path.exists():
@@ -291,13 +292,16 @@ def main(argv: list[str] | None = None) -> int:
                         choices=['clean', 'biased'])
     parser.add_argument('--workers', type=int, default=len(os.sched_getaffinity(0)))
     parser.add_argument('--quick', action='store_true', help='3 seeds (a smoke run)')
+    parser.add_argument('--planted', action='store_true',
+                        help='simulated walkers keep their stance feet planted (no foot roll: the '
+                             'simulator before issue 30, for comparisons; implies --no-write)')
     parser.add_argument('--no-write', action='store_true', help='print only (no results, no docs)')
     parser.add_argument('--resume', type=Path, metavar='JSONL',
                         help='append each scene\'s result here and skip the scenes already in it')
     args = parser.parse_args(argv)
     seeds = 3 if args.quick else args.seeds
     scenarios = [s for s in args.scenarios if s not in COMPOSITES or SHARED.is_dir()]
-    tasks = [(name, seed, condition, args.configs) for condition in args.conditions
+    tasks = [(name, seed, condition, args.configs, args.planted) for condition in args.conditions
              for name in scenarios for seed in range(seeds)]
     start = time.perf_counter()
     results = _load_done(args.resume, tasks)
@@ -318,7 +322,7 @@ def main(argv: list[str] | None = None) -> int:
             'scenes': len(tasks), 'resumed_scenes': resumed}
     text = render(summary, meta)
     print(text)
-    if not args.no_write:
+    if not (args.no_write or args.planted):
         write_json('accuracy', {'meta': meta, 'summary': summary})
         # every scene's figures, one line each (the evidence behind the medians)
         with (RESULTS / 'accuracy_runs.jsonl').open('w') as f:

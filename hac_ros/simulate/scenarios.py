@@ -117,9 +117,10 @@ def _stairs(world: World) -> None:
 
 def make_scenario(name: str, seed: int = 0, duration: float | None = None, rate: float = 30.0,
                   hmr_bias: float | None = None, motion: str | None = None,
-                  joint_layout: str = 'smpl24') -> Scenario:
+                  joint_layout: str = 'smpl24', foot_roll: bool = True) -> Scenario:
     """Build one scenario (deterministic for ``seed``; the same people, camera and SLAM for every
-    ``joint_layout``: smpl24, coco17 or h36m17, the HMR model's joints)."""
+    ``joint_layout``: smpl24, coco17 or h36m17, the HMR model's joints). ``foot_roll`` False: the
+    walkers' stance feet stay planted (motions.FootRoll(), the simulator before the roll)."""
     if name not in SCENARIOS:
         raise HacError(f'unknown scenario {name!r}; one of: {", ".join(SCENARIOS)}')
     if rate <= 0 or (duration is not None and duration <= 0):
@@ -134,7 +135,7 @@ def make_scenario(name: str, seed: int = 0, duration: float | None = None, rate:
     def walker(path: motions.Path2D, phase_s: float = 0.0) -> np.ndarray:
         roll = motions.FootRoll(roll_rng.uniform(*motions.ROLL_HEEL_STRIKE_M),
                                 roll_rng.uniform(*motions.ROLL_TOE_OFF_M))
-        return motions.gait(t, path, world, phase_s, roll)
+        return motions.gait(t, path, world, phase_s, roll if foot_roll else motions.FootRoll())
 
     duration = SCENARIOS[name][0] if duration is None else float(duration)
     T = max(2, int(round(duration * rate)) + 1)
