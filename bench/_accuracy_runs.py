@@ -33,6 +33,7 @@ import numpy as np
 
 from hac_ros.core.calibrator import Calibrator
 from hac_ros.core.estimator import sequence_scale
+from hac_ros.core.health import OK, HealthMonitor
 from hac_ros.core.human_filter import smooth_outputs
 from hac_ros.core.literal import max_ratio, world_joints
 from hac_ros.core.offline import resolve_offline
@@ -42,7 +43,6 @@ from hac_ros.core.outputs import (
     PoseOut,
     SampleOut,
     ScaleOut,
-    Status,
 )
 from hac_ros.core.params import HacParams
 from hac_ros.evaluation import metrics
@@ -246,15 +246,12 @@ def _online(scene: Scene, params: HacParams, offline_humans: World,
     statuses = [o.status for o in outputs if isinstance(o, DiagnosticsOut)]
     off = [abs(st.scale / float(scene.true_scale_at(np.array([st.stamp_ns]))[0]) - 1.0)
            > CONVERGED_REL if st.converged else False for st in statuses]
-    out.update(statuses=len(statuses),
-               converged_wrong=sum(off),
-               ok_wrong=sum(w and status_ok(st) for w, st in zip(off, statuses)))
+    # the level /diagnostics gives each status, in order (hac_ros.core.health, as the node)
+    monitor = HealthMonitor(params.metric_frame_alignment == 'gravity')
+    ok = [monitor.assess(st).level == OK for st in statuses]
+    out.update(statuses=len(statuses), converged_wrong=sum(off),
+               ok_wrong=sum(w and k for w, k in zip(off, ok)))
     return out
-
-
-def status_ok(status: Status) -> bool:
-    """Whether /diagnostics says OK for this status (hac_ros.bridge.messages' rule)."""
-    return status.converged and not status.suspects and status.alignment != 'slam'
 
 
 def run_literal(scene: Scene) -> tuple[dict[str, float], World]:

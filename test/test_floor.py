@@ -14,6 +14,7 @@ from scipy.spatial.transform import Rotation
 
 from hac_ros.core.calibrator import Calibrator
 from hac_ros.core.ground import GroundModel, map_floor
+from hac_ros.core.health import WARN, HealthMonitor
 from hac_ros.core.outputs import HumanJointsOut, SampleOut, ScaleOut
 from hac_ros.core.params import HacParams
 from hac_ros.core.reference import MapIndex
@@ -147,3 +148,17 @@ def test_the_world_frame_stays_put_once_converged_at_keyframe_rate():
     assert len(pelvis) >= 25
     assert np.max(np.linalg.norm(pelvis - np.median(pelvis, axis=0), axis=1)) < 0.02
     assert abs(np.median(pelvis[:, 2]) - scene.joints_world[0, 0, 2]) < 0.05  # levelled: z up
+
+
+def test_no_floor_in_the_map_is_said_in_diagnostics():
+    """Tables over an untextured floor: the map shows no floor, so nothing says the table tops
+    the contact rays meet are not the floor; /diagnostics says so (WARN, ``floor_unknown``) instead
+    of OK. With the floor in the map, the reason is absent."""
+    scene = walking_scene(frames=40, true_scale=2.0)
+    for floor, expected in ((False, True), (True, False)):
+        points = scene.to_slam(np.vstack([room_points(5, floor=floor), table_row()]))
+        cal, _ = run(scene, points)
+        status = cal.status()
+        assert status.converged and ('floor_unknown' in status.conditions) == expected, floor
+        health = HealthMonitor().assess(status)
+        assert (health.level == WARN and 'floor_unknown' in health.reasons) == expected, floor

@@ -468,6 +468,9 @@ class Calibrator:
         if self.freeze.holds:
             out['slam_frozen'] = ('the SLAM pose repeats bit for bit while the people move: '
                                   'tracking lost? (frames not sampled)')
+        if self.ground.floor_missing:
+            out['floor_unknown'] = ('no floor found in the map: the contacts\' map hits are not '
+                                    'checked against it (a table top or a step could pass for it)')
         return out
 
     @property

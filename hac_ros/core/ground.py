@@ -161,6 +161,14 @@ class GroundModel:
         scale exists."""
         return self._floor is not None or self._contact_normal is not None
 
+    @property
+    def floor_missing(self) -> bool:
+        """``hmr``: the floor was looked for in the current map (a body normal exists) and not
+        found; nothing then says that a map hit before any scale is not on a table top or a step
+        (``floor_unknown`` in /diagnostics, :meth:`Calibrator.conditions`)."""
+        cache = self._floor_cache
+        return self.mode == 'hmr' and cache is not None and cache[2] is None
+
     def normal(self) -> np.ndarray | None:
         """The current down-pointing unit normal in the map frame, or None (not enough evidence)."""
         if self.mode == 'slam_y':
