@@ -34,6 +34,7 @@ from hac_ros.core.conventions import Conventions
 from hac_ros.core.estimator import RollingScale
 from hac_ros.core.ground import GroundModel
 from hac_ros.core.human_filter import RootFilter
+from hac_ros.core.map_book import MapBook
 from hac_ros.core.metric_stage import MetricStage, ScaleAt, StageConfig, finite_scale
 from hac_ros.core.numeric import MEDIAN_STD_ERROR, NS
 from hac_ros.core.outputs import REASONS, NoticeOut, Output, ResetOut, SampleOut, Status
@@ -48,7 +49,7 @@ from hac_ros.core.pending import (
     Record,
     outputs_only,
 )
-from hac_ros.core.plausibility import CLOUD_IMPLAUSIBLE_SHARE, body_unit_problem, implausible
+from hac_ros.core.plausibility import body_unit_problem
 from hac_ros.core.pose_stream import FreezeWatch, Pose, PoseTrack
 from hac_ros.core.reference import MapIndex
 from hac_ros.core.sample import Scene, person_sample
@@ -56,7 +57,6 @@ from hac_ros.core.services import ServiceRequests
 from hac_ros.core.timeline import Stamped, Timeline
 from hac_ros.core.transforms import is_rotation
 
-PENDING_MAPS_MAX = 8  # maps waiting for a frame of their stamp
 GROUND_SHARE_SAMPLES = 30  # recent samples whose sources say whether the ground plane carries
 # resets that keep the map in use, and the ground model: the same SLAM map goes on
 KEEPS_MAP = ('map_overlap', 'service', 'time_jump_ahead')
@@ -136,15 +136,10 @@ class Calibrator:
         self.timeline = Timeline(int(p.time_jump_back_s * NS), int(p.time_jump_ahead_s * NS),
                                  p.reset_confirm_poses)
         self._pending: list[_Frame] = []  # sorted by stamp
-        self._maps: list[MapIndex] = []  # pending maps, sorted by stamp
-        self._foreign_map: MapIndex | None = None  # a map in a frame the poses have not reached yet
-        self.map: MapIndex | None = None
-        self._expect_new_map = False
+        self.maps = MapBook(p)  # waiting, in use (hac_ros.core.map_book)
         self._last_frame_ns = -1
         self._diag_second: int | None = None
         self._segment_starts: str | None = ''  # the cause of a segment starting at the next pose
-        self._map_handed_ns: int | None = None  # stamp of the last map handed to the metric stage
-        self._map_unhanded = False  # a map in use has not been handed to the metric stage yet
         self._sources: deque[bool] = deque(maxlen=GROUND_SHARE_SAMPLES)  # True: a ground sample
         self.freeze = FreezeWatch()
 
@@ -177,11 +172,8 @@ class Calibrator:
         for bad in verdict.refused:
             out += self._reject(verdict.reason, bad.pose.stamp_ns)
         if verdict.refused and verdict.reason == 'pose_out_of_order':  # no new stream after all
-            frames, held_map = self.timeline.take_held()
-            for frame in frames:
-                out += self._reject('late_frame', frame.stamp_ns)
-            if held_map is not None:
-                out += self._reject('map_late', held_map.stamp_ns)
+            for reason, stamp in self.timeline.release():
+                out += self._reject(reason, stamp)
         if verdict.kind == 'late':
             return out + self._reject('pose_out_of_order', stamp_ns)
         if verdict.kind == 'held':
@@ -208,14 +200,17 @@ class Calibrator:
         measured = True  # the step is the camera's motion (not a freeze's)
         if self._map_frame is None:
             self._map_frame = frame_id
-            out += self._refuse_foreign_maps()
+            out += [o for m in self.maps.refuse_foreign(frame_id)
+                    for o in self._reject('cloud_wrong_frame', m.stamp_ns)]
         elif frame_id != self._map_frame:
             out += self._reset(pose, 'map_frame', f'SLAM map frame changed {self._map_frame!r} -> '
                                f'{frame_id!r}: SLAM re-initialised')
             self._map_frame = frame_id
-            self._adopt_foreign_map(out)
+            foreign, self.maps.foreign = self.maps.foreign, None
+            if foreign is not None and foreign.frame_id == frame_id:  # it came first: adopted
+                out += self._add_map_index(foreign)
         if track.vetting:  # nothing is anchored on the stream's first poses until judged
-            accepted = track.start(pose, self._map_extent())
+            accepted = track.start(pose, self.maps.extent)
             if accepted is None:
                 return out
             return out + self._vetted(accepted) + self._diagnostics(pose.stamp_ns)
@@ -250,11 +245,6 @@ class Calibrator:
             out += self._accept_pose(good)
         return out
 
-    def _map_extent(self) -> float:
-        """The extent of the map in use or about to be (SLAM units; 0 without a map)."""
-        latest = self._maps[-1] if self._maps else self.map
-        return latest.extent if latest is not None else 0.0
-
     @_public
     def add_map(self, stamp_ns: int, points_map: np.ndarray, frame_id: str = '') -> list[Record]:
         """A map cloud, (N, 3) SLAM units, map frame (else InputError): indexed, then handed on."""
@@ -273,36 +263,18 @@ class Calibrator:
         if len(index) == 0:
             return self._reject('cloud_empty', index.stamp_ns)
         if self._map_frame is not None and index.frame_id != self._map_frame:
-            self._foreign_map = index
+            self.maps.foreign = index
             return self._reject('cloud_wrong_frame', index.stamp_ns)
-        camera = None if self.track.last is None else self.track.last.c_map
-        far, median = implausible(index.sample, camera)  # hac_ros.core.plausibility
-        share = float(far.mean()) if len(far) else 0.0
-        if share > CLOUD_IMPLAUSIBLE_SHARE:  # values no SLAM produces: refused
-            return self._reject('cloud_implausible', index.stamp_ns,
-                               f'a map cloud with {100 * share:.0f} % of its points 1000x nearer '
-                               'or further than its median depth from the camera: values no SLAM '
-                               'produces (a wrong byte order or field layout?): refused')
-        if share > 0.0:  # a few such points: the map without them (rare: indexed again here)
-            far, _ = implausible(index.points_map, camera, median)
-            index = MapIndex(index.points_map[~far], index.frame_id, index.stamp_ns,
-                             self.params.index_max_points)
+        judged, why = self.maps.judge(index, None if self.track.last is None
+                                      else self.track.last.c_map)
+        if judged is None:  # values no SLAM produces (hac_ros.core.plausibility)
+            return self._reject('cloud_implausible', index.stamp_ns, why)
         stream_ns = max(self.map.stamp_ns if self.map is not None else -1, self._last_frame_ns,
                         self.track.newest_stamp_ns or -1)
-        if self.timeline.is_before(index.stamp_ns, stream_ns):
-            late, self.timeline.map = self.timeline.map, index  # a new stream's, if time jumped
+        if self.timeline.is_before(judged.stamp_ns, stream_ns):
+            late, self.timeline.map = self.timeline.map, judged  # a new stream's, if time jumped
             return [] if late is None else self._reject('map_late', late.stamp_ns)
-        if self.map is not None and index.stamp_ns <= self.map.stamp_ns:
-            return self._reject('map_late', index.stamp_ns)
-        stamps = [m.stamp_ns for m in self._maps]
-        pos = bisect.bisect_right(stamps, index.stamp_ns)
-        if pos and stamps[pos - 1] == index.stamp_ns:
-            self._maps[pos - 1] = index  # same stamp: the newer message wins
-        else:
-            self._maps.insert(pos, index)
-        while len(self._maps) > PENDING_MAPS_MAX:
-            self._maps.pop(0)
-        return []
+        return [] if self.maps.add(judged) else self._reject('map_late', judged.stamp_ns)
 
     @_public
     def add_joints(self, stamp_ns: int, joints_cam: np.ndarray,
@@ -357,17 +329,10 @@ class Calibrator:
         """End of input: process the frames still waiting (matched within the slop, else
         dropped)."""
         out: list[Record] = []
-        suspects, self.timeline.suspects = self.timeline.suspects, []
-        for item in suspects:  # an unconfirmed jump in time at the very end: stray stamps
-            out += self._reject('pose_out_of_order' if self.timeline.direction == 'back'
-                               else 'pose_stamp_outlier', item.pose.stamp_ns)
-        frames, held_map = self.timeline.take_held()
-        for frame in frames:
-            out += self._reject('late_frame', frame.stamp_ns)
-        if held_map is not None:
-            out += self._reject('map_late', held_map.stamp_ns)
+        for reason, stamp in self.timeline.release(with_suspects=True):  # a jump in time
+            out += self._reject(reason, stamp)  # unconfirmed at the very end: stray stamps
         if self.track.vetting and self.track.candidates:  # the first poses, judged as they are
-            out += self._vetted(self.track.start(None, self._map_extent(), final=True))
+            out += self._vetted(self.track.start(None, self.maps.extent, final=True))
         if self.track.suspects:  # an unconfirmed jump at the very end: its poses are outliers
             for pose in self.track.suspects:
                 out += self._reject('pose_outlier', pose.stamp_ns)
@@ -474,6 +439,11 @@ class Calibrator:
         return out
 
     @property
+    def map(self) -> MapIndex | None:
+        """The map in use (SLAM units, map frame), or None."""
+        return self.maps.in_use
+
+    @property
     def child_frame_id(self) -> str:
         return self.params.base_frame or self._child_frame
 
@@ -504,7 +474,7 @@ class Calibrator:
         out = self._metric(PendingSegment(first_pose.stamp_ns, self.segment, first_pose.R_wc,
                                           first_pose.c_map, keeps_map, cause))
         if keeps_map and self.map is not None:
-            self._map_unhanded = True  # the kept map, placed by the new segment
+            self.maps.unhanded = True  # the kept map, placed by the new segment
         return out
 
     def _reset(self, first_pose: Pose, cause: str, text: str) -> list[Record]:
@@ -519,9 +489,7 @@ class Calibrator:
         out: list[Record] = self._new_segment(first_pose, cause)
         self.track.clear()
         if cause not in KEEPS_MAP:
-            self.map = None
-            self._maps.clear()
-            self._expect_new_map = True
+            self.maps.drop()
         # frames before the reset belong to the old map: their poses are gone
         stale = [f for f in self._pending if f.stamp_ns < first_pose.stamp_ns]
         self._pending = [f for f in self._pending if f.stamp_ns >= first_pose.stamp_ns]
@@ -557,58 +525,24 @@ class Calibrator:
             out += self._queue_frame(frame)
         return out
 
-    def _refuse_foreign_maps(self) -> list[Record]:
-        """Maps that came before the first pose fixed the map frame, in another frame: refused."""
-        foreign = [m for m in self._maps if m.frame_id != self._map_frame]
-        self._maps = [m for m in self._maps if m.frame_id == self._map_frame]
-        self._foreign_map = foreign[-1] if foreign else self._foreign_map
-        return [o for m in foreign for o in self._reject('cloud_wrong_frame', m.stamp_ns)]
-
-    def _adopt_foreign_map(self, out: list[Record]) -> None:
-        if self._foreign_map is not None and self._foreign_map.frame_id == self._map_frame:
-            out += self._add_map_index(self._foreign_map)
-        self._foreign_map = None
-
     # ================================================================== frames
     def _activate_map(self, stamp_ns: int) -> list[Record]:
-        """Make the latest map not after ``stamp_ns`` the current one (the processing order)."""
-        out: list[Record] = []
-        chosen = None
-        while self._maps and self._maps[0].stamp_ns <= stamp_ns:
-            chosen = self._maps.pop(0)
-        if chosen is None:
-            return out
-        chosen = chosen.composed(self.map if self.params.cloud_mode == 'accumulate' else None,
-                                 self.params.cloud_max_points, self.params.index_max_points)
-        if (self.map is not None and not self._expect_new_map
-                and self.params.cloud_mode == 'replace'
-                and self.params.map_overlap_min > 0
-                and chosen.overlap_fraction(self.map) < self.params.map_overlap_min
-                and self.map.overlap_fraction(chosen) < self.params.map_overlap_min):
-            # the maps share too few points either way (within a scene-relative radius;
-            # MapIndex.overlap_fraction): a map that grew around the old one keeps the old
-            # points, one that was pruned keeps its points near the old ones
-            pose = self.track.last
-            if pose is not None:
-                out += self._reset(pose, 'map_overlap', 'the new map does not overlap the previous '
-                                   'one: SLAM re-initialised')
-                self.track.append(pose, None)  # the new segment starts at the last pose
-        self._expect_new_map = False
-        self.map = chosen
-        self._map_unhanded = True
+        """Make the latest map not after ``stamp_ns`` the current one (the processing order); a
+        map that does not overlap the previous one is a SLAM re-initialisation."""
+        chosen, lost = self.maps.activate(stamp_ns)
+        pose = self.track.last
+        if chosen is None or not lost or pose is None:
+            return []
+        out = self._reset(pose, 'map_overlap', 'the new map does not overlap the previous one: '
+                          'SLAM re-initialised')
+        self.track.append(pose, None)  # the new segment starts at the last pose
         return out
 
     def _hand_map(self, stamp_ns: int) -> list[Record]:
         """The map in use to the metric stage (for /hac/cloud), at most once per
-        ``cloud_min_period_s``: the cloud cannot be published more often, and offline every map
-        handed over is kept until the recording ends."""
-        last = self._map_handed_ns
-        if (not self._map_unhanded or self.map is None or not self.params.publish_cloud
-                or (last is not None and stamp_ns - last < self.params.cloud_min_period_s * NS)):
-            return []
-        self._map_unhanded, self._map_handed_ns = False, stamp_ns
-        return self._metric(PendingMap(stamp_ns, self.segment,
-                                       self.map.thinned(self.params.cloud_out_max_points)))
+        ``cloud_min_period_s`` (MapBook.to_hand)."""
+        points = self.maps.to_hand(stamp_ns)
+        return [] if points is None else self._metric(PendingMap(stamp_ns, self.segment, points))
 
     def _process(self, frame: _Frame) -> list[Record]:
         """One frame (docs/method.md, steps 1–6) for every person in it."""

@@ -133,3 +133,17 @@ class Timeline:
         frames, held_map = self.frames, self.map
         self.frames, self.map = [], None
         return frames, held_map
+
+    def release(self, with_suspects: bool = False) -> list[tuple[str, int]]:
+        """No new stream after all: what was held is late, as (reason, stamp) to count; with
+        ``with_suspects`` (the end of the input) the suspects too, as stray stamps."""
+        out: list[tuple[str, int]] = []
+        if with_suspects:
+            reason = 'pose_out_of_order' if self.direction == 'back' else 'pose_stamp_outlier'
+            out += [(reason, item.pose.stamp_ns) for item in self.suspects]
+            self.suspects = []
+        frames, held_map = self.take_held()
+        out += [('late_frame', frame.stamp_ns) for frame in frames]
+        if held_map is not None:
+            out.append(('map_late', held_map.stamp_ns))
+        return out
