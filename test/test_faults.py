@@ -15,11 +15,12 @@ import shutil
 import signal
 import subprocess
 import sys
+import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 import pytest
@@ -41,7 +42,7 @@ from scenes import walking_scene
 
 from hac_ros.batch.runner import batch
 from hac_ros.core.calibrator import Calibrator
-from hac_ros.core.health import OK, WARN
+from hac_ros.core.health import OK, STALE, WARN
 from hac_ros.core.numeric import NS
 from hac_ros.core.outputs import (
     CloudOut,
@@ -61,6 +62,15 @@ from hac_ros.recording.reader import Recording
 from hac_ros.replay.feeder import CoreFeeder, InputTopics
 from hac_ros.replay.replayer import replay
 
+rclpy = pytest.importorskip('rclpy')
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+from msg_adapters import rclpy_types, stamp_to_ns
+
+TYPES = rclpy_types()
+RELIABLE = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
+LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
 SANE_M = 1e4  # no published value may be larger (metres; the issue's bound)
 REPO = Path(__file__).resolve().parents[1]
 
@@ -730,3 +740,208 @@ def test_hac_import_refuses_joints_the_calibrator_would_refuse(walk, tmp_path, f
     assert 'Traceback' not in result.stderr and len(result.stderr.strip().splitlines()) == 1
     assert needle in result.stderr
     assert not out.exists()
+
+
+# ============================================================================ the node over DDS
+class LiveNode:
+    """hac_node in this process (its own context, this process's domain) beside a node that
+    publishes inputs and records outputs, spun on one thread."""
+
+    OUTPUTS: ClassVar[dict[str, str]] = {'/hac/scale': 'std_msgs/msg/Float64',
+                                         '/hac/human_joints': 'geometry_msgs/msg/PoseArray',
+                                         '/diagnostics': 'diagnostic_msgs/msg/DiagnosticArray'}
+
+    def __init__(self, **params: Any) -> None:
+        from rclpy.context import Context
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.parameter import Parameter
+
+        from hac_ros.ros.node import HacNode
+        from hac_ros.ros.spin_thread import SpinThread
+
+        self.context = Context()
+        rclpy.init(context=self.context)
+        self.node = HacNode(context=self.context, parameter_overrides=[
+            Parameter(name, value=value) for name, value in params.items()])
+        self.io = rclpy.create_node('hac_faults_io', context=self.context)
+        self.received: dict[str, list[Any]] = {topic: [] for topic in self.OUTPUTS}
+        for topic, msgtype in self.OUTPUTS.items():
+            self.io.create_subscription(TYPES.get(msgtype), topic,
+                                        lambda m, t=topic: self.received[t].append(m), RELIABLE)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self.executor.add_node(self.io)
+        self.spinner = SpinThread(self.executor)
+
+    def statuses(self) -> list[tuple[int, str, dict[str, str]]]:
+        """(level, message, values) of each /diagnostics status received, in order."""
+        out = []
+        for msg in list(self.received['/diagnostics']):
+            for status in msg.status:
+                level = status.level
+                level = level[0] if isinstance(level, (bytes, bytearray)) else int(level)
+                out.append((level, status.message, {kv.key: kv.value for kv in status.values}))
+        return out
+
+    def close(self) -> None:
+        self.spinner.close()
+        self.node.destroy_node()
+        self.io.destroy_node()
+        rclpy.shutdown(context=self.context)
+
+
+@pytest.fixture
+def live() -> Any:
+    nodes: list[LiveNode] = []
+
+    def make(**params: Any) -> LiveNode:
+        nodes.append(LiveNode(**params))
+        return nodes[-1]
+    yield make
+    for node in nodes:
+        node.close()
+
+
+@pytest.mark.slow
+def test_a_recording_looped_into_the_node_calibrates_its_second_loop(walk, live):
+    """``hac play --loop`` into hac_node over DDS: the second loop (header time back 30 s) is a
+    new stream, calibrated within 3 % of the truth; the status says so."""
+    from hac_ros.ros.player import Player
+
+    node = live()
+    truth = truth_scale(walk)
+    stop = threading.Event()
+    with Player(walk, rate=3.0, loop=True, wait_s=30.0, context=node.context) as player:
+        playing = threading.Thread(target=player.run, args=(stop,))
+        playing.start()
+        try:
+            def second_loop_done() -> bool:
+                stamps = [stamp_to_ns(m.header.stamp) for m in node.received['/hac/human_joints']]
+                back = [k for k in range(1, len(stamps)) if stamps[k] < stamps[k - 1]]
+                return bool(back) and len(stamps) - back[0] > 800
+            assert wait_until(second_loop_done, 300.0), 'the second loop was not calibrated'
+        finally:
+            stop.set()
+            playing.join()
+    stamps = [stamp_to_ns(m.header.stamp) for m in node.received['/hac/human_joints']]
+    back = next(k for k in range(1, len(stamps)) if stamps[k] < stamps[k - 1])
+    scales = [m.data for m in node.received['/hac/scale']]
+    second = np.array(scales[back:back + 800])
+    assert abs(second[-1] / truth - 1) < 0.03
+    assert np.all(np.abs(second[len(second) // 10:] / truth - 1) < 0.03)
+    statuses = node.statuses()
+    assert any(values.get('event.time_jump_back') == '1' for _, _, values in statuses)
+    assert not any('pose_out_of_order' in values for _, _, values in statuses)
+
+
+@pytest.mark.slow
+def test_overload_drops_the_oldest_frames_counts_them_and_warns(live):
+    """Twenty people at 200 frames/s, more than the node can process: it never lets a backlog
+    build (the newest frames are answered), drops the oldest joints frames, counts them
+    (frames_dropped) and warns; every frame sent is answered, dropped or lost."""
+    from scenes import walking_scene
+
+    from msg_adapters import joints_to_pose_array, rt_to_pose_stamped, xyz_to_cloud
+
+    node = live(input_qos='reliable', min_samples=5)
+    scene = walking_scene(frames=1200, rate=200.0)
+    pose_pub = node.io.create_publisher(TYPES.get('geometry_msgs/msg/PoseStamped'), '/slam/pose',
+                                        RELIABLE)
+    joints_pub = node.io.create_publisher(TYPES.get('geometry_msgs/msg/PoseArray'),
+                                          '/hmr/joints', RELIABLE)
+    cloud_pub = node.io.create_publisher(TYPES.get('sensor_msgs/msg/PointCloud2'), '/slam/cloud',
+                                         LATCHED)
+    assert wait_until(lambda: pose_pub.get_subscription_count() > 0
+                      and joints_pub.get_subscription_count() > 0
+                      and cloud_pub.get_subscription_count() > 0, 30.0)
+    first = int(scene.stamps_ns[0])
+    cloud_pub.publish(xyz_to_cloud(scene.floor_points_slam(), first, 'map', TYPES))
+    crowd = np.repeat(scene.joints_cam[:, None], 20, axis=1)  # twenty people
+    start = time.monotonic()
+    for t in range(len(scene.stamps_ns)):
+        stamp = int(scene.stamps_ns[t])
+        pose_pub.publish(rt_to_pose_stamped(scene.R_wc_slam[t], scene.c_slam[t], stamp, 'map',
+                                            TYPES))
+        joints_pub.publish(joints_to_pose_array(crowd[t], stamp, 'camera', TYPES))
+        time.sleep(max(0.0, start + (t + 1) / 200.0 - time.monotonic()))
+    last = int(scene.stamps_ns[-1])
+    assert wait_until(lambda: node.received['/hac/human_joints'] and stamp_to_ns(
+        node.received['/hac/human_joints'][-1].header.stamp) == last, 60.0), \
+        'the newest frame was not answered'
+    assert wait_until(lambda: any(int(v.get('frames', 0)) + int(v.get('rejected.frames_dropped', 0))
+                                  + int(v.get('rejected.joints_lost', 0)) == len(scene.stamps_ns)
+                                  for _, _, v in node.statuses()), 30.0), node.statuses()[-1]
+    statuses = node.statuses()
+    final = statuses[-1][2]
+    assert int(final['rejected.frames_dropped']) > 0
+    flagged = [s for s in statuses if 'frames_dropped' in s[2]['reasons']]
+    assert flagged and all(level >= WARN for level, _, _ in flagged)
+    assert 'latency_p99_ms' in final and 'backlog' in final
+
+
+@pytest.mark.slow
+def test_a_node_without_input_says_stale_and_checks_types_without_clock(live):
+    """No input at all: /diagnostics says STALE (no_input) on the node's steady clock, also
+    under use_sim_time with no /clock, where the input-type check still runs: a publisher of the
+    wrong type on slam/pose is reported within seconds."""
+    from rclpy.context import Context
+
+    node = live(use_sim_time=True, stale_after_s=1.0)
+    other = Context()  # a participant of its own: one may not use two types on one topic
+    rclpy.init(context=other)
+    try:
+        publisher = rclpy.create_node('hac_faults_wrong_type', context=other)
+        publisher.create_publisher(TYPES.get('nav_msgs/msg/Odometry'), '/slam/pose', RELIABLE)
+        assert wait_until(lambda: any(level == STALE and 'no_input' in values['reasons']
+                                      for level, _, values in node.statuses()), 30.0)
+        assert wait_until(lambda: node.node.core.rejected.get('pose_wrong_type', 0) >= 1, 30.0)
+        publisher.destroy_node()
+    finally:
+        rclpy.shutdown(context=other)
+
+
+@pytest.mark.slow
+def test_poses_without_joints_warn_no_joints(live):
+    """SLAM poses keep coming, joints stopped: the stamp-time statuses carry WARN no_joints."""
+    from scenes import walking_scene
+
+    from msg_adapters import rt_to_pose_stamped
+
+    node = live(input_qos='reliable', stale_after_s=1.0)
+    scene = walking_scene(frames=200, rate=30.0)
+    pose_pub = node.io.create_publisher(TYPES.get('geometry_msgs/msg/PoseStamped'), '/slam/pose',
+                                        RELIABLE)
+    assert wait_until(lambda: pose_pub.get_subscription_count() > 0, 30.0)
+    start = time.monotonic()
+    for t in range(len(scene.stamps_ns)):
+        pose_pub.publish(rt_to_pose_stamped(scene.R_wc_slam[t], scene.c_slam[t],
+                                            int(scene.stamps_ns[t]), 'map', TYPES))
+        time.sleep(max(0.0, start + (t + 1) / 30.0 - time.monotonic()))
+        if any('no_joints' in values['reasons'] for _, _, values in node.statuses()):
+            break
+    flagged = [s for s in node.statuses() if 'no_joints' in s[2]['reasons']]
+    assert flagged and flagged[-1][0] == WARN
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize('signum', SIGNALS, ids=lambda s: signal.Signals(s).name)
+def test_a_signal_ends_the_node_cleanly(tmp_path, signum):
+    """hac_node (a process) ends cleanly on SIGINT, SIGTERM and SIGHUP: exit 0, no traceback."""
+    log_path = tmp_path / 'node.log'
+    with open(log_path, 'w') as log:
+        proc = subprocess.Popen([sys.executable, '-m', 'hac_ros.ros.node'], cwd=REPO,
+                                stdout=log, stderr=subprocess.STDOUT,
+                                env={**os.environ, 'PYTHONUNBUFFERED': '1'})
+        try:
+            assert wait_until(lambda: '-> /hac/* in' in log_path.read_text()
+                              or proc.poll() is not None, 120.0), log_path.read_text()
+            assert proc.poll() is None, log_path.read_text()
+            proc.send_signal(signum)
+            code = proc.wait(timeout=60)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+    text = log_path.read_text()
+    assert code == 0, text
+    assert 'Traceback' not in text

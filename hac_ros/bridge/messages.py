@@ -13,7 +13,7 @@ writes them resolved against ``/`` (:func:`in_root`).
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -103,6 +103,8 @@ class OutputMessages:
 
     def __init__(self, params: HacParams) -> None:
         self.health = HealthMonitor()  # the level and reasons of each /diagnostics status
+        # the node's own findings and key-values, added to every status (None in the replay)
+        self.extra_status: Callable[[], tuple[list[Finding], list[tuple[str, str]]]] | None = None
         self.params = params
         self._path = np.empty((PATH_LENGTH, 3))  # ring buffer of camera positions, metres
         self._path_count = 0
@@ -161,7 +163,8 @@ class OutputMessages:
             return [Message(*SCALE, cdr_write.float64(output.scale), stamp)]
         if isinstance(output, DiagnosticsOut):
             self._status = output.status
-            return [Message(*DIAGNOSTICS, self.diagnostics(output.status), stamp)]
+            extra, values = self.extra_status() if self.extra_status is not None else ([], [])
+            return [Message(*DIAGNOSTICS, self.diagnostics(output.status, extra, values), stamp)]
         return []
 
     # ------------------------------------------------------------------ diagnostics

@@ -151,6 +151,8 @@ REASONS = {
                     'pose ignored',
     'pose_stamp_outlier': 'SLAM pose stamped far ahead of the others (a clock glitch): ignored',
     'slam_frozen': 'frame not sampled: the SLAM pose is frozen while the people move',
+    'frames_dropped': ('joints frame dropped by hac_node, the oldest waiting: input faster than '
+                       'processing (joints_backlog_max)'),
     'late_frame': 'joints frame older than the last processed frame: dropped',
     'joints_malformed': 'joints message is not P blocks of the layout\'s joints',
     'joints_wrong_layout': ('the number of joints is not a multiple of the joint layout\'s joints '

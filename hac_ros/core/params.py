@@ -121,6 +121,15 @@ class HacParams:
                         choices=INPUT_QOS)
     cloud_qos: str = _p('transient_local', 'QoS durability of the map subscription',
                         choices=CLOUD_QOS)
+    joints_backlog_max: int = _p(2, 'node: joints frames that may wait to be processed; beyond, '
+                                 'the oldest are dropped (frames_dropped), never poses', low=1,
+                                 high=100_000)
+    latency_warn_s: float = _p(0.1, 'node: /diagnostics warns when the p99 latency of the recent '
+                               'joints frames (arrival to processed, wall clock) is above this, '
+                               'seconds', low=0.0, high=1e6)
+    stale_after_s: float = _p(2.0, 'node: no SLAM pose or joints for this long (wall clock): '
+                              '/diagnostics says STALE (nothing) or WARN (one of them), seconds',
+                              low=0.1, high=1e6)
     publish_markers: bool = _p(True, 'publish /hac/markers for RViz')
     publish_cloud: bool = _p(True, 'publish /hac/cloud: the map in metric_frame, metres')
     cloud_republish_rel: float = _p(0.01, '/hac/cloud is republished when the estimate moved by '

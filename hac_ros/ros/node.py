@@ -6,16 +6,25 @@ forwards every message to the calibrator with its header stamp, and publishes ex
 messages ``hac replay`` writes). It has no estimation logic of its own; docs/interface.md ("Topics",
 "Processing order") and docs/node.md.
 
-Threads. Everything that touches the calibrator runs on the executor's thread. The only other
-thread is the map builder (:class:`hac_ros.bridge.inputs.MapBuilder`, as in the replay): a map cloud
-arrives as raw CDR bytes, its header is read on the executor thread (microseconds), and decoding
-the points and building the :class:`MapIndex` (k-d tree) happen on the builder thread, so a
-1M-point map does not stall the frames. The finished index is handed to the calibrator on the
-executor's thread (the builder triggers a guard condition when a map is done). **While a map is
-being built, frames use the latest map already handed over** (the previous one); the new map is
-used from the first frame processed after it is ready whose stamp is not before the map's stamp.
-This is the one place where the node may differ from ``hac replay``, which always has the map at
-its stamp.
+Threads. The executor's thread receives: every input message goes at once into the node's
+inbox (:mod:`hac_ros.ros.intake`), and services, parameters and timers run there. One processing
+thread takes the inbox in arrival order and feeds the calibrator; everything that touches the
+calibrator holds one lock, so the calibrator sees one caller at a time. When input comes faster
+than it is processed, the inbox drops the oldest joints frames beyond ``joints_backlog_max``
+(``frames_dropped``), never poses: no backlog builds, and without drops the calibrator sees what
+the replay's feed gives it. The map builder (:class:`hac_ros.bridge.inputs.MapBuilder`, as in the
+replay) decodes and indexes map clouds on a thread of its own: a cloud arrives as raw CDR bytes,
+its header is read on the executor thread (microseconds), and the finished index goes into the
+inbox. **While a map is being built, frames use the latest map already handed over** (the previous
+one); the new map is used from the first frame processed after it is ready whose stamp is not
+before the map's stamp. This is the one place where the node may differ from ``hac replay``,
+which always has the map at its stamp.
+
+Status. ``/diagnostics`` follows stamp time as in the replay (:mod:`hac_ros.core.health`), with
+what only the node knows added: the latency and backlog of its frames, and warnings when one kind
+of input stopped coming. A timer on the steady clock (it runs under ``use_sim_time`` without
+``/clock`` too, as the input-type check does) publishes STALE when no input at all has come for
+``stale_after_s``: a last OK never stands for a live status.
 
 Names. Topics are relative (``slam/pose`` in, ``hac/pose`` out: a namespace moves them all),
 ``/diagnostics`` and ``/tf`` absolute, the services private: ``~/reset``, ``~/freeze``.
@@ -29,6 +38,8 @@ from __future__ import annotations
 import functools
 import signal
 import sys
+import threading
+import time
 import traceback
 from collections import Counter, deque
 from collections.abc import Callable, Sequence
@@ -37,6 +48,7 @@ from typing import TYPE_CHECKING, Any
 
 import rclpy
 from rcl_interfaces.msg import SetParametersResult
+from rclpy.clock import Clock, ClockType
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.exceptions import (
     InvalidParameterTypeException,
@@ -51,13 +63,15 @@ from rclpy.serialization import deserialize_message
 from rclpy.signals import SignalHandlerOptions
 
 from hac_ros.bridge.inputs import MapBuilder, add_camera_info_msg, add_joints_msg, add_pose_msg
-from hac_ros.bridge.messages import OUTPUT_TOPICS, OutputMessages, input_msgtype
+from hac_ros.bridge.messages import DIAGNOSTICS, OUTPUT_TOPICS, OutputMessages, input_msgtype
 from hac_ros.core.calibrator import Calibrator
 from hac_ros.core.errors import ParameterError
-from hac_ros.core.outputs import NoticeOut, OdometryOut, Output, PoseOut, ResetOut
+from hac_ros.core.health import Finding
+from hac_ros.core.outputs import DiagnosticsOut, NoticeOut, OdometryOut, Output, PoseOut, ResetOut
 from hac_ros.core.params import NODE_NAME, POSE_MSGTYPES, HacParams, names
 from hac_ros.core.reference import MapIndex
 from hac_ros.ros.arguments import NodeClass, params_files, usage, wants_help
+from hac_ros.ros.intake import Inbox, Item, Liveness, Processor
 from hac_ros.ros.parameters import (
     RESUBSCRIBE,
     SHELL_ONLY,
@@ -78,6 +92,8 @@ DDS_PROFILE_VARIABLES = ('FASTRTPS_DEFAULT_PROFILES_FILE', 'FASTDDS_DEFAULT_PROF
 # ---------------------------------------------------------------------------------------- maps
 MAPS_WAITING_MAX = 8  # accumulate mode: clouds waiting for the builder (older ones are dropped)
 GRAPH_CHECK_S = 2.0  # wall seconds between checks of the input topics' publisher types
+STALE_CHECK_S = 0.5  # wall seconds between looks at whether input stopped coming
+STEADY = Clock(clock_type=ClockType.STEADY_TIME)  # timers that must run without /clock
 
 
 # ---------------------------------------------------------------------------------------- the shell
@@ -140,7 +156,7 @@ class HacShell(_NodeMixinBase):
         self._failed_callbacks: set[str] = set()
         self._builder = MapBuilder(self._build_index, workers=1)
         self._maps_building: deque[Future] = deque()  # in arrival order
-        # a finished map wakes the executor, which hands it to the calibrator on its own thread
+        # a finished map wakes the executor, which puts it into the inbox in order
         self._maps_ready = self.create_guard_condition(self._on_maps_ready)
         self._output_publishers: dict[str, Any] = {}
         self._subscriptions_by_kind: dict[str, Any] = {}
@@ -148,6 +164,13 @@ class HacShell(_NodeMixinBase):
         self._wrong_types: set[tuple[str, str, str, str]] = set()  # publishers reported
         self.tf: TfSender | None = None
         self.tf_input: TfPoseInput | None = None  # pose_source tf (hac_ros.ros.tf_input)
+        # the intake (hac_ros.ros.intake): every access to the calibrator holds the lock
+        self.lock = threading.RLock()
+        self.liveness = Liveness()
+        self._inbox = Inbox(self.params.joints_backlog_max)
+        self._processor = Processor(self._inbox, self._handle, self._on_dropped, self.lock,
+                                    self.liveness.load)
+        self.outputs.extra_status = self._node_status
 
     def _activate(self) -> None:
         for topic, msgtype in OUTPUT_TOPICS:
@@ -160,7 +183,8 @@ class HacShell(_NodeMixinBase):
                           self.create_service(TYPES.get('std_srvs/srv/SetBool'), '~/freeze',
                                               self._on_freeze)]
         self._update_tf()
-        self._type_check = self.create_timer(GRAPH_CHECK_S, self._check_input_types)
+        self._type_check = self.create_timer(GRAPH_CHECK_S, self._check_input_types, clock=STEADY)
+        self._stale_check = self.create_timer(STALE_CHECK_S, self._check_stale, clock=STEADY)
         self.active = True
         p = self.params
         poses = (f'TF {p.slam_map_frame} -> {p.slam_pose_frame}' if p.pose_source == 'tf' else
@@ -183,6 +207,7 @@ class HacShell(_NodeMixinBase):
         if self.tf_input is not None:
             self.tf_input.close()
             self.tf_input = None
+        self.destroy_timer(self._stale_check)
         for publisher in self._output_publishers.values():
             self.destroy_publisher(publisher)
         self._output_publishers = {}
@@ -191,6 +216,7 @@ class HacShell(_NodeMixinBase):
     def _cleanup(self) -> None:
         if self.calibrator is None:
             return
+        self._processor.close()
         self._builder.close()
         self.destroy_guard_condition(self._maps_ready)
         self.calibrator = None
@@ -206,7 +232,7 @@ class HacShell(_NodeMixinBase):
             self.tf_input.close()
             self.tf_input = None
         if kind == 'pose' and p.pose_source == 'tf':  # tf2_ros' listener instead of pose_topic
-            self.tf_input = TfPoseInput(self, p, lambda: self.core, self._emit, self._guarded)
+            self.tf_input = TfPoseInput(self, p, lambda: self.core, self._emit, self._queued)
             return
         topic = {'pose': p.pose_topic, 'joints': p.joints_topic,
                  'camera_info': p.camera_info_topic, 'cloud': p.cloud_topic}[kind]
@@ -251,7 +277,8 @@ class HacShell(_NodeMixinBase):
                 hint = (f'set pose_type to {info.topic_type.rsplit("/", 1)[-1]!r}'
                         if kind == 'pose' and info.topic_type in POSE_MSGTYPES.values() else
                         f'{kind}_topic may name the wrong topic')
-                outputs = self.core.reject(f'{kind}_wrong_type', -1)
+                with self.lock:
+                    outputs = self.core.reject(f'{kind}_wrong_type', -1)
                 for notice in outputs:  # the first time: say what to change
                     assert isinstance(notice, NoticeOut)
                     notice.text = (f'type mismatch on {topic}: {info.node_name} publishes '
@@ -262,8 +289,9 @@ class HacShell(_NodeMixinBase):
     def _on_message_lost(self, kind: str, info: Any) -> None:
         """The middleware saw messages that never reached this subscription (best-effort input
         under load): counted as ``<kind>_lost`` in /diagnostics, logged once."""
-        for _ in range(max(int(info.total_count_change), 0)):
-            self._emit(self.core.reject(f'{kind}_lost', -1))
+        with self.lock:
+            for _ in range(max(int(info.total_count_change), 0)):
+                self._emit(self.core.reject(f'{kind}_lost', -1))
 
     def _guarded(self, kind: str, callback: Callable[[Any], None]) -> Callable[[Any], None]:
         """The node never dies on input: an unexpected error is logged once and counted."""
@@ -271,7 +299,8 @@ class HacShell(_NodeMixinBase):
             try:
                 callback(msg)
             except Exception:
-                self._emit(self.core.reject('internal_error', -1))
+                with self.lock:
+                    self._emit(self.core.reject('internal_error', -1))
                 if kind not in self._failed_callbacks:
                     self._failed_callbacks.add(kind)
                     self.get_logger().error(f'error handling a {kind} message (further ones are '
@@ -286,18 +315,54 @@ class HacShell(_NodeMixinBase):
     # rclpy, so that bytes that do not deserialize are a counted rejection too, never an
     # exception in the executor.
     def _on_pose(self, data: bytes) -> None:
-        msg = _deserialize(data, TYPES.get(POSE_MSGTYPES[self.params.pose_type]))
-        self._emit(add_pose_msg(self.core, msg)[0])
+        self._take('pose', data)
 
     def _on_joints(self, data: bytes) -> None:
-        msg = _deserialize(data, TYPES.get('geometry_msgs/msg/PoseArray'))
-        self._emit(add_joints_msg(self.core, msg))
+        self._take('joints', data)
 
     def _on_camera_info(self, msg: Any) -> None:
-        outputs, intrinsics = add_camera_info_msg(self.core, msg)
-        if intrinsics is not None:
-            self._camera_info = intrinsics
-        self._emit(outputs)
+        self._take('camera_info', msg)
+
+    def _take(self, kind: str, data: Any) -> None:
+        """Executor thread: into the inbox, in arrival order (hac_ros.ros.intake)."""
+        self.liveness.arrival(kind)
+        self._inbox.put(kind, data)
+
+    def _handle(self, item: Item) -> None:
+        """Processing thread, holding the lock: one input to the calibrator, its outputs out.
+        The node never dies on input: an unexpected error is logged once and counted."""
+        try:
+            if item.kind == 'pose':
+                msg = _deserialize(item.data, TYPES.get(POSE_MSGTYPES[self.params.pose_type]))
+                self._emit(add_pose_msg(self.core, msg)[0])
+            elif item.kind == 'joints':
+                msg = _deserialize(item.data, TYPES.get('geometry_msgs/msg/PoseArray'))
+                self._emit(add_joints_msg(self.core, msg))
+            elif item.kind == 'camera_info':
+                outputs, intrinsics = add_camera_info_msg(self.core, item.data)
+                if intrinsics is not None:
+                    self._camera_info = intrinsics
+                self._emit(outputs)
+            elif item.kind == 'map':
+                self._emit(item.data.hand_to(self.core))
+            elif item.kind == 'call':  # a transform of pose_source tf, in arrival order
+                item.data()
+        except Exception:
+            self._emit(self.core.reject('internal_error', -1))
+            if item.kind not in self._failed_callbacks:
+                self._failed_callbacks.add(item.kind)
+                self.get_logger().error(f'error handling a {item.kind} message (further ones '
+                                        'are counted as rejected.internal_error):\n'
+                                        f'{traceback.format_exc()}')
+
+    def _queued(self, kind: str, callback: Callable[[Any], None]) -> Callable[[Any], None]:
+        """``callback`` run on the processing thread, in arrival order with the other inputs
+        (the transforms of pose_source tf); an error in it is counted as any input's."""
+        return lambda msg: self._take('call', lambda: callback(msg))
+
+    def _on_dropped(self, item: Item) -> None:
+        """A joints frame the inbox dropped (input faster than processing), holding the lock."""
+        self._emit(self.core.reject('frames_dropped', -1))
 
     def _on_cloud(self, data: bytes) -> None:
         """Raw CDR bytes: read the header here, decode and index on the builder thread."""
@@ -305,7 +370,8 @@ class HacShell(_NodeMixinBase):
             cloud = parse_cloud_cdr(data)
         except MessageError:
             self._clouds_rejected += 1
-            self._emit(self.core.reject('cloud_malformed', -1))
+            with self.lock:
+                self._emit(self.core.reject('cloud_malformed', -1))
             return
         self._last_cloud = cloud
         self._submit(cloud)
@@ -328,7 +394,7 @@ class HacShell(_NodeMixinBase):
         self._maps_building.append(future)
 
     def _on_maps_ready(self) -> None:
-        """Executor thread: hand the maps the builder finished to the calibrator, in order."""
+        """Executor thread: the maps the builder finished, in order, into the inbox."""
         while self._maps_building and self._maps_building[0].done():
             future = self._maps_building.popleft()
             if future.cancelled():
@@ -340,7 +406,7 @@ class HacShell(_NodeMixinBase):
             else:
                 self.maps_indexed += 1
                 self._map_index = built.index
-            self._emit(built.hand_to(self.core))
+            self._inbox.put('map', built)
 
     @property
     def clouds_done(self) -> int:
@@ -365,20 +431,45 @@ class HacShell(_NodeMixinBase):
                 continue  # announced by the NoticeOut that comes with it; counted in diagnostics
             if self.tf is not None and isinstance(output, (OdometryOut, PoseOut)):
                 self.tf.send(output)
+            if isinstance(output, DiagnosticsOut):
+                self.liveness.status_sent_s = time.monotonic()
             for message in self.outputs.convert(output):
                 self._output_publishers[message.topic].publish(message.msg)
+
+    # ------------------------------------------------------------------ status
+    def _node_status(self) -> tuple[list[Finding], list[tuple[str, str]]]:
+        """The node's own findings and key-values for each /diagnostics status (liveness, and
+        the joints messages received: sent minus received is what DDS lost)."""
+        found, values = self.liveness.findings(self.params)
+        return found, [*values, ('joints_received', str(self._inbox.received.get('joints', 0)))]
+
+    def _check_stale(self) -> None:
+        """Steady-clock timer: when no stamp-time status has gone out for ``stale_after_s``,
+        the last status goes out as STALE with the reason (a last OK never stands for a live
+        status)."""
+        stale = self.liveness.stale(self.params)
+        if stale is None or not self.active:
+            return
+        with self.lock:
+            status = self.core.status()
+            found, values = self._node_status()
+            status.stamp_ns = max(self.get_clock().now().nanoseconds, status.stamp_ns)
+            data = self.outputs.diagnostics(status, [*found, stale], values, take=False)
+        self._output_publishers[DIAGNOSTICS[0]].publish(data)
 
     # ------------------------------------------------------------------ services
     def _on_reset(self, request: Any, response: Any) -> Any:
         """``~/reset`` (Trigger): a new segment at the next SLAM pose (docs/node.md, Services)."""
-        self.core.request_reset()
+        with self.lock:
+            self.core.request_reset()
         response.success = True
         response.message = 'a new segment starts at the next SLAM pose (map and ground normal kept)'
         return response
 
     def _on_freeze(self, request: Any, response: Any) -> Any:
         """``~/freeze`` (SetBool): hold the scale (true) or resume with a fresh window (false)."""
-        self.core.request_freeze(bool(request.data))
+        with self.lock:
+            self.core.request_freeze(bool(request.data))
         response.success = True
         response.message = ('the scale is held from the next SLAM pose' if request.data else
                             'the scale is released at the next SLAM pose: a fresh window converges')
@@ -408,12 +499,17 @@ class HacShell(_NodeMixinBase):
         changes = self._changes(parameters)
         if not changes or self.calibrator is None:
             return
+        with self.lock:
+            self._apply_changes(changes)
+
+    def _apply_changes(self, changes: dict[str, Any]) -> None:
         new = self.params.replace(**changes)  # validated in _validate_parameters
         changed = {k for k in changes if getattr(new, k) != getattr(self.params, k)}
         if not changed:
             return
         self.params = new
         self.outputs.params = new
+        self._inbox.backlog_max = new.joints_backlog_max
         if self.active:
             for kind in sorted({kind for name in changed for kind in RESUBSCRIBE.get(name, ())}):
                 self._subscribe(kind)
@@ -423,7 +519,7 @@ class HacShell(_NodeMixinBase):
         if estimator:
             self._rebuild_calibrator(estimator)
         else:
-            self.calibrator.params = new  # fields the calibrator does not read: kept consistent
+            self.core.params = new  # fields the calibrator does not read: kept consistent
         self.get_logger().info('parameters changed: ' + ', '.join(
             f'{k}={getattr(new, k)!r}' for k in sorted(changed)))
 
@@ -496,11 +592,11 @@ def main(args: list[str] | None = None) -> int:
 
 
 def run(node_class: NodeClass, args: list[str] | None = None) -> int:
-    """init → spin ``node_class()`` → clean shutdown on SIGINT/SIGTERM (exit code 0); 2 on
-    invalid parameters; ``-h``/``--help`` prints the usage (:mod:`hac_ros.ros.arguments`) and
-    exits 0 without starting ROS.
+    """init → spin ``node_class()`` → clean shutdown on SIGINT, SIGTERM or SIGHUP (exit code 0);
+    2 on invalid parameters; ``-h``/``--help`` prints the usage (:mod:`hac_ros.ros.arguments`)
+    and exits 0 without starting ROS.
 
-    SIGINT/SIGTERM set a flag (see SHUTDOWN_POLL_S): one during start-up ends the loop before it
+    The signals set a flag (see SHUTDOWN_POLL_S): one during start-up ends the loop before it
     spins, and everything made so far is destroyed in order.
     """
     argv = sys.argv if args is None else args
@@ -508,7 +604,7 @@ def run(node_class: NodeClass, args: list[str] | None = None) -> int:
         print(usage(node_class))
         return 0
     stop: list[int] = []
-    for signum in (signal.SIGINT, signal.SIGTERM):
+    for signum in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
         signal.signal(signum, lambda number, _frame: stop.append(number))
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     executor = SingleThreadedExecutor()

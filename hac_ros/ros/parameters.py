@@ -37,7 +37,8 @@ RESUBSCRIBE: dict[str, tuple[str, ...]] = {
 # - these only change what the shell publishes (the calibrator does not read them);
 SHELL_ONLY = frozenset({'metric_frame', 'odom_frame', 'publish_markers', 'publish_tf',
                         'publish_odom_tf', 'publish_obstacles', 'obstacle_min_height',
-                        'obstacle_max_height'})
+                        'obstacle_max_height', 'joints_backlog_max', 'latency_warn_s',
+                        'stale_after_s'})
 TF_PARAMETERS = frozenset({'metric_frame', 'odom_frame', 'publish_tf', 'publish_odom_tf'})
 # - every other parameter is an estimator parameter: the calibrator is rebuilt with the new values
 #   (its estimate restarts; the current map and CameraInfo are handed to the new one).
