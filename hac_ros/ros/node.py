@@ -358,7 +358,10 @@ class HacShell(_NodeMixinBase):
     def _queued(self, kind: str, callback: Callable[[Any], None]) -> Callable[[Any], None]:
         """``callback`` run on the processing thread, in arrival order with the other inputs
         (the transforms of pose_source tf); an error in it is counted as any input's."""
-        return lambda msg: self._take('call', lambda: callback(msg))
+        def take(msg: Any) -> None:
+            self.liveness.arrival('pose')  # the SLAM poses come this way
+            self._inbox.put('call', lambda: callback(msg))
+        return take
 
     def _on_dropped(self, item: Item) -> None:
         """A joints frame the inbox dropped (input faster than processing), holding the lock."""
