@@ -51,7 +51,8 @@ LARGEST_PLANE_INLIER_REL = 0.005  # largest_plane: inlier distance as a fraction
 LARGEST_PLANE_SAMPLE = 5000  # map points used by the largest_plane RANSAC
 
 
-def map_floor(map_index: MapIndex, body_normal: np.ndarray) -> Plane | None:
+def map_floor(map_index: MapIndex, body_normal: np.ndarray, previous: Plane | None = None
+              ) -> Plane | None:
     """The floor in the map: the lowest dense surface across ``body_normal`` (down, unit, map
     frame), its plane fitted to the map's points; None when the map shows no such surface.
 
@@ -65,13 +66,19 @@ def map_floor(map_index: MapIndex, body_normal: np.ndarray) -> Plane | None:
     bodies, or a surface with more than FLOOR_MAX_BELOW of the map below it (not the lowest: table
     tops over a floor the map missed). The floor is looked for in FLOOR_FIT_POINTS of the map's
     points, evenly strided whatever the band: the cost is bounded (a few ms), and a rigid motion
-    of the map keeps the same points.
+    of the map keeps the same points. ``previous``: the floor found in the segment's previous map,
+    where the search starts, refitted once (a SLAM republishes much the same map every second);
+    None: a search from the bodies' axis.
     """
     points = map_index.sample[::max(1, len(map_index.sample) // FLOOR_FIT_POINTS)]
     half = FLOOR_BAND_EXTENT_REL * map_index.extent
     body = np.asarray(body_normal, dtype=np.float64)
-    normal, offset, plane = body, map_index.floor_offset(body), None
-    for _ in range(FLOOR_ITERATIONS):
+    if previous is None:
+        normal, offset, rounds = body, map_index.floor_offset(body), FLOOR_ITERATIONS
+    else:
+        normal, offset, rounds = previous.normal, previous.offset, 1
+    plane = None
+    for _ in range(rounds):
         band = points[np.abs(points @ normal - offset) <= half]
         if len(band) < FLOOR_MIN_POINTS:
             return None
@@ -222,7 +229,10 @@ class GroundModel:
         cache = self._floor_cache
         if cache is not None and cache[0] is map_index and cache[1] == key:
             return cache[2]
-        floor = map_floor(map_index, body)
+        previous = self._floor_cache[2] if self._floor_cache is not None else None
+        floor = map_floor(map_index, body, previous) if previous is not None else None
+        if floor is None:  # no floor before, or the previous one did not refit: a full search
+            floor = map_floor(map_index, body)
         self._floor_cache = (map_index, key, floor)
         return floor
 
