@@ -2,13 +2,26 @@
 
 Everything after ``--ros-args`` (until a lone ``--``) is ROS's (``--params-file FILE``,
 ``-p name:=value``, ``-r from:=to``); before it, ``hac_node`` takes only ``-h``/``--help``, which
-prints :data:`USAGE` without starting ROS.
+prints :data:`USAGE` without starting ROS. :func:`run` is the process of ``hac_node`` and
+``hac_lifecycle_node``: init, spin, a clean shutdown on a signal.
 """
 from __future__ import annotations
 
+import signal
+import sys
 from collections.abc import Sequence
 from typing import Any, Protocol
 
+import rclpy
+from rclpy.exceptions import (
+    InvalidParameterTypeException,
+    InvalidParameterValueException,
+    ParameterException,
+)
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.signals import SignalHandlerOptions
+
+from hac_ros.core.errors import ParameterError
 from hac_ros.core.params import NODE_NAME
 
 ROS_ARGS, ROS_ARGS_END, PARAMS_FILE = '--ros-args', '--', '--params-file'
@@ -77,3 +90,48 @@ def params_files(argv: Sequence[str]) -> list[str]:
             if path is not None:
                 files.append(path)
     return files
+
+
+# SIGINT and SIGTERM are Python's here, not rclpy's: rclpy's (Jazzy) signal thread triggers the
+# executor's guard condition while the main thread may already be destroying it (a segfault at
+# shutdown, about once in 30 SIGINTs, core dump in rcl_trigger_guard_condition), and its wake-up
+# could be seen before the context's shutdown, leaving executor.spin() waiting forever. A Python
+# handler only sets a flag; the loop sees it within this long.
+SHUTDOWN_POLL_S = 0.5
+
+
+def run(node_class: NodeClass, args: list[str] | None = None) -> int:
+    """init → spin ``node_class()`` → clean shutdown on SIGINT, SIGTERM or SIGHUP (exit code 0);
+    2 on invalid parameters; ``-h``/``--help`` prints the usage (:mod:`hac_ros.ros.arguments`)
+    and exits 0 without starting ROS.
+
+    The signals set a flag (see SHUTDOWN_POLL_S): one during start-up ends the loop before it
+    spins, and everything made so far is destroyed in order.
+    """
+    argv = sys.argv if args is None else args
+    if wants_help(argv):
+        print(usage(node_class))
+        return 0
+    stop: list[int] = []
+    for signum in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        signal.signal(signum, lambda number, _frame: stop.append(number))
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    executor = SingleThreadedExecutor()
+    node = None
+    try:
+        node = node_class(params_files=params_files(argv))
+        executor.add_node(node)
+        while rclpy.ok() and not stop:  # not executor.spin(): see SHUTDOWN_POLL_S
+            executor.spin_once(timeout_sec=SHUTDOWN_POLL_S)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except (ParameterError, InvalidParameterValueException, InvalidParameterTypeException,
+            ParameterException) as exc:
+        print(f'hac_node: invalid parameter: {exc}', file=sys.stderr)
+        return 2
+    finally:
+        executor.shutdown()
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0

@@ -27,7 +27,8 @@ from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackRet
 
 from hac_ros.core.errors import ParameterError
 from hac_ros.core.params import NODE_NAME
-from hac_ros.ros.node import HacShell, run
+from hac_ros.ros.arguments import run
+from hac_ros.ros.node import HacShell
 
 SUCCESS = TransitionCallbackReturn.SUCCESS
 FAILURE = TransitionCallbackReturn.FAILURE

@@ -36,7 +36,6 @@ Run: ``ros2 run hac_ros hac_node --ros-args --params-file config/hac.yaml`` or
 from __future__ import annotations
 
 import functools
-import signal
 import sys
 import threading
 import time
@@ -46,21 +45,13 @@ from collections.abc import Callable, Sequence
 from concurrent.futures import Future
 from typing import TYPE_CHECKING, Any
 
-import rclpy
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock, ClockType
 from rclpy.event_handler import SubscriptionEventCallbacks
-from rclpy.exceptions import (
-    InvalidParameterTypeException,
-    InvalidParameterValueException,
-    ParameterException,
-)
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import qos_policy_name_from_kind
 from rclpy.serialization import deserialize_message
-from rclpy.signals import SignalHandlerOptions
 
 from hac_ros.bridge.inputs import MapBuilder, add_camera_info_msg, add_joints_msg, add_pose_msg
 from hac_ros.bridge.messages import DIAGNOSTICS, OUTPUT_TOPICS, OutputMessages, input_msgtype
@@ -70,7 +61,7 @@ from hac_ros.core.health import Finding
 from hac_ros.core.outputs import DiagnosticsOut, NoticeOut, OdometryOut, Output, PoseOut, ResetOut
 from hac_ros.core.params import NODE_NAME, POSE_MSGTYPES, HacParams, names
 from hac_ros.core.reference import MapIndex
-from hac_ros.ros.arguments import NodeClass, params_files, usage, wants_help
+from hac_ros.ros.arguments import run
 from hac_ros.ros.intake import Inbox, Item, Liveness, Processor
 from hac_ros.ros.parameters import (
     RESUBSCRIBE,
@@ -582,53 +573,9 @@ def _deserialize(data: bytes, msg_type: type) -> Any:
 
 
 # ---------------------------------------------------------------------------------------- main
-# SIGINT and SIGTERM are Python's here, not rclpy's: rclpy's (Jazzy) signal thread triggers the
-# executor's guard condition while the main thread may already be destroying it (a segfault at
-# shutdown, about once in 30 SIGINTs, core dump in rcl_trigger_guard_condition), and its wake-up
-# could be seen before the context's shutdown, leaving executor.spin() waiting forever. A Python
-# handler only sets a flag; the loop sees it within this long.
-SHUTDOWN_POLL_S = 0.5
-
 def main(args: list[str] | None = None) -> int:
     """``hac_node``: :func:`run` of :class:`HacNode`."""
     return run(HacNode, args)
-
-
-def run(node_class: NodeClass, args: list[str] | None = None) -> int:
-    """init → spin ``node_class()`` → clean shutdown on SIGINT, SIGTERM or SIGHUP (exit code 0);
-    2 on invalid parameters; ``-h``/``--help`` prints the usage (:mod:`hac_ros.ros.arguments`)
-    and exits 0 without starting ROS.
-
-    The signals set a flag (see SHUTDOWN_POLL_S): one during start-up ends the loop before it
-    spins, and everything made so far is destroyed in order.
-    """
-    argv = sys.argv if args is None else args
-    if wants_help(argv):
-        print(usage(node_class))
-        return 0
-    stop: list[int] = []
-    for signum in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
-        signal.signal(signum, lambda number, _frame: stop.append(number))
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    executor = SingleThreadedExecutor()
-    node = None
-    try:
-        node = node_class(params_files=params_files(argv))
-        executor.add_node(node)
-        while rclpy.ok() and not stop:  # not executor.spin(): see SHUTDOWN_POLL_S
-            executor.spin_once(timeout_sec=SHUTDOWN_POLL_S)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except (ParameterError, InvalidParameterValueException, InvalidParameterTypeException,
-            ParameterException) as exc:
-        print(f'hac_node: invalid parameter: {exc}', file=sys.stderr)
-        return 2
-    finally:
-        executor.shutdown()
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
 
 
 if __name__ == '__main__':
