@@ -15,7 +15,7 @@ from scipy.spatial.transform import Rotation
 from hac_ros.core.calibrator import Calibrator
 from hac_ros.core.ground import GroundModel, map_floor
 from hac_ros.core.health import WARN, HealthMonitor
-from hac_ros.core.outputs import HumanJointsOut, SampleOut, ScaleOut
+from hac_ros.core.outputs import HumanJointsOut, NoticeOut, SampleOut, ScaleOut
 from hac_ros.core.params import HacParams
 from hac_ros.core.reference import MapIndex
 
@@ -162,3 +162,27 @@ def test_no_floor_in_the_map_is_said_in_diagnostics():
         assert status.converged and ('floor_unknown' in status.conditions) == expected, floor
         health = HealthMonitor().assess(status)
         assert (health.level == WARN and 'floor_unknown' in health.reasons) == expected, floor
+
+
+def test_a_window_locked_on_tables_is_dropped_when_the_floor_appears():
+    """The first maps show the tables but not yet the floor (too little of it seen): nothing
+    refuses the table tops and the estimate converges on them. When a later map shows the floor,
+    the floor's readings of the next samples disagree with the estimate by far more than
+    plausibility_rel_tol: the window is dropped (a notice says so) and the scale comes from the
+    floor."""
+    scene = walking_scene(frames=80, true_scale=2.0)
+    tables = scene.to_slam(np.vstack([room_points(6, floor=False), table_row()]))
+    room = scene.to_slam(np.vstack([room_points(6), table_row()]))
+    cal = Calibrator(HacParams())
+    outs: list = []
+    for t, stamp in enumerate(scene.stamps_ns.tolist()):
+        if t in (0, 40):
+            outs += cal.add_map(stamp, tables if t == 0 else room, 'map')
+        outs += cal.add_pose(stamp, scene.R_wc_slam[t], scene.c_slam[t], 'map')
+        outs += cal.add_joints(stamp, scene.joints_cam[t][None], 'camera')
+    outs += cal.flush()
+    published = [o for o in outs if isinstance(o, ScaleOut)]
+    early = [o.scale for o in published if o.stamp_ns < scene.stamps_ns[40]]
+    assert early and np.median(early) > 1.5 * scene.true_scale  # locked on the tables at first
+    assert any(isinstance(o, NoticeOut) and o.cause == 'floor_relock' for o in outs)
+    assert abs(published[-1].scale / scene.true_scale - 1) < 0.02

@@ -24,7 +24,7 @@ import functools
 import math
 from collections import Counter, deque
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Concatenate, ParamSpec
 
 import numpy as np
@@ -590,17 +590,28 @@ class Calibrator:
         scene = Scene(self.map, self.ground.plane(self.map), self.ground.normal(),
                       self.ground.trusted, self._K, self._image_size, scale_now, self._cos_min)
         sample = person_sample(self.params, self.layout, scene, R_wc, c_map, joints)
+        relock: list[Record] = []
+        if self.ground.judge_window(sample.floor_scale, scale_now, self.estimator.samples,
+                                    self.params.min_samples, self.params.plausibility_rel_tol):
+            self.estimator.reset()  # it locked on what the floor now refuses: judged afresh
+            relock.append(NoticeOut(stamp, 'floor_relock', 'the floor found in the map disagrees '
+                                    'with the estimate (an occluder taken for the contact?): '
+                                    'estimate restarted', 'warn'))
+            scale_now = None
+            scene = replace(scene, scale=None)
+            sample = person_sample(self.params, self.layout, scene, R_wc, c_map, joints)
         if sample.reason:
-            return self._rejected_sample(stamp, person, sample.reason)
+            return relock + self._rejected_sample(stamp, person, sample.reason)
         if sample.source == 'map':
             self.map_hits += 1
         else:
             self.ground_fallbacks += 1
         if self.services.holding:  # counted, not used
             self.services.samples += 1
-            return [SampleOut(stamp, person, sample.scale, sample.source, False)]
+            return [*relock, SampleOut(stamp, person, sample.scale, sample.source, False)]
         accepted = self.estimator.add(stamp, sample.scale)
-        out: list[Record] = [SampleOut(stamp, person, sample.scale, sample.source, accepted)]
+        out: list[Record] = [*relock, SampleOut(stamp, person, sample.scale, sample.source,
+                                                accepted)]
         if not accepted:
             out += self._reject('gated', stamp)
         else:

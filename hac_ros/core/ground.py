@@ -122,6 +122,8 @@ class GroundModel:
         self._contact_normal: np.ndarray | None = None
         self._plane_cache: tuple[MapIndex, bytes, Plane | None] | None = None
         self._floor: Plane | None = None  # the map's floor, when one was found (hmr)
+        self._was_trusted = False  # as of the last judge_window
+        self._readings: list[float] | None = None  # floor scales judging the window, or None
         self._floor_cache: tuple[MapIndex, bytes, Plane | None] | None = None
         self._rng = np.random.default_rng(self._seed)
 
@@ -175,6 +177,28 @@ class GroundModel:
         (``floor_unknown`` in /diagnostics, :meth:`Calibrator.conditions`)."""
         cache = self._floor_cache
         return self.mode == 'hmr' and cache is not None and cache[2] is None
+
+    def judge_window(self, floor_scale: float, estimate: float | None, window_samples: int,
+                     needed: int, tolerance: float) -> bool:
+        """Whether the estimator's window must be dropped because the floor, now trusted, says it
+        locked on something else (docs/method.md, plausibility rule 3).
+
+        When the floor becomes trusted while the window already holds samples (taken without a
+        floor to refuse occluders by: table tops hit before the first map showed the floor), the
+        ``floor_scale`` of the next ``needed`` samples (metres per SLAM unit: the ground plane's
+        reading of each contact, :class:`~hac_ros.core.sample.Sample`) judge the window once:
+        True when their median and ``estimate`` (None before convergence) differ by more than
+        ``tolerance`` (relative)."""
+        if self.trusted and not self._was_trusted:
+            self._readings = [] if window_samples else None
+        self._was_trusted = self.trusted
+        if self._readings is None or not math.isfinite(floor_scale):
+            return False
+        self._readings.append(floor_scale)
+        if len(self._readings) < needed:
+            return False
+        floor, self._readings = float(np.median(self._readings)), None
+        return estimate is not None and abs(estimate / floor - 1.0) > tolerance
 
     def normal(self) -> np.ndarray | None:
         """The current down-pointing unit normal in the map frame, or None (not enough evidence)."""

@@ -24,12 +24,14 @@ from hac_ros.core.reference import MapIndex
 class Sample:
     """A person's sample: scale (metres per SLAM unit), source ('map' or 'ground') and the point
     on the surface that gave it (metres, camera optical frame); or, with ``reason`` set, why there
-    is none ('behind_camera', 'no_map', 'no_reference'; the scale NaN)."""
+    is none ('behind_camera', 'no_map', 'no_reference'; the scale NaN). ``floor_scale``: what the
+    ground plane alone says for that point (its ray's floor intersection; NaN without one)."""
 
     scale: float
     source: str = ''
     contact_cam: np.ndarray | None = None
     reason: str = ''
+    floor_scale: float = math.nan
 
 
 def no_sample(reason: str) -> Sample:
@@ -71,11 +73,13 @@ def person_sample(params: HacParams, layout: JointLayout, scene: Scene, R_wc: np
         points = sole_points(layout, joints, candidates, down_cam)
     plane = scene.plane
     ratios = [math.nan] * len(candidates)  # d_A / d_S of each candidate, metres per SLAM unit
+    floor_ratios = [math.nan] * len(candidates)  # the same with the ground plane's d_S
     from_map = [False] * len(candidates)
     for k, point in enumerate(points):
         distance_metric = math.sqrt(float(point @ point))
         direction_map = R_wc @ (point / distance_metric)
         plane_distance = plane.ray_distance(c_map, direction_map) if plane is not None else math.nan
+        floor_ratios[k] = distance_metric / plane_distance
         if visible[k] and scene.map is not None:
             d_slam = _map_distance(params, scene, c_map, direction_map, distance_metric)
             if d_slam is not None and _plausible(params, scene, d_slam, distance_metric,
@@ -91,7 +95,8 @@ def person_sample(params: HacParams, layout: JointLayout, scene: Scene, R_wc: np
     if len(ratios) > 1 and params.contact_mode == 'max_ratio':
         chosen = max(finite, key=ratios.__getitem__)  # the first of equals, as nanargmax
     return Sample(combine_ratios(params.contact_mode, ratios),
-                  'map' if from_map[chosen] else 'ground', points[chosen])
+                  'map' if from_map[chosen] else 'ground', points[chosen],
+                  floor_scale=floor_ratios[chosen])
 
 
 def _map_distance(params: HacParams, scene: Scene, c_map: np.ndarray, direction_map: np.ndarray,
