@@ -87,7 +87,7 @@ class WarmRay:
         self.ray = ray
         ray.init(address='local', num_cpus=WORKERS, include_dashboard=False,
                  logging_level=logging.ERROR, log_to_driver=False)
-        batch(inputs[:WORKERS], scratch, ray='local', progress=False)  # imports, caches
+        batch(inputs[:WORKERS], scratch, ray='local')  # imports, caches
         shutil.rmtree(scratch)
 
     def close(self) -> None:
@@ -102,7 +102,7 @@ def timed(config: str, inputs: list[Path], out: Path, work: Path) -> tuple[float
         cpu = children_cpu_s()
         start = time.perf_counter()
         result = batch(inputs, out, workers=1 if config == 'pool 1' else WORKERS,
-                       ray='local' if config.startswith('Ray') else None, progress=False)
+                       ray='local' if config.startswith('Ray') else None)
         wall = time.perf_counter() - start
         cpu = children_cpu_s() - cpu
     finally:

@@ -50,7 +50,7 @@ def replay_s(recording: Path, out: Path, mode: str) -> float:
     if out.exists():
         shutil.rmtree(out)
     start = time.perf_counter()
-    replay(recording, out, mode=mode, progress=False)
+    replay(recording, out, mode=mode)
     seconds = time.perf_counter() - start
     shutil.rmtree(out)
     return seconds

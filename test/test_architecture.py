@@ -119,3 +119,13 @@ def test_the_top_level_of_the_package_stays_short():
     """At most 8 modules beside the subpackages: a newcomer finds things by the folder names."""
     top = sorted(p.name for p in (REPO / 'hac_ros').glob('*.py'))
     assert len(top) <= 8, top
+
+
+def test_only_the_command_draws_progress_bars():
+    """The library logs and advances the progress display its caller gives; tqdm (a terminal's
+    bar) is imported in hac_ros.cli only."""
+    modules = _modules()
+    drawing = sorted(name for name, path in modules.items()
+                     if not name.startswith('hac_ros.cli')
+                     and any(m == 'tqdm' or m.startswith('tqdm.') for m in _imports(path, modules)))
+    assert drawing == []

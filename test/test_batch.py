@@ -91,7 +91,7 @@ def inputs(tmp_path_factory) -> list[Path]:
 def singles(inputs, tmp_path_factory) -> dict[str, Path]:
     """Each good input replayed alone (what ``hac replay IN -o OUT`` writes), by output name."""
     root = tmp_path_factory.mktemp('singles')
-    return {recording_name(p): replay(p, root / recording_name(p), progress=False).output_path
+    return {recording_name(p): replay(p, root / recording_name(p)).output_path
             for p in inputs if recording_name(p) in OK}
 
 
@@ -99,7 +99,7 @@ def singles(inputs, tmp_path_factory) -> dict[str, Path]:
 def pool_run(inputs, tmp_path_factory):
     """The batch on a process pool of two workers (in this process: the library call)."""
     out = tmp_path_factory.mktemp('pool') / 'out'
-    return batch(inputs, out, workers=2, progress=False)
+    return batch(inputs, out, workers=2)
 
 
 @pytest.fixture(scope='module')
@@ -247,7 +247,7 @@ def test_resume_redoes_only_what_an_interrupted_run_left_unfinished(pool_run, si
     os.utime(stairs_file, ns=(stat.st_atime_ns, stat.st_mtime_ns + 1_000_000_000))
     kept = {name: (out / f'{name}.done.json').stat().st_mtime_ns for name in ('odom', 'nogt')}
     try:
-        result = batch(inputs, out, workers=2, resume=True, progress=False)
+        result = batch(inputs, out, workers=2, resume=True)
     finally:
         os.utime(stairs_file, ns=(stat.st_atime_ns, stat.st_mtime_ns))
     rows = {recording_name(r.input): r for r in result.rows}
@@ -295,7 +295,7 @@ def test_ctrl_c_keeps_what_finished_and_resume_does_the_rest(inputs, singles, tm
     assert not list(out.glob('.*partial')) and not (out / 'summary.csv').exists()
     assert {p.name for p in out.iterdir() if p.is_dir()} == finished | {'logs'}
     marker_mtimes = {name: (out / f'{name}.done.json').stat().st_mtime_ns for name in finished}
-    result = batch(inputs, out, workers=2, resume=True, progress=False)
+    result = batch(inputs, out, workers=2, resume=True)
     assert {recording_name(r.input) for r in result.rows if r.skipped} == finished
     assert {recording_name(r.input) for r in result.rows if r.ok} == set(OK)
     for name, mtime_ns in marker_mtimes.items():
@@ -308,11 +308,11 @@ def test_resume_redoes_an_output_of_another_mode(pool_run, inputs, tmp_path):
     walk = inputs[0]
     shutil.copytree(pool_run.out_dir / 'walk', out / 'walk')
     shutil.copy(pool_run.out_dir / 'walk.done.json', out / 'walk.done.json')
-    assert batch([walk], out, resume=True, progress=False).rows[0].skipped
-    online = batch([walk], out, mode='online', resume=True, progress=False)
+    assert batch([walk], out, resume=True).rows[0].skipped
+    online = batch([walk], out, mode='online', resume=True)
     assert online.rows[0].ok and not online.rows[0].skipped
     assert json.loads((out / 'walk.done.json').read_text())['mode'] == 'online'
-    single = replay(walk, tmp_path / 'single', mode='online', progress=False)
+    single = replay(walk, tmp_path / 'single', mode='online')
     assert recording_differences(out / 'walk', single.output_path) == []
 
 
@@ -356,7 +356,7 @@ def test_usage_errors_exit_2_and_write_nothing(inputs, tmp_path):
 def test_ray_missing_is_a_usage_error(inputs, tmp_path, monkeypatch):
     monkeypatch.setitem(sys.modules, 'ray', None)  # import ray -> ImportError
     with pytest.raises(HacError, match=r'pip install "hac_ros\[cluster\]"'):
-        batch(inputs[:1], tmp_path / 'out', ray='local', progress=False)
+        batch(inputs[:1], tmp_path / 'out', ray='local')
     assert not (tmp_path / 'out').exists()
 
 
@@ -385,7 +385,7 @@ def test_output_names_drop_the_recording_suffix():
 @pytest.mark.slow
 def test_ray_tasks_give_the_pools_outputs_and_summary(local_ray, pool_run, inputs, tmp_path):
     assert RAY_MAX_RETRIES >= 1
-    result = batch(inputs, tmp_path / 'ray', ray='local', progress=False)
+    result = batch(inputs, tmp_path / 'ray', ray='local')
     assert local_ray.is_initialized()  # the caller's Ray is used and left running
     assert result.exit_code == 1
     for name in OK:

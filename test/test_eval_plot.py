@@ -41,7 +41,7 @@ def replayed(tmp_path_factory) -> tuple[Path, Path, Path]:
     """(IN, OUT, TUM dir): a walking scene with noisy SLAM centres, replayed offline."""
     root = tmp_path_factory.mktemp('eval')
     source = write_recording(root / 'walk', wavy_walk(120), slam_noise=0.01)
-    replay(source, root / 'out', export_tum=root / 'tum', progress=False)
+    replay(source, root / 'out', export_tum=root / 'tum')
     return source, root / 'out', root / 'tum'
 
 

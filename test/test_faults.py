@@ -212,7 +212,7 @@ def test_one_pose_stamped_an_hour_ahead_is_refused_and_the_rest_goes_on(walk, cl
     assert len(ahead.statuses) == len(clean.statuses)
     assert all(s.stamp_ns < 3600 * NS + ahead.statuses[0].stamp_ns for s in ahead.statuses)
     assert abs(ahead.scales[-1] / clean.scales[-1] - 1) < 1e-3
-    summary = replay(path, tmp_path / 'out', mode='online', progress=False)
+    summary = replay(path, tmp_path / 'out', mode='online')
     assert summary.status.rejected['pose_stamp_outlier'] == 1
     diagnostics = written_diagnostics(tmp_path / 'out')
     flagged = [d for d in diagnostics if 'pose_stamp_outlier' in d[3]['reasons']]
@@ -247,8 +247,8 @@ def test_a_glitched_first_pose_is_refused_and_anchors_nothing(walk, tmp_path, gl
     assert run.calibrator.rejected['pose_outlier'] == len(glitched)
     assert run.largest_value_m() < 100.0  # the walk stays within a few metres of the origin
     clean_out, out = tmp_path / 'clean_out', tmp_path / 'out'
-    replay(walk, clean_out, progress=False)
-    replay(path, out, progress=False)
+    replay(walk, clean_out)
+    replay(path, out)
     assert ate_s(out, path) <= 2.0 * ate_s(clean_out, walk)
 
 
@@ -265,7 +265,7 @@ def test_a_frozen_slam_warns_and_its_resume_is_anchored_where_it_was(walk, tmp_p
     after the resume is as good as the clean run's."""
     path = faulty(walk, tmp_path, slam_frozen(10.0, 10.0))
     out = tmp_path / 'out'
-    summary = replay(path, out, mode='online', progress=False)
+    summary = replay(path, out, mode='online')
     assert summary.status.resets == 0
     assert summary.status.rejected['slam_frozen'] > 200
     diagnostics = written_diagnostics(out)
@@ -276,7 +276,7 @@ def test_a_frozen_slam_warns_and_its_resume_is_anchored_where_it_was(walk, tmp_p
     assert after and all('slam_frozen' not in d[3]['reasons'] for d in after)
     # /hac/pose after the resume: on the clean run's (same segment, same anchor)
     clean_out = tmp_path / 'clean'
-    replay(walk, clean_out, mode='online', progress=False)
+    replay(walk, clean_out, mode='online')
     resumed = _positions(out, after_s=21.0)
     reference = _positions(clean_out, after_s=21.0)
     common = sorted(set(resumed) & set(reference))
@@ -315,7 +315,7 @@ def _positions(path: Path, after_s: float) -> dict[int, np.ndarray]:
 def test_a_clean_run_says_ok_once_converged(walk, tmp_path):
     """The reference: no fault, every status OK once the estimate has converged."""
     out = tmp_path / 'out'
-    replay(walk, out, mode='online', progress=False)
+    replay(walk, out, mode='online')
     diagnostics = written_diagnostics(out)
     converged = [d for d in diagnostics if d[3]['converged'] == 'true']
     assert len(converged) >= len(diagnostics) - 2
@@ -334,7 +334,7 @@ def test_a_map_whose_bytes_decode_to_garbage_is_refused(walk, tmp_path):
     assert all(abs(s / truth - 1) <= 0.2 for s in run.scales)
     assert run.largest_value_m() < SANE_M
     out = tmp_path / 'out'
-    replay(path, out, mode='online', progress=False)
+    replay(path, out, mode='online')
     diagnostics = written_diagnostics(out)
     assert all(d[1] == WARN for d in diagnostics)
     assert any('cloud_implausible' in d[3]['reasons'] for d in diagnostics)
@@ -419,13 +419,13 @@ def test_every_report_gives_the_last_scale_written(tmp_path):
     """The summary's final scale is the last /hac/scale written, in hac replay, hac batch and
     hac eval alike (offline, on a drifting SLAM, where the online estimate differs from it)."""
     drift = simulate(tmp_path / 'drift', 'drift', seed=1, duration=30.0)
-    summary = replay(drift, tmp_path / 'out', progress=False)
+    summary = replay(drift, tmp_path / 'out')
     with Recording(tmp_path / 'out') as recording:
         written = [m.data for _, m in recording.read('/hac/scale')]
     assert summary.final_scale == written[-1]
     assert f'final scale {written[-1]:.6g} ' in summary.text()
     assert abs(summary.status.scale / written[-1] - 1) > 1e-3  # the case the issue saw
-    result = batch([drift], tmp_path / 'batch', workers=1, progress=False)
+    result = batch([drift], tmp_path / 'batch', workers=1)
     assert result.rows[0].final_scale == pytest.approx(written[-1], rel=1e-12)
     evaluation = evaluate(tmp_path / 'out', drift, references=False)
     assert evaluation.rows['hac']['scale_final'] == pytest.approx(written[-1], rel=1e-12)
@@ -440,7 +440,7 @@ def test_a_replay_that_calibrated_nothing_exits_3_and_its_batch_row_fails(walk, 
     assert 'final scale: none' in result.stdout and 'Traceback' not in result.stderr
     why = [line for line in result.stderr.splitlines() if 'nothing calibrated' in line]
     assert len(why) == 1 and 'rejected most' in why[0]
-    rows = batch([path], tmp_path / 'batch', workers=1, progress=False).rows
+    rows = batch([path], tmp_path / 'batch', workers=1).rows
     assert rows[0].status == 'failed' and 'nothing calibrated' in rows[0].error
 
 
@@ -586,7 +586,7 @@ def test_a_signal_to_hac_batch_stops_its_workers_and_keeps_what_finished(walk, t
     assert len(finished) == 1
     assert not list(out.glob('.*partial')) and not (out / 'summary.csv').exists()
     assert {p.name for p in out.iterdir() if p.is_dir()} == finished | {'logs'}
-    result = batch(inputs, out, workers=1, resume=True, progress=False)
+    result = batch(inputs, out, workers=1, resume=True)
     assert [r.skipped for r in result.rows].count(True) == 1 and all(r.ok for r in result.rows)
 
 
@@ -602,7 +602,7 @@ def test_every_command_stops_cleanly_on_sigterm(walk, tmp_path, command):
         args, inside = _import_args(walk, tmp_path, work / 'imported'), staging(work)
     elif command in ('export', 'eval', 'plot'):
         replayed = tmp_path / 'replayed'
-        replay(walk, replayed, progress=False)
+        replay(walk, replayed)
         args = {'export': ['export', str(replayed), '-o', str(work / 'out.npz')],
                 'eval': ['eval', str(replayed), '--gt', str(walk), '--json',
                          str(work / 'eval.json')],
@@ -713,7 +713,7 @@ def test_other_commands_on_a_full_disk_give_one_line_and_leave_nothing(unshare, 
         args, size = ['simulate', 'walk', '-o', '{fs}/sim'], '1m'
     elif command == 'export':
         replayed = tmp_path / 'replayed'
-        replay(walk, replayed, progress=False)
+        replay(walk, replayed)
         args, size = ['export', str(replayed), '-o', '{fs}/out.npz'], '64k'
     else:
         args, size = ['batch', str(walk), '-o', '{fs}/batch', '--workers', '1'], '1m'

@@ -241,7 +241,7 @@ def test_demo_live_gives_the_online_replays_final_scale(tmp_path):
     from hac_ros.replay.replayer import replay
 
     source = REPO / 'bags' / 'demo_walk'
-    online = replay(source, tmp_path / 'online', mode='online', progress=False)
+    online = replay(source, tmp_path / 'online', mode='online')
     process = hac('demo', '--live', '--rate', '4')
     out, err = process.communicate(timeout=300)
     assert process.returncode == 0, out + err

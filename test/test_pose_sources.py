@@ -34,7 +34,7 @@ def optical(scene: Any, tmp_path_factory: pytest.TempPathFactory) -> dict[str, A
     """The optical-frame PoseStamped recording and its replays (offline and online)."""
     d = tmp_path_factory.mktemp('optical')
     source = write_recording(scene, d / 'in')
-    return {mode: outputs(replay(source, d / mode, mode=mode, progress=False).output_path)
+    return {mode: outputs(replay(source, d / mode, mode=mode).output_path)
             for mode in ('offline', 'online')}
 
 
@@ -70,11 +70,11 @@ def test_a_base_frame_recording_undone_by_pose_to_optical_is_the_optical_one(
     scale and camera; the 4-number rotation alone (the position unchanged) does not."""
     source = write_recording(scene, tmp_path / 'base', pose_frame='base')
     params = HacParams(pose_to_optical=BASE_TO_OPTICAL)
-    got = outputs(replay(source, tmp_path / 'out', params, mode=mode, progress=False).output_path)
+    got = outputs(replay(source, tmp_path / 'out', params, mode=mode).output_path)
     assert_same_run(got, optical[mode])
     if mode == 'offline':
         rotation_only = HacParams(pose_to_optical=BASE_TO_OPTICAL[3:])
-        wrong = outputs(replay(source, tmp_path / 'rot', rotation_only, progress=False).output_path)
+        wrong = outputs(replay(source, tmp_path / 'rot', rotation_only).output_path)
         assert not abs(wrong['scale'] / optical[mode]['scale'] - 1.0) < 0.02  # or no scale
 
 
@@ -109,8 +109,7 @@ def test_a_tf_only_recording_replays_as_the_posestamped_one(scene, optical, tmp_
     """Poses only on /tf (map -> camera_optical): pose_source tf gives the same run; each frame
     found its pose at a TF message's stamp (exact), none extrapolated."""
     source = write_recording(scene, tmp_path / 'tf', pose_source='tf')
-    summary = replay(source, tmp_path / 'out', HacParams(**TF_OPTICAL), mode=mode,
-                     progress=False)
+    summary = replay(source, tmp_path / 'out', HacParams(**TF_OPTICAL), mode=mode)
     assert_same_run(outputs(summary.output_path), optical[mode])
     assert summary.status.pose_matches == {'exact': summary.status.frames}
     assert 'frames matched to a SLAM pose: exact' in summary.text()
@@ -122,8 +121,7 @@ def test_a_tf_only_recording_replays_as_the_posestamped_one(scene, optical, tmp_
 ], ids=['static-from-tf', 'seven-numbers'])
 def test_tf_of_a_base_frame_with_its_static_camera_transform(scene, optical, tmp_path, params):
     source = write_recording(scene, tmp_path / 'tf', pose_source='tf', pose_frame='base')
-    got = outputs(replay(source, tmp_path / 'out', HacParams(**params),
-                         progress=False).output_path)
+    got = outputs(replay(source, tmp_path / 'out', HacParams(**params)).output_path)
     assert_same_run(got, optical['offline'])
 
 
@@ -139,7 +137,7 @@ def test_joints_between_tf_messages_are_interpolated_never_extrapolated(scene, t
         gt_R_wc=scene.gt_R_wc[keep], gt_c=scene.gt_c[keep],
         true_scale=np.broadcast_to(scene.true_scale, (len(scene.pose_stamps_ns),))[keep])
     source = write_recording(sparse, tmp_path / 'tf', pose_source='tf')
-    status = replay(source, tmp_path / 'out', HacParams(**TF_OPTICAL), progress=False).status
+    status = replay(source, tmp_path / 'out', HacParams(**TF_OPTICAL)).status
     matches = status.pose_matches
     assert matches['exact'] > 100 and matches['interpolated'] > 100
     assert status.rejected['no_pose'] >= 9  # after the last TF message: never extrapolated
@@ -213,7 +211,7 @@ def test_tf_without_the_static_transform_is_counted_unconnected(scene, tmp_path)
         for conn, log_ns, raw in reader.messages():
             if conn.id in conns:
                 writer.write(conns[conn.id], log_ns, raw)
-    summary = replay(cut, tmp_path / 'out', HacParams(**TF_OPTICAL), progress=False)
+    summary = replay(cut, tmp_path / 'out', HacParams(**TF_OPTICAL))
     assert summary.status.rejected['tf_unconnected'] == len(scene.pose_stamps_ns)
     assert summary.status.frames == 0
 

@@ -5,14 +5,22 @@ tests need neither the simulator nor ROS.
 """
 from __future__ import annotations
 
+import contextlib
+import fcntl
 import hashlib
 import logging
+import os
+import pty
 import signal
+import struct
 import subprocess
 import sys
+import termios
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
+from types import SimpleNamespace
+from typing import Any
 
 import numpy as np
 import pytest
@@ -216,7 +224,7 @@ def test_sqlite3_and_mcap_give_identical_outputs(tmp_path, mode):
         source = write_recording(tmp_path / f'in_{storage_in}', scene, storage_in)
         for storage_out in ('sqlite3', 'mcap'):
             out = tmp_path / f'out_{storage_in}_{storage_out}'
-            replay(source, out, mode=mode, storage=storage_out, progress=False)
+            replay(source, out, mode=mode, storage=storage_out)
             outputs[storage_in, storage_out] = read_all(out)
     reference = outputs['mcap', 'mcap']
     assert set(reference) == set(OUTPUT_TOPICS)
@@ -229,7 +237,7 @@ def test_online_replay_logs_each_output_at_its_header_stamp(walk_bag, tmp_path):
     from rosbags.highlevel import AnyReader
 
     out = tmp_path / 'out'
-    summary = replay(walk_bag, out, mode='online', progress=False)
+    summary = replay(walk_bag, out, mode='online')
     params = HacParams()
     seen = {t: 0 for t in OUTPUT_TOPICS}
     with AnyReader([out]) as reader:
@@ -258,7 +266,7 @@ def test_online_replay_logs_each_output_at_its_header_stamp(walk_bag, tmp_path):
 def test_offline_publishes_every_frame_with_one_scale(walk_bag, tmp_path):
     from rosbags.highlevel import AnyReader
 
-    summary = replay(walk_bag, tmp_path / 'out', progress=False)
+    summary = replay(walk_bag, tmp_path / 'out')
     assert summary.mode == 'offline' and summary.offline is not None
     scales = []
     with AnyReader([tmp_path / 'out']) as reader:
@@ -290,7 +298,7 @@ def test_params_file_is_read_and_flags_override_it(walk_bag, tmp_path):
 
 
 def test_copy_inputs_carries_every_input_topic_unchanged(walk_bag, tmp_path):
-    replay(walk_bag, tmp_path / 'out', mode='online', copy_inputs=True, progress=False)
+    replay(walk_bag, tmp_path / 'out', mode='online', copy_inputs=True)
     source, copied = read_all(walk_bag), read_all(tmp_path / 'out')
     for topic, items in source.items():
         assert copied[topic] == items, topic
@@ -306,8 +314,8 @@ def test_a_ros1_bag_gives_the_same_outputs(walk_bag, tmp_path):
             default_typestore=get_typestore(Stores.ROS2_JAZZY),
             typestore=get_typestore(Stores.ROS1_NOETIC), exclude_topics=[], include_topics=[],
             exclude_msgtypes=[], include_msgtypes=[])
-    replay(ros1, tmp_path / 'from_ros1', mode='online', copy_inputs=True, progress=False)
-    replay(walk_bag, tmp_path / 'from_ros2', mode='online', progress=False)
+    replay(ros1, tmp_path / 'from_ros1', mode='online', copy_inputs=True)
+    replay(walk_bag, tmp_path / 'from_ros2', mode='online')
     from_ros1, from_ros2 = read_all(tmp_path / 'from_ros1'), read_all(tmp_path / 'from_ros2')
     for topic in OUTPUT_TOPICS:  # CameraInfo (K -> k) and headers (seq) are converted too
         assert from_ros1[topic] == from_ros2[topic], topic
@@ -333,12 +341,12 @@ def test_pose_type_read_from_the_recording_and_a_wrong_override_is_an_error(tmp_
     for source in (odometry, pose):
         for node_type in ('PoseStamped', 'Odometry'):
             summary = replay(source, tmp_path / f'{source.name}_{node_type}',
-                             HacParams(pose_type=node_type), progress=False)
+                             HacParams(pose_type=node_type))
             assert summary.status.frames == 40
     with pytest.raises(ArgumentError, match=r'nav_msgs/msg/Odometry.* \(use pose_type Odometry'):
-        replay(odometry, tmp_path / 'wrong', pose_type='PoseStamped', progress=False)
+        replay(odometry, tmp_path / 'wrong', pose_type='PoseStamped')
     with pytest.raises(ArgumentError, match=r' \(use pose_type PoseStamped, or no pose_type'):
-        replay(pose, tmp_path / 'wrong', pose_type='Odometry', progress=False)
+        replay(pose, tmp_path / 'wrong', pose_type='Odometry')
     _assert_clean_error(hac('replay', str(pose), '-o', str(tmp_path / 'wrong'), '--pose-type',
                             'Odometry'),
                         '(use --pose-type PoseStamped, or no --pose-type: it is read from the '
@@ -354,6 +362,53 @@ def test_summary_names_frames_scale_fallback_rejections_resets_and_speed(walk_ba
         assert text in result.stdout, text
     assert 'Traceback' not in result.stderr
     assert '\r' not in result.stderr  # no progress bar when stderr is not a terminal
+
+
+def test_the_library_draws_no_bar_it_advances_the_display_it_is_given(walk_bag, tmp_path):
+    """Progress is the caller's: replay() advances a given display pass by pass to its total
+    (offline: estimate, then write; online: one pass) and prints nothing by itself."""
+    passes: list[tuple[str, int, int]] = []
+
+    @contextlib.contextmanager
+    def display(total: int, label: str) -> Iterator[Any]:
+        done = []
+        yield SimpleNamespace(update=done.append)
+        passes.append((label, total, sum(done)))
+
+    replay(walk_bag, tmp_path / 'offline', progress=display)
+    replay(walk_bag, tmp_path / 'online', mode='online', progress=display)
+    assert [label for label, _, _ in passes] == ['estimate', 'write', 'replay']
+    assert all(total > 0 and done == total for _, total, done in passes), passes
+
+
+def test_the_command_shows_a_bar_on_a_terminal_and_not_with_no_progress(walk_bag, tmp_path):
+    """hac replay draws the bar (hac_ros.cli.terminal) when stderr is a terminal."""
+    def stderr_on_a_terminal(*flags: str) -> str:
+        controller, terminal = pty.openpty()
+        fcntl.ioctl(terminal, termios.TIOCSWINSZ, struct.pack('HHHH', 24, 100, 0, 0))  # 100 wide
+        process = subprocess.Popen(
+            [sys.executable, '-m', 'hac_ros.cli', 'replay', str(walk_bag), '-o',
+             str(tmp_path / f'out{len(flags)}'), *flags], cwd=REPO, stdout=subprocess.DEVNULL,
+            stderr=terminal)
+        os.close(terminal)  # the child holds it: reading ends when the child has exited
+        chunks = []
+        try:
+            while True:
+                try:
+                    chunk = os.read(controller, 65536)
+                except OSError:  # EIO: the terminal's last writer is gone
+                    break
+                if not chunk:
+                    break
+                chunks.append(chunk)
+        finally:
+            os.close(controller)
+        assert process.wait(timeout=120) == 0
+        return b''.join(chunks).decode(errors='replace')
+
+    shown = stderr_on_a_terminal()
+    assert 'estimate' in shown and 'write' in shown and 'msg' in shown, shown
+    assert 'estimate' not in stderr_on_a_terminal('--no-progress')
 
 
 def test_notices_are_printed_once_on_stderr(tmp_path):
@@ -373,7 +428,7 @@ def test_the_library_logs_its_notices_and_prints_nothing(tmp_path, caplog, capfd
     scene.joints_world[10:20] = np.nan
     source = write_recording(tmp_path / 'nan', scene, camera_info=False)
     with caplog.at_level(logging.INFO, logger='hac_ros'):
-        replay(source, tmp_path / 'out', progress=False)
+        replay(source, tmp_path / 'out')
     notices = [(r.name, r.levelname, r.getMessage()) for r in caplog.records]
     assert ('hac_ros.replay.replayer', 'INFO', 'no camera/camera_info in the recording: joints are '
             'judged in view by the map cone alone') in notices
@@ -399,7 +454,7 @@ def test_existing_output_is_an_error_and_is_left_alone(walk_bag, tmp_path):
     _assert_clean_error(hac('replay', str(walk_bag), '-o', str(out)), 'already exists')
     assert (out / 'keep.txt').read_text() == 'mine'
     with pytest.raises(HacError, match='already exists'):
-        replay(walk_bag, out, progress=False)
+        replay(walk_bag, out)
 
 
 def test_missing_input_topic_names_what_the_recording_contains(tmp_path):
@@ -416,7 +471,7 @@ def test_renamed_topics_are_found_with_flags(tmp_path):
     _assert_clean_error(hac('replay', str(source), '-o', str(tmp_path / 'a')), '/hmr/joints',
                         '/vimo/joints', '(use --joints-topic)')
     with pytest.raises(ArgumentError, match=r'/hmr/joints is not in .* \(use joints_topic\)'):
-        replay(source, tmp_path / 'a', progress=False)
+        replay(source, tmp_path / 'a')
     result = hac('replay', str(source), '-o', str(tmp_path / 'b'), '--joints-topic', '/vimo/joints')
     assert result.returncode == 0, result.stderr
 
@@ -514,8 +569,8 @@ def test_a_malformed_map_cloud_is_a_counted_rejection_as_in_the_node(tmp_path, m
 
     source = write_recording(tmp_path / 'rec', walking_scene(frames=80), cloud_every=20)
     bad = _with_messages_broken(source, tmp_path / 'bad', {1: one_point_short, 2: lambda b: b[:14]})
-    good = replay(source, tmp_path / 'good', mode=mode, progress=False)
-    summary = replay(bad, tmp_path / 'out', mode=mode, progress=False)
+    good = replay(source, tmp_path / 'good', mode=mode)
+    summary = replay(bad, tmp_path / 'out', mode=mode)
     assert summary.status.rejected.get('cloud_malformed') == 2
     assert good.status.rejected.get('cloud_malformed') is None
     assert summary.status.frames == good.status.frames == 80
@@ -531,7 +586,7 @@ def test_pose_and_joints_bytes_that_do_not_deserialize_are_counted_rejections(tm
     source = write_recording(tmp_path / 'rec', walking_scene(frames=80))
     poses_cut = _with_messages_broken(source, tmp_path / 'p', {30: lambda b: b[:10]}, '/slam/pose')
     bad = _with_messages_broken(poses_cut, tmp_path / 'bad', {40: lambda b: b[:10]}, '/hmr/joints')
-    summary = replay(bad, tmp_path / 'out', mode=mode, progress=False)
+    summary = replay(bad, tmp_path / 'out', mode=mode)
     assert summary.status.rejected.get('pose_nonfinite') == 1
     assert summary.status.rejected.get('joints_malformed') == 1
     assert summary.status.frames == 79
@@ -599,7 +654,7 @@ def _both_modes(source: Path, tmp_path: Path, params: HacParams):
 
     runs = {}
     for mode in ('online', 'offline'):
-        replay(source, tmp_path / mode, params, mode=mode, progress=False)
+        replay(source, tmp_path / mode, params, mode=mode)
         runs[mode] = read_output(tmp_path / mode)
     return runs
 
@@ -658,7 +713,7 @@ def test_offline_estimates_each_segment_of_a_reset_on_its_own(tmp_path):
     from hac_ros.recording.tracks import read_truth
 
     source = BAGS / 'reset_short'  # the SLAM re-initialises at 6 s with a new scale
-    summary = replay(source, tmp_path / 'offline', NO_MARKERS, progress=False)
+    summary = replay(source, tmp_path / 'offline', NO_MARKERS)
     assert [r.cause for r in summary.resets] == ['map_frame']
     assert len(summary.offline.segments) == 2
     runs = _both_modes(source, tmp_path / 'both', NO_MARKERS)
@@ -728,7 +783,7 @@ def test_offline_odometry_covariance_is_finite_from_the_first_pose(tmp_path):
     from rosbags.highlevel import AnyReader
     from rosbags.typesys import Stores, get_typestore
 
-    replay(BAGS / 'reset_short', tmp_path / 'out', NO_MARKERS, progress=False)
+    replay(BAGS / 'reset_short', tmp_path / 'out', NO_MARKERS)
     with AnyReader([tmp_path / 'out'], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:
         conns = [c for c in reader.connections if c.topic == '/hac/odometry']
         covariances = np.array([reader.deserialize(raw, conns[0].msgtype).pose.covariance

@@ -174,7 +174,7 @@ def test_online_replay_equals_the_node_stamp_by_stamp(tmp_path, kind):
         source = write_recording(tmp_path / 'in', walking_scene(frames=60), cloud_every=20)
     else:
         source = simulated(kind, 6.0, tmp_path / 'in')
-    replay(source, tmp_path / 'out', mode='online', progress=False)
+    replay(source, tmp_path / 'out', mode='online')
     ours = replay_outputs(tmp_path / 'out')
     node = play_to_node(source)
 

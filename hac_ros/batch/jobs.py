@@ -181,7 +181,7 @@ def _calibrate(job: Job) -> Row:
     for staging in output.parent.glob(f'.{output.name}.*{PARTIAL_SUFFIX}'):  # a killed attempt's
         shutil.rmtree(staging, ignore_errors=True)
     params = HacParams.from_dict(job.params)
-    summary = replay(job.input_path, output, params, mode=job.mode, progress=False)
+    summary = replay(job.input_path, output, params, mode=job.mode)
     log.info('%s', summary.text())
     status = summary.status
     if summary.last_scale is None:  # as hac replay's exit 3: the row fails with the reason

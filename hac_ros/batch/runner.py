@@ -2,18 +2,17 @@
 from __future__ import annotations
 
 import contextlib
-import sys
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 from hac_ros.batch.jobs import LOGS, SUMMARY_CSV, SUMMARY_MD, Job, Row, plan, recording_name
 from hac_ros.batch.pool import default_workers, run_pool
 from hac_ros.batch.summary import medians_line, write_summary
 from hac_ros.core.errors import ArgumentError
 from hac_ros.core.params import HacParams
+from hac_ros.replay.feeder import Progress
 
 
 # ============================================================================ the batch
@@ -46,12 +45,13 @@ class BatchResult:
 
 def batch(inputs: Sequence[str | Path], out_dir: str | Path, params: HacParams | None = None,
           mode: str = 'offline', workers: int | None = None, ray: str | None = None,
-          resume: bool = False, progress: bool | None = None) -> BatchResult:
+          resume: bool = False, progress: Progress | None = None) -> BatchResult:
     """Calibrate every recording of ``inputs`` into ``out_dir`` (module docstring).
 
     workers: parallel recordings (default: the cores this process may use; with Ray on a
     cluster, the cluster's CPUs decide); ray: None (a process pool), ``local`` or a cluster's
-    address; progress: a bar over recordings on stderr (default: when it is a terminal).
+    address; progress: a display advanced per recording (default none: the library draws
+    nothing; ``hac batch`` passes a bar on a terminal).
     Raises HacError on usage errors; a failed recording is a row, not an exception.
     """
     params = params or HacParams()
@@ -74,7 +74,11 @@ def batch(inputs: Sequence[str | Path], out_dir: str | Path, params: HacParams |
                 print(f'hac batch: {time.strftime("%Y-%m-%d %H:%M:%S")}: skipped (resumed): '
                       f'{out_dir / name} is complete for the same input, parameters and mode',
                       file=log)
-        bar = stack.enter_context(_bar(progress, len(jobs) + len(done), len(done)))
+        total = len(jobs) + len(done)
+        bar = (stack.enter_context(progress(total, 'hac batch')) if progress is not None
+               else None)
+        if bar is not None and done:
+            bar.update(len(done))
 
         def on_row(job: Job, row: Row) -> None:
             rows[job.name] = row
@@ -87,18 +91,3 @@ def batch(inputs: Sequence[str | Path], out_dir: str | Path, params: HacParams |
     ordered = [rows[recording_name(p)] for p in inputs]
     write_summary(out_dir, ordered, mode)
     return BatchResult(out_dir, mode, ordered)
-
-
-@contextlib.contextmanager
-def _bar(enabled: bool | None, total: int, initial: int) -> Any:
-    """A tqdm bar over recordings on a terminal; None otherwise."""
-    if enabled is None:
-        enabled = sys.stderr.isatty()
-    if not enabled:
-        yield None
-        return
-    from tqdm import tqdm
-
-    with tqdm(total=total, initial=initial, desc='hac batch', unit='rec', file=sys.stderr,
-              dynamic_ncols=True) as bar:
-        yield bar

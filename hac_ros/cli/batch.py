@@ -31,9 +31,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from hac_ros.batch.runner import batch
+    from hac_ros.cli.terminal import progress_bar
 
     result = batch(args.inputs, args.output, load_params(args.params), mode=args.mode,
-                   workers=args.workers, ray=args.ray, resume=args.resume)
+                   workers=args.workers, ray=args.ray, resume=args.resume,
+                   progress=progress_bar('rec', leave=True))
     print(result.text())
     if any(row.error for row in result.rows):
         print('  (--resume redoes what failed and keeps what is complete)')

@@ -74,6 +74,7 @@ def clear_results(out_dir: Path) -> None:
             path.unlink()
 
 def demo(out_dir: Path, recording: str | None = None) -> int:
+    from hac_ros.cli.terminal import progress_bar
     from hac_ros.evaluation.evaluate import evaluate
     from hac_ros.evaluation.plots import make_plots
     from hac_ros.replay.replayer import replay
@@ -85,7 +86,7 @@ def demo(out_dir: Path, recording: str | None = None) -> int:
         clear_results(out_dir)
         try:
             summary = replay(source, out_dir / 'replay', mode='offline',
-                             export_tum=out_dir / 'tum')
+                             export_tum=out_dir / 'tum', progress=progress_bar('msg'))
             print(summary.text())
             print()
             result = evaluate(out_dir / 'replay', source)

@@ -33,6 +33,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from hac_ros.cli.terminal import progress_bar
     from hac_ros.replay.replayer import replay
 
     params = load_params(args.params, {
@@ -41,7 +42,7 @@ def run(args: argparse.Namespace) -> int:
     summary = replay(args.input, args.output, params, mode=args.mode, storage=args.storage,
                      pose_type=args.pose_type,
                      copy_inputs=args.copy_inputs, export_tum=args.export_tum,
-                     progress=False if args.no_progress else None)
+                     progress=None if args.no_progress else progress_bar('msg'))
     print(summary.text())
     if not summary.calibrated:  # a replay that calibrated nothing is not a success
         print(f'hac replay: {summary.why_not_calibrated()}', file=sys.stderr)

@@ -4,6 +4,9 @@ The library logs (module loggers under ``hac_ros``); a command shows those recor
 above on stderr, one line each, ``hac COMMAND: LEVEL: message`` (``hac replay: warning: t+3.200 s
 ...``), written between the lines of a progress bar rather than through it. Nothing else of the
 process is changed: other libraries' loggers and the streams are left as they are.
+
+The progress bars are the command's too (:func:`progress_bar`): the library only advances the
+display it is given (:data:`hac_ros.replay.feeder.Progress`) and draws none itself.
 """
 from __future__ import annotations
 
@@ -11,6 +14,10 @@ import contextlib
 import logging
 import sys
 from collections.abc import Iterator
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:  # the command starts without importing the library
+    from hac_ros.replay.feeder import Progress
 
 PACKAGE_LOGGER = 'hac_ros'
 LEVEL = logging.INFO
@@ -58,3 +65,16 @@ def terminal_logging(command: str) -> Iterator[None]:
         for old in handlers:
             package.addHandler(old)
         package.setLevel(level)
+
+
+def progress_bar(unit: str, leave: bool = False) -> Progress | None:
+    """A tqdm bar on stderr per pass of the library (counting ``unit``), when stderr is a terminal;
+    None otherwise (a pipe, a log file: no bar)."""
+    if not sys.stderr.isatty():
+        return None
+    from tqdm import tqdm
+
+    def bar(total: int, label: str) -> Any:
+        return tqdm(total=total, desc=label, unit=unit, file=sys.stderr, dynamic_ncols=True,
+                    leave=leave, mininterval=0.2)
+    return bar

@@ -10,8 +10,9 @@ from __future__ import annotations
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import Future
+from contextlib import AbstractContextManager
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -31,6 +32,18 @@ from hac_ros.core.params import POSE_MSGTYPES, HacParams
 from hac_ros.core.tf_tree import TfPoses
 from hac_ros.recording.reader import Recording
 from msg_adapters import MessageError, parse_cloud_cdr
+
+
+class ProgressBar(Protocol):
+    """What the library advances as it works: ``update(n)``, n more units done."""
+
+    def update(self, n: int, /) -> Any: ...
+
+
+# A progress display the caller provides: called with the total and a label, it gives a context
+# whose value is a ProgressBar. The library draws nothing itself (the ``hac`` command passes a bar
+# on a terminal: hac_ros.cli.terminal).
+Progress = Callable[[int, str], AbstractContextManager[ProgressBar]]
 
 # Messages of the same log time are fed in this order (then any other topic): the camera's
 # intrinsics and the map before the frame they serve, the pose (the clock) before its joints.
@@ -140,7 +153,7 @@ class CoreFeeder:
 
     def run(self, on_outputs: Callable[[list[Output]], None],
             on_message: Callable[[str, int, Any], None] | None = None,
-            progress: Any = None) -> None:
+            progress: ProgressBar | None = None) -> None:
         """Feed every input message in log-time order, then flush. Map clouds are decoded and
         indexed ahead on the map builder's threads and handed over in order, at their place."""
         builder = MapBuilder(self.calibrator.build_index, workers=MAP_WORKERS)

@@ -21,17 +21,15 @@ Besides the node's output topics the replay writes ``/hac/samples`` (per-frame s
 """
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
-import sys
 import time
 from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
-
-from tqdm import tqdm
 
 from hac_ros.bridge.messages import (
     CLOUD,
@@ -64,7 +62,7 @@ from hac_ros.files.tum import write_tum_exports
 from hac_ros.recording.atomic import staged_output
 from hac_ros.recording.reader import STORAGES, Recording, layout_data
 from hac_ros.recording.writer import OutputWriter, check_output_path
-from hac_ros.replay.feeder import CoreFeeder, InputTopics
+from hac_ros.replay.feeder import CoreFeeder, InputTopics, Progress, ProgressBar
 
 MODES = ('offline', 'online')
 NOTICE_LEVELS = {'info': logging.INFO, 'warn': logging.WARNING, 'error': logging.ERROR}
@@ -86,7 +84,7 @@ class OutputHandler:
         self.poses: list[PoseOut] | None = [] if keep_poses else None  # /hac/pose, for TUM
         self.last_scale: ScaleOut | None = None  # the last /hac/scale written
 
-    def __call__(self, outputs: list[Output], progress: Any = None) -> None:
+    def __call__(self, outputs: list[Output], progress: ProgressBar | None = None) -> None:
         """Write the messages of ``outputs``; ``progress``: a bar advanced as they are written."""
         frame_samples: list[SampleOut] = []
         for count, output in enumerate(outputs, 1):
@@ -227,14 +225,15 @@ class ReplaySummary:
 
 def replay(input_path: str | Path, output_path: str | Path, params: HacParams | None = None,
            mode: str = 'offline', storage: str = 'mcap', copy_inputs: bool = False,
-           export_tum: str | Path | None = None, progress: bool | None = None,
+           export_tum: str | Path | None = None, progress: Progress | None = None,
            pose_type: str | None = None) -> ReplaySummary:
     """Calibrate the recording at ``input_path`` into a new recording at ``output_path``.
 
     mode: ``offline`` or ``online`` (module docstring); storage: of OUT, ``mcap`` or ``sqlite3``;
     copy_inputs: every topic of IN is copied into OUT too; export_tum: a directory for TUM files
-    (:func:`hac_ros.files.tum.write_tum_exports`); progress: a bar on stderr (default: when it is a
-    terminal); pose_type: ``PoseStamped`` or ``Odometry`` overrides the SLAM pose type read from
+    (:func:`hac_ros.files.tum.write_tum_exports`); progress: a progress display to advance per
+    message (:data:`~hac_ros.replay.feeder.Progress`; default none: the library draws nothing);
+    pose_type: ``PoseStamped`` or ``Odometry`` overrides the SLAM pose type read from
     IN. The calibrator's notices are logged (this module's logger), each once.
     Raises :class:`HacError` (OUT exists, IN missing or unreadable, ...; :class:`ArgumentError`
     naming the argument or parameter: an invalid mode, missing topics, ...). On any error or
@@ -248,8 +247,6 @@ def replay(input_path: str | Path, output_path: str | Path, params: HacParams | 
                             'storage')
     input_path, output_path = Path(input_path), Path(output_path)
     check_output_path(input_path, output_path)
-    if progress is None:
-        progress = sys.stderr.isatty()
     start = time.perf_counter()
     with Recording(input_path) as recording:
         topics = InputTopics.check(recording, params, pose_type)
@@ -293,7 +290,7 @@ def replay(input_path: str | Path, output_path: str | Path, params: HacParams | 
 
 
 def _offline(feeder: CoreFeeder, handler: OutputHandler,
-             on_message: Callable[[str, int, Any], None] | None, progress: bool,
+             on_message: Callable[[str, int, Any], None] | None, progress: Progress | None,
              n_pass: int) -> tuple[Status, OfflineScale]:
     """The offline mode: one run of an offline calibrator (its metric outputs held back in its
     journal), then the run resolved with the schedule of its accepted samples and resets and
@@ -331,21 +328,7 @@ def _input_copier(recording: Recording, writer: OutputWriter) -> Callable[[str, 
     return copy
 
 
-class _progress:
-    """A tqdm bar on a terminal, nothing otherwise."""
-
-    def __init__(self, enabled: bool, total: int, desc: str) -> None:
-        self.enabled, self.total, self.desc = enabled, total, desc
-        self.bar: Any = None
-
-    def __enter__(self) -> Any:
-        if not self.enabled:
-            return None
-
-        self.bar = tqdm(total=self.total, desc=self.desc, unit='msg', file=sys.stderr,
-                        dynamic_ncols=True, leave=False, mininterval=0.2)
-        return self.bar
-
-    def __exit__(self, *exc: Any) -> None:
-        if self.bar is not None:
-            self.bar.close()
+def _progress(progress: Progress | None, total: int, label: str
+              ) -> contextlib.AbstractContextManager[ProgressBar | None]:
+    """The caller's progress display for one pass, or nothing."""
+    return contextlib.nullcontext() if progress is None else progress(total, label)
