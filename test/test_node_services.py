@@ -3,8 +3,10 @@
 stand-in tf2_ros (test/standins: tf2_ros is not installable here)."""
 from __future__ import annotations
 
+import importlib.util
 import os
 import signal
+import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -252,6 +254,50 @@ def test_pose_source_tf_through_a_stand_in_listener(tmp_path, walk):
     # should the latched static still come after the first SLAM transforms (a loaded machine),
     # those are counted, never turned into poses
     assert int(diagnostics.get('rejected.tf_unconnected', '0')) <= 10
+
+
+def test_pose_source_tf_refuses_a_chain_through_a_second_dynamic_transform(harness, monkeypatch,
+                                                                           capfd):
+    """The node's own TF path (hac_ros.ros.tf_input fed by test/standins' listener, in this
+    process): a SLAM's map -> odom over wheel odometry's odom -> camera_optical would mix metric
+    motion into SLAM units. Every such transform is counted as rejected.tf_chain_dynamic, no pose
+    is made of it, the error naming both transforms is logged once, and the node keeps running."""
+    from msg_adapters import rt_to_transform_stamped
+
+    spec = importlib.util.spec_from_file_location(
+        'tf2_ros', REPO / 'test' / 'standins' / 'tf2_ros' / '__init__.py')
+    assert spec is not None and spec.loader is not None
+    standin = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(standin)
+    monkeypatch.setitem(sys.modules, 'tf2_ros', standin)  # for this test only
+    r = harness(wait=False, pose_source='tf', slam_pose_frame='camera_optical')
+    tf = r.io.create_publisher(TYPES.get('geometry_msgs/msg/TransformStamped'), '/tf_standin',
+                               RELIABLE)
+    assert wait_for(lambda: tf.get_subscription_count() > 0, 10.0), 'the listener did not connect'
+    pairs = 20
+    for i in range(pairs):
+        stamp = 1_000_000_000 + i * 33_000_000
+        along = np.array([0.01 * i, 0.0, 0.0])
+        tf.publish(rt_to_transform_stamped(np.eye(3), along, stamp, 'map', 'odom', TYPES))
+        tf.publish(rt_to_transform_stamped(np.eye(3), along, stamp, 'odom', 'camera_optical',
+                                           TYPES))
+
+    def rejected() -> dict[str, int]:
+        with r.node.lock:
+            return dict(r.node.core.status().rejected)
+    # the first map -> odom cannot reach camera_optical yet; every transform after it closes a
+    # chain through both
+    assert wait_for(lambda: rejected().get('tf_chain_dynamic', 0) == 2 * pairs - 1, 20.0), \
+        rejected()
+    assert rejected().get('tf_unconnected') == 1
+    with r.node.lock:
+        assert r.node.core.status().frames == 0
+    assert r.messages('/hac/pose') == [] and r.messages('/hac/odometry') == []
+    error = ("passes through 2 dynamic transforms (map -> odom, odom -> camera_optical)")
+    logged = capfd.readouterr().err
+    assert logged.count(error) == 1, logged
+    assert 'further ones are counted as rejected.tf_chain_dynamic' in logged
+    assert r.node.tf_input is not None and r.node.context.ok()  # still listening
 
 
 def test_pose_source_tf_without_tf2_ros_names_what_to_install(tmp_path):

@@ -4,9 +4,10 @@ Kept apart from the node, as the TF output (:mod:`hac_ros.ros.tf_broadcast`) is,
 ``tf2_ros`` is not in the rclpy wheels. tf2_ros' own ``TransformListener`` subscribes to ``/tf``
 and ``/tf_static`` (with their usual QoS: ``/tf_static`` transient local) and hands every
 ``TransformStamped`` to a buffer's ``set_transform`` / ``set_transform_static``; the buffer given
-to it here is :class:`TfPoseInput`, which passes each transform, on the executor's thread, through
-the same :func:`hac_ros.bridge.inputs.add_transform` and :class:`hac_ros.core.tf_tree.TfPoses` as
-the replay: a pose at the stamp of every message of the SLAM's own transform, rejections counted
+to it here is :class:`TfPoseInput`, which passes each transform (through the node's inbox, on its
+processing thread, in arrival order with the other inputs) through the same
+:func:`hac_ros.bridge.inputs.add_transform` and :class:`hac_ros.core.tf_tree.TfPoses` as the
+replay: a pose at the stamp of every message of the SLAM's own transform, rejections counted
 in ``/diagnostics``. A chain through a second dynamic transform is logged as an error (once per
 chain) and counted as ``tf_chain_dynamic``: the node never stops.
 
