@@ -1,0 +1,168 @@
+"""The docs say what the code does: the command lines they show use options the commands have, the
+parameters they set are valid, the defaults they state are the code's, and the launch file passes
+the node parameters it has, at their defaults. (The parameter table of docs/node.md and
+config/hac.yaml are held to the code by test_node.py.)"""
+from __future__ import annotations
+
+import ast
+import re
+from pathlib import Path
+
+import pytest
+import yaml
+
+from hac_ros.core.params import HacParams, describe, names
+
+REPO = Path(__file__).resolve().parents[1]
+PAGES = [REPO / 'README.md', *sorted((REPO / 'docs').glob('*.md'))]
+# other software's parameters of the same name, with their own defaults
+OTHERS = {('inputs.md', 'camera_frame')}  # stella_vslam_ros' camera_frame (default camera_frame)
+
+
+def _text(path: Path) -> str:
+    return path.read_text(encoding='utf-8')
+
+
+def _snippets(text: str) -> list[str]:
+    """What a reader would type: each line of a fenced code block (continuation lines joined)
+    and each inline code span."""
+    lines = [line for block in re.findall(r'```[a-z]*\n(.*?)```', text, re.S)
+             for line in block.replace('\\\n', ' ').splitlines()]
+    return lines + re.findall(r'`([^`\n]+)`', text)
+
+
+def _subcommand_options() -> dict[str, set[str]]:
+    from hac_ros.cli import build_parser
+
+    parser = build_parser()
+    sub = next(a for a in parser._actions if a.dest == 'command')
+    return {name: {o for a in p._actions for o in a.option_strings}
+            for name, p in sub.choices.items()}
+
+
+def test_every_hac_command_line_in_the_docs_uses_options_the_command_has():
+    options = _subcommand_options()
+    used, wrong = 0, []
+    for page in PAGES:
+        for snippet in _snippets(_text(page)):
+            for m in re.finditer(r'\bhac (\w+)((?:\s+[^\s#|`]+)*)', snippet):
+                command, rest = m.groups()
+                if command not in options:
+                    if command != 'COMMAND':
+                        wrong.append(f'{page.name}: no command hac {command}: {snippet}')
+                    continue
+                for flag in re.findall(r'(?<![\w-])(--?[a-zA-Z][\w-]*)', rest):
+                    used += 1
+                    if flag not in options[command]:
+                        wrong.append(f'{page.name}: hac {command} has no {flag}: {snippet}')
+    assert used > 100  # the docs' command lines were found
+    assert wrong == []
+
+
+def _parameter_sets(text: str) -> list[dict]:
+    """The parameters the docs set: parameters files written with printf or shown as YAML
+    (their hac_node section), and ``-p name:=value`` on one command line."""
+    found = []
+    for body in re.findall(r"printf '([^']*)'", text):
+        found.append(yaml.safe_load(body.replace('\\n', '\n')))
+    for block in re.findall(r'```ya?ml\n(.*?)```', text, re.S):
+        found.append(yaml.safe_load(block))
+    sets = [f['hac_node']['ros__parameters'] for f in found if f and 'hac_node' in f]
+    for snippet in _snippets(text):
+        pairs = re.findall(r'-p (\w+):=(\S+)', snippet)
+        if pairs:
+            sets.append({k: yaml.safe_load(v) for k, v in pairs})
+    return sets
+
+
+def test_every_parameter_set_the_docs_show_is_valid():
+    sets = [(page.name, s) for page in PAGES for s in _parameter_sets(_text(page))]
+    assert len(sets) >= 4
+    for _, values in sets:
+        HacParams.from_dict(values)  # raises naming the parameter: unknown or invalid
+
+
+def _stated_defaults(text: str) -> list[tuple[str, object, object]]:
+    """(name, the value stated, the code's default) for each "`name` (`value`)" or "`name`
+    (default value)" where name is a parameter and value is one of its type: a string, or a
+    number with an optional unit s, m or % (in parentheses after a number parameter, a word in
+    backticks is something else: the reason it is counted under, say)."""
+    stated = []
+    pattern = re.compile(r'`(\w+)` \((?:default,? )?(`[^`]+`|[-+\d.e]+(?: ?(?:s|m|%))?)[),;]')
+    for name, value in pattern.findall(text):
+        if name not in names():
+            continue
+        default = describe(name)['default']
+        value = value.strip('`')
+        if isinstance(default, str):
+            stated.append((name, value, default))
+            continue
+        number = re.fullmatch(r'([-+\d.e]+) ?(s|m|%)?', value)
+        if number and isinstance(default, (int, float)):
+            scale = 0.01 if number.group(2) == '%' else 1.0
+            stated.append((name, float(number.group(1)) * scale, default))
+    return stated
+
+
+def test_the_defaults_the_docs_state_are_the_codes():
+    stated = [(page.name, *each) for page in PAGES for each in _stated_defaults(_text(page))
+              if (page.name, each[0]) not in OTHERS]
+    assert len(stated) >= 15
+    wrong = [f'{page}: {name} ({value}), the code\'s default {default!r}'
+             for page, name, value, default in stated if value != pytest.approx(default)]
+    assert wrong == []
+
+
+def test_the_launch_file_passes_node_parameters_at_their_defaults():
+    """launch/hac.launch.py is read, not imported (launch is not installable here): each launch
+    argument named after a parameter defaults to the parameter's default, and the node gets only
+    parameters it has."""
+    tree = ast.parse(_text(REPO / 'launch' / 'hac.launch.py'))
+    declared = {}
+    for call in ast.walk(tree):
+        if isinstance(call, ast.Call) and getattr(call.func, 'id', '') == 'DeclareLaunchArgument':
+            name = ast.literal_eval(call.args[0])
+            default = next(k.value for k in call.keywords if k.arg == 'default_value')
+            declared[name] = ast.literal_eval(default) if isinstance(default, ast.Constant) else None
+    passed = [ast.literal_eval(key) for d in ast.walk(tree) if isinstance(d, ast.Dict)
+              for key in d.keys if isinstance(key, ast.Constant) and isinstance(key.value, str)]
+    assert passed and set(passed) <= set(names()), passed
+    for name in passed:
+        assert declared[name] == describe(name)['default'], name
+
+
+def test_the_input_topics_interface_md_lists_are_parameters_with_those_defaults():
+    """docs/interface.md's input table: "`name` (`default`)" rows name parameters."""
+    listed = re.findall(r'^\| `(\w+)` \(`([^`]*)`', _text(REPO / 'docs' / 'interface.md'), re.M)
+    assert len(listed) >= 4
+    assert [(name, describe(name)['default']) for name, _ in listed] == listed
+
+
+def _headings(page: Path) -> list[str]:
+    return [h.strip() for h in re.findall(r'^#+ (.+)$', _text(page), re.M)]
+
+
+def _anchor(heading: str) -> str:
+    """GitHub's anchor of a heading: lower case, punctuation dropped, spaces as hyphens."""
+    return re.sub(r'[^\w\- ]', '', heading.lower()).replace(' ', '-')
+
+
+def test_links_and_named_sections_point_to_headings_that_exist():
+    """[text](page.md#anchor) links and the prose's 'docs/page.md, "Section"' references."""
+    pages = {page.name: page for page in PAGES}
+    checked, broken = 0, []
+    for page in PAGES:
+        text = _text(page)
+        for target, anchor in re.findall(r'\]\(([\w./-]*\.md|)#([\w-]+)\)', text):
+            linked = (page.parent / target).resolve() if target else page
+            checked += 1
+            if anchor not in {_anchor(h) for h in _headings(linked)}:
+                broken.append(f'{page.name}: {target}#{anchor}')
+        for name, section in re.findall(r'(?:docs/)?([\w-]+\.md),? "([^"]+)"', text):
+            section = ' '.join(section.split()).replace('`', '')  # wrapped across lines
+            checked += 1
+            if name not in pages or not any(h.replace('`', '').startswith(section)
+                                            for h in _headings(pages[name])):
+                broken.append(f'{page.name}: {name}, "{section}"')
+    assert checked > 30
+    assert broken == []
