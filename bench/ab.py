@@ -101,7 +101,7 @@ def verdict(ratios: list[float]) -> dict[str, Any]:
     need = math.ceil(AGREE_SHARE * len(ratios))
     keep = median >= WORSE and worse >= need
     if keep:
-        text = (f'removing it worsens the ratio by >= 10 % (median {median:.2f}, {worse} of '
+        text = (f'removing it worsens the ratio by >= {WORSE:g}x (median {median:.2f}, {worse} of '
                 f'{len(ratios)} pairs agree): keep')
     else:
         text = (f'does not pay: remove (median {median:.2f}, {worse} of {len(ratios)} pairs '

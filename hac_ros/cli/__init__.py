@@ -57,7 +57,8 @@ COMMANDS = {
 
 def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     """The parser; with ``only``, just that sub-command's module is imported (a fast start)."""
-    parser = argparse.ArgumentParser(prog='hac', description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(prog='hac', description='metric scale for monocular SLAM '
+                                     'from the people in view: one sub-command per job')
     parser.add_argument('--version', action='version', version=f'hac_ros {__version__}')
     sub = parser.add_subparsers(dest='command', metavar='COMMAND', required=True)
     for name, (module_name, help_text) in COMMANDS.items():
