@@ -257,3 +257,7 @@ def test_demo_live_gives_the_online_replays_final_scale(tmp_path):
     frames += int(dropped.group(1)) if dropped else 0
     assert frames >= 0.85 * online.status.frames, out
     assert 'converged' in out and 'hac_node over DDS' in out
+    # the counts are the last stamp-time status's, within the 20 s recording (not a status the
+    # node republished on its steady clock after the play ended, stamped with its clock)
+    as_of = re.search(r'counts as of t\+([0-9.]+) s', out)
+    assert as_of and 18.0 <= float(as_of.group(1)) <= 20.5, out

@@ -25,6 +25,9 @@ from typing import Any
 from hac_ros.core.health import STALE, WARN, Finding
 from hac_ros.core.params import HacParams
 
+# the reasons of the statuses the node's steady-clock timer republishes (Liveness.stale)
+NO_INPUT, NO_STATUS = 'no_input', 'no_status'
+STEADY_CLOCK_REASONS = (NO_INPUT, NO_STATUS)
 LATENCY_FRAMES = 300  # the recent joints frames whose latency /diagnostics reports (10 s at 30 Hz)
 
 
@@ -167,13 +170,13 @@ class Liveness:
         if since < p.stale_after_s:
             return None
         if not self.arrived:
-            return Finding('no_input', 'no input yet', STALE)
+            return Finding(NO_INPUT, 'no input yet', STALE)
         quiet = now - max(self.arrived.values())
         if quiet >= p.stale_after_s:
-            return Finding('no_input', f'no input for {quiet:.0f} s', STALE)
+            return Finding(NO_INPUT, f'no input for {quiet:.0f} s', STALE)
         if now - self.first_arrival_s < p.stale_after_s:
             return None  # input has only just begun
-        return Finding('no_status', f'no status for {since:.0f} s while input comes', WARN)
+        return Finding(NO_STATUS, f'no status for {since:.0f} s while input comes', WARN)
 
 
 class Processor:

@@ -29,6 +29,7 @@ from hac_ros.core.errors import HacError
 from hac_ros.core.numeric import NS
 from hac_ros.core.outputs import Status
 from hac_ros.core.params import NODE_NAME
+from hac_ros.ros.intake import STEADY_CLOCK_REASONS
 
 log = logging.getLogger(__name__)
 
@@ -104,6 +105,17 @@ def status_from_diagnostics(values: dict[str, str], stamp_ns: int) -> Status:
                   rejected=rejected, map_points=count('map_points'))
 
 
+def stamp_time_status(msg: Any) -> bool:
+    """Whether a /diagnostics message is one of the node's stamp-time statuses, not the last one
+    republished by its steady-clock timer when no input or no status came (reasons ``no_input``,
+    ``no_status``; stamped with the node's clock, not in the recording's time: docs/node.md,
+    "Diagnostics")."""
+    if not msg.status:
+        return False
+    values = {kv.key: kv.value for kv in msg.status[0].values}
+    return not set(values.get('reasons', '').split(',')) & set(STEADY_CLOCK_REASONS)
+
+
 def domain_id() -> int:
     """ROS_DOMAIN_ID when set, else one of this process's own (10..99: clear of 0 and of
     Linux's ephemeral ports)."""
@@ -142,7 +154,8 @@ class _Collector:
         def record(msg: Any) -> None:
             with self._lock:
                 self.counts[topic] += 1
-                self.last[topic] = msg
+                if topic != '/diagnostics' or stamp_time_status(msg):
+                    self.last[topic] = msg
                 self.last_arrival = time.monotonic()
         return record
 
