@@ -204,7 +204,8 @@ def hac(*args: str, **kwargs: Any) -> subprocess.Popen:
 @pytest.mark.parametrize('args, needle', [
     (['--rate', '0'], '--rate 0.0: must be > 0'),
     (['--remap', '/slam/pose'], "--remap '/slam/pose': expected OLD:=NEW"),
-    (['--topics', '/nope'], 'topics: /nope not in'),
+    (['--topics', '/nope'], '--topics: /nope not in'),
+    (['--remap', '/gt/scale:=/x'], '--remap: /gt/scale is not a topic played'),
 ])
 def test_command_line_errors_are_one_line_and_exit_2(walk_bag, args, needle):
     process = hac('play', str(walk_bag), *args)

@@ -38,7 +38,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from hac_ros.core.errors import HacError, ParameterError
+from hac_ros.core.errors import ArgumentError, HacError, ParameterError
 from hac_ros.core.numeric import NS
 from hac_ros.core.params import POSE_MSGTYPES
 from hac_ros.recording.reader import Recording
@@ -122,18 +122,19 @@ def plan_topics(recording: Recording, topics: Sequence[str] | None = None,
         wanted = [t if t.startswith('/') else '/' + t for t in topics]
         missing = [t for t in wanted if t not in present]
         if missing:
-            raise HacError(f'topics: {", ".join(missing)} not in {recording.path}; it holds: '
-                           f'{recording.describe()}')
+            raise ArgumentError(f'{{topics}}: {", ".join(missing)} not in {recording.path}; it '
+                                f'holds: {recording.describe()}', 'topics')
     else:
         wanted = [t for t in DEFAULT_TOPICS if t in present]
         if not wanted:
-            raise HacError(f'{recording.path} holds none of the input topics '
-                           f'({", ".join(DEFAULT_TOPICS)}); name the ones to play (topics) and '
-                           f'remap them to the node\'s names. It holds: {recording.describe()}')
+            raise ArgumentError(f'{recording.path} holds none of the input topics '
+                                f'({", ".join(DEFAULT_TOPICS)}); name the ones to play '
+                                f'({{topics}}) and {{remap}} them to the node\'s names. It '
+                                f'holds: {recording.describe()}', 'topics', 'remap')
     unknown = [old for old in remap if old not in wanted]
     if unknown:
-        raise HacError(f'remap: {", ".join(unknown)} is not a topic played (played: '
-                       f'{", ".join(wanted)})')
+        raise ArgumentError(f'{{remap}}: {", ".join(unknown)} is not a topic played (played: '
+                            f'{", ".join(wanted)})', 'remap')
     plan, skipped = [], []
     types = rclpy_types()
     offered = _latched_topics(recording)
