@@ -1,0 +1,375 @@
+"""The Calibrator's state and its frame loop: what happens once a SLAM pose is accepted.
+
+:class:`FrameLoop` holds everything one calibration knows (the estimator, the ground model, the
+maps, the pose track, the counters) and runs the processing order of docs/interface.md from an
+accepted pose on: the frames before its stamp, its odometry, the frame of its stamp; per frame the
+map in use, then every person's scale sample (docs/method.md, steps 1-6); resets and new segments;
+the metric records handed to the metric stage (online) or kept in the journal (offline); the
+status. :class:`hac_ros.core.calibrator.Calibrator` adds the inputs: stamps judged, poses vetted,
+frames queued until their pose is known.
+"""
+from __future__ import annotations
+
+import math
+from collections import Counter, deque
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from hac_ros.core.convention_check import ConventionCheck
+from hac_ros.core.conventions import Conventions
+from hac_ros.core.estimator import RollingScale
+from hac_ros.core.ground import GroundModel
+from hac_ros.core.human_filter import RootFilter
+from hac_ros.core.map_book import MapBook
+from hac_ros.core.metric_stage import MetricStage, ScaleAt, StageConfig, finite_scale
+from hac_ros.core.numeric import MEDIAN_STD_ERROR, NS
+from hac_ros.core.outputs import REASONS, NoticeOut, ResetOut, SampleOut, Status
+from hac_ros.core.params import HacParams
+from hac_ros.core.pending import (
+    Pending,
+    PendingFrame,
+    PendingMap,
+    PendingOdometry,
+    PendingSegment,
+    PendingStatus,
+    Record,
+)
+from hac_ros.core.plausibility import body_unit_problem
+from hac_ros.core.pose_stream import FreezeWatch, Pose, PoseTrack
+from hac_ros.core.reference import MapIndex
+from hac_ros.core.sample import Scene, person_sample
+from hac_ros.core.services import ServiceRequests
+from hac_ros.core.timeline import Timeline
+
+GROUND_SHARE_SAMPLES = 30  # recent samples whose sources say whether the ground plane carries
+# resets that keep the map in use, and the ground model: the same SLAM map goes on
+KEEPS_MAP = ('map_overlap', 'service', 'time_jump_ahead')
+KEEPS_GROUND = ('service', 'time_jump_ahead')
+
+
+@dataclass
+class Frame:
+    """One image's HMR joints, waiting for (or matched to) its SLAM pose."""
+    stamp_ns: int
+    joints_cam: np.ndarray  # (P, K, 3) metres, camera optical frame (K: the joint layout's)
+
+
+class FrameLoop:
+    """The state of one calibration and the per-frame loop (the base of Calibrator, which
+    documents ``schedule`` and ``offline``)."""
+
+    def __init__(self, params: HacParams | None = None, schedule: ScaleAt | None = None,
+                 offline: bool = False) -> None:
+        self.params = params or HacParams()
+        self.schedule = schedule
+        self.journal: list[Record] | None = [] if offline else None
+        p = self.params
+        self._cos_min = math.cos(math.radians(p.cone_angle_deg))
+        self.rejected: Counter[str] = Counter()
+        self.events: Counter[str] = Counter()  # time jumps (hac_ros.core.timeline)
+        self._noticed: set[str] = set()
+        self.frames = self.people = self.map_hits = self.ground_fallbacks = self.resets = 0
+        self._K: np.ndarray | None = None
+        self._image_size = (0, 0)
+        self._camera_frame = p.camera_frame
+        self._child_frame = p.camera_frame
+        self.segment = -1  # the current segment (one SLAM map between re-initialisations)
+        self._init_stream()
+        self.services = ServiceRequests()  # ~/reset, ~/freeze
+        self.layout = p.layout()  # which joint is which (joint_layout)
+        self.conventions = Conventions(p.pose_to_optical, p.hmr_focal_px, self.layout)
+        self.check = ConventionCheck()  # warns when the geometry says a convention is wrong
+        # what depends on the published scale: the segments' placements, the continuous
+        # odometry, the cloud (hac_ros.core.metric_stage)
+        self.metric = MetricStage(StageConfig.from_params(p),
+                                  RootFilter(self.layout) if p.human_filter == 'smooth' else None)
+
+    def _init_stream(self) -> None:
+        """The state of one stream of header time, as at start-up (a jump back in time starts
+        a new one: hac_ros.core.timeline); the counters, the camera and the conventions stay."""
+        p = self.params
+        self.estimator = RollingScale(p.window_s, p.window_max_samples, p.min_samples,
+                                      p.gate_k, p.gate_min_rel)
+        self.ground = GroundModel(p.ground_mode, p.ground_inlier_m, p.ground_ransac_iters, p.seed)
+        self._map_frame: str | None = None
+        self.track = PoseTrack(p.pose_buffer, p.reset_jump_factor, p.reset_jump_min_rel,
+                               p.reset_confirm_poses, int(p.sync_slop_s * NS),
+                               p.interp_max_gap_s * NS)
+        self.timeline = Timeline(int(p.time_jump_back_s * NS), int(p.time_jump_ahead_s * NS),
+                                 p.reset_confirm_poses)
+        self._pending: list[Frame] = []  # sorted by stamp
+        self.maps = MapBook(p)  # waiting, in use (hac_ros.core.map_book)
+        self._last_frame_ns = -1
+        self._diag_second: int | None = None
+        self._segment_starts: str | None = ''  # the cause of a segment starting at the next pose
+        self._sources: deque[bool] = deque(maxlen=GROUND_SHARE_SAMPLES)  # True: a ground sample
+        self.freeze = FreezeWatch()
+
+    # ================================================================== state
+    @property
+    def converged(self) -> bool:
+        return self.estimator.converged
+
+    @property
+    def scale(self) -> float:
+        """The current estimate, metres per SLAM unit (RollingScale.current: the window's median,
+        or its drift trend while the scale drifts)."""
+        return self.estimator.current()
+
+    def published_scale(self, stamp_ns: int) -> float | None:
+        """The scale the metric outputs use at ``stamp_ns``, metres per SLAM unit (None: nothing
+        metric yet): the ``schedule``'s if one was given, else the online one."""
+        if self.schedule is not None:
+            return finite_scale(self.schedule(stamp_ns))
+        return self.online_scale()
+
+    def online_scale(self) -> float | None:
+        """The online scale, which the samples use (the map distance bound, the contacts' ground):
+        the estimate once converged, the held one while frozen (and after, until the fresh window
+        converges)."""
+        return self.services.scale(self.scale if self.converged else None)
+
+    def status(self, stamp_ns: int | None = None) -> Status:
+        """A snapshot of the estimator at ``stamp_ns`` (default: the last frame's stamp)."""
+        pending = self.pending_status(stamp_ns)
+        return self.metric.status(pending, self.published_scale(pending.status.stamp_ns))
+
+    def pending_status(self, stamp_ns: int | None = None) -> PendingStatus:
+        """The status before the metric stage places its ground plane in the metric frame."""
+        plane = self.ground.plane(self.map)
+        status = Status(
+            stamp_ns=int(self._last_frame_ns if stamp_ns is None else stamp_ns),
+            converged=self.converged, scale=self.scale, spread=self.estimator.spread(),
+            samples=self.estimator.samples, frames=self.frames, people=self.people,
+            map_hits=self.map_hits, ground_fallbacks=self.ground_fallbacks, resets=self.resets,
+            rejected=dict(self.rejected), map_points=len(self.map) if self.map is not None else 0,
+            ground_normal_map=None if plane is None else plane.normal,
+            ground_offset_slam=float('nan') if plane is None else plane.offset,
+            drifting=self.estimator.drifting, frozen=self.services.holding,
+            services=dict(self.services.counts), suspects=dict(self.check.suspects),
+            events=dict(self.events), conditions=self.conditions(),
+            pose_matches=dict(self.track.matches))
+        last = self.track.last
+        return PendingStatus(status, plane, None if last is None else last.c_map, self.segment)
+
+    def conditions(self) -> dict[str, str]:
+        """What holds now and makes /diagnostics WARN (hac_ros.core.health): reason -> text."""
+        out = {}
+        if self.freeze.holds:
+            out['slam_frozen'] = ('the SLAM pose repeats bit for bit while the people move: '
+                                  'tracking lost? (frames not sampled)')
+        if self.ground.floor_missing:
+            out['floor_unknown'] = ('no floor found in the map: the contacts\' map hits are not '
+                                    'checked against it (a table top or a step could pass for it)')
+        return out
+
+    @property
+    def map(self) -> MapIndex | None:
+        """The map in use (SLAM units, map frame), or None."""
+        return self.maps.in_use
+
+    @property
+    def child_frame_id(self) -> str:
+        return self.params.base_frame or self._child_frame
+
+    def _reject(self, reason: str, stamp_ns: int = -1, detail: str = '') -> list[Record]:
+        """Count a rejection; the first of each reason is announced with ``detail`` (else the
+        reason's text)."""
+        self.rejected[reason] += 1
+        if reason in self._noticed:
+            return []
+        self._noticed.add(reason)
+        text = detail or REASONS.get(reason, reason)
+        return [NoticeOut(int(stamp_ns), reason, f'rejected input ({reason}): {text}; '
+                          'further ones are counted in /diagnostics')]
+
+    # ================================================================== poses
+    def _accept_pose(self, pose: Pose, move: tuple[float, float] | None = None,
+                     measured: bool = True) -> list[Record]:
+        """Take ``pose`` as the camera's next one; ``move``: its step, if computed; ``measured``:
+        False when its step is not the camera's motion (a frozen SLAM's)."""
+        out: list[Record] = self._take_requests(pose) if self.services.queue else []
+        if self._segment_starts is not None:  # the stream's first pose starts its first segment
+            out += self._new_segment(pose, self._segment_starts)
+            self._segment_starts = None
+        self.track.append(pose, (self.track.step(pose) if move is None else move)
+                          if measured else None)
+        self.ground.add_camera(pose.R_wc)
+        # frames before this stamp first, then this pose's odometry, then the frame of this stamp
+        while self._pending and self._pending[0].stamp_ns < pose.stamp_ns:
+            out += self._process(self._pending.pop(0))
+        out += self._odometry(pose)
+        while self._pending and self._pending[0].stamp_ns <= pose.stamp_ns:
+            out += self._process(self._pending.pop(0))
+        return out
+
+    def _take_requests(self, pose: Pose) -> list[Record]:
+        out: list[Record] = []
+        for action, notice in self.services.take(pose.stamp_ns,
+                                                 lambda: self.published_scale(pose.stamp_ns)):
+            if action == 'reset':
+                out += self._reset(pose, 'service', 'requested (~/reset)')
+            elif action == 'release':
+                self.estimator.reset()  # a fresh window; the held scale serves until it converges
+            out.append(notice)
+        return out
+
+    # ================================================================== reset
+    def _new_segment(self, first_pose: Pose, cause: str) -> list[Record]:
+        self.segment += 1
+        keeps_map = cause in KEEPS_MAP
+        out = self._metric(PendingSegment(first_pose.stamp_ns, self.segment, first_pose.R_wc,
+                                          first_pose.c_map, keeps_map, cause))
+        if keeps_map and self.map is not None:
+            self.maps.unhanded = True  # the kept map, placed by the new segment
+        return out
+
+    def _reset(self, first_pose: Pose, cause: str, text: str) -> list[Record]:
+        """Forget the old map's scale and anchor the new map at ``first_pose``; a ``service`` reset
+        keeps the map and the ground model (the same map, only a new estimate)."""
+        self.estimator.reset()
+        if cause not in KEEPS_GROUND:
+            self.ground.reset()
+        self.resets += 1
+        self._sources.clear()
+        self.services.clear()  # a held scale belongs to the old segment
+        out: list[Record] = self._new_segment(first_pose, cause)
+        self.track.clear()
+        if cause not in KEEPS_MAP:
+            self.maps.drop()
+        # frames before the reset belong to the old map: their poses are gone
+        stale = [f for f in self._pending if f.stamp_ns < first_pose.stamp_ns]
+        self._pending = [f for f in self._pending if f.stamp_ns >= first_pose.stamp_ns]
+        out += [ResetOut(first_pose.stamp_ns, cause),
+                NoticeOut(first_pose.stamp_ns, 'reset', f'estimator reset ({cause}): {text}',
+                          'warn')]
+        for frame in stale:
+            out += self._reject('no_pose', frame.stamp_ns)
+        return out
+
+    # ================================================================== frames
+    def _activate_map(self, stamp_ns: int) -> list[Record]:
+        """Make the latest map not after ``stamp_ns`` the current one (the processing order); a
+        map that does not overlap the previous one is a SLAM re-initialisation."""
+        chosen, lost = self.maps.activate(stamp_ns)
+        pose = self.track.last
+        if chosen is None or not lost or pose is None:
+            return []
+        out = self._reset(pose, 'map_overlap', 'the new map does not overlap the previous one: '
+                          'SLAM re-initialised')
+        self.track.append(pose, None)  # the new segment starts at the last pose
+        return out
+
+    def _hand_map(self, stamp_ns: int) -> list[Record]:
+        """The map in use to the metric stage (for /hac/cloud), at most once per
+        ``cloud_min_period_s`` (MapBook.to_hand)."""
+        points = self.maps.to_hand(stamp_ns)
+        return [] if points is None else self._metric(PendingMap(stamp_ns, self.segment, points))
+
+    def _process(self, frame: Frame) -> list[Record]:
+        """One frame (docs/method.md, steps 1–6) for every person in it."""
+        out: list[Record] = []
+        stamp = frame.stamp_ns
+        pose = self.track.at(stamp)
+        if pose is None:
+            return self._reject('no_pose', stamp)
+        out += self._activate_map(stamp)
+        out += self._hand_map(stamp)
+        R_wc, c_map = pose
+        self._last_frame_ns = stamp
+        self.frames += 1
+        if not self.services.holding:  # frozen: nothing expires
+            self.estimator.advance(stamp)
+        self.check.view_map(stamp, self.map, R_wc, c_map, self._K, self._image_size)
+        if self.freeze.frame(self.track.frozen(stamp), frame.joints_cam):
+            out += self._reject('slam_frozen', stamp)  # its pose is not the camera's
+        else:
+            for person, joints in enumerate(frame.joints_cam):
+                out += self._person(stamp, person, R_wc, c_map, joints)
+        out += self.check.notices(stamp)
+        if self.journal is not None or self.published_scale(stamp) is not None:
+            plane = self.ground.plane(self.map)
+            out += self._metric(PendingFrame(stamp, self.segment, R_wc, c_map, frame.joints_cam,
+                                             self.estimator.spread(), plane))
+        return out
+
+    def _person(self, stamp: int, person: int, R_wc: np.ndarray, c_map: np.ndarray,
+                joints: np.ndarray) -> list[Record]:
+        """One person's scale sample (docs/method.md, steps 1–5; hac_ros.core.sample) and its
+        bookkeeping."""
+        self.people += 1
+        if not np.isfinite(joints).all():
+            return self._rejected_sample(stamp, person, 'nonfinite_joints')
+        unit = body_unit_problem(joints)
+        if unit:
+            return self._rejected_sample(stamp, person, 'joints_not_metres', unit)
+        if not (joints[:, 2] > 0.0).any():
+            return self._rejected_sample(stamp, person, 'behind_camera')
+        up_cam = self.layout.up_axis(joints)
+        self.ground.add_body(R_wc, up_cam)
+        self.check.add_person(self.layout, R_wc, joints, up_cam, self._K, self._image_size)
+        scale_now = self.online_scale()
+        scene = Scene(self.map, self.ground.plane(self.map), self.ground.normal(),
+                      self.ground.trusted, self._K, self._image_size, scale_now, self._cos_min)
+        sample = person_sample(self.params, self.layout, scene, R_wc, c_map, joints)
+        relock: list[Record] = []
+        if self.ground.judge_window(sample.floor_scale, scale_now, self.estimator.samples,
+                                    self.params.min_samples, self.params.plausibility_rel_tol):
+            self.estimator.reset()  # it locked on what the floor now refuses: judged afresh
+            relock.append(NoticeOut(stamp, 'floor_relock', 'the floor found in the map disagrees '
+                                    'with the estimate (an occluder taken for the contact?): '
+                                    'estimate restarted', 'warn'))
+            scale_now = None
+            scene = replace(scene, scale=None)
+            sample = person_sample(self.params, self.layout, scene, R_wc, c_map, joints)
+        if sample.reason:
+            return relock + self._rejected_sample(stamp, person, sample.reason)
+        if sample.source == 'map':
+            self.map_hits += 1
+        else:
+            self.ground_fallbacks += 1
+        if self.services.holding:  # counted, not used
+            self.services.samples += 1
+            return [*relock, SampleOut(stamp, person, sample.scale, sample.source, False)]
+        accepted = self.estimator.add(stamp, sample.scale)
+        out: list[Record] = [*relock, SampleOut(stamp, person, sample.scale, sample.source,
+                                                accepted)]
+        if not accepted:
+            out += self._reject('gated', stamp)
+        else:
+            self._sources.append(sample.source == 'ground')
+            if sample.source == 'map' and scale_now is not None:
+                contact_map = c_map + R_wc @ sample.contact_cam / scale_now
+                self.ground.add_contact(contact_map, scale_now)
+        return out
+
+    def _rejected_sample(self, stamp: int, person: int, reason: str, detail: str = ''
+                         ) -> list[Record]:
+        return [SampleOut(stamp, person, float('nan'), reason, False),
+                *self._reject(reason, stamp, detail)]
+
+    # ================================================================== outputs
+    def _odometry(self, pose: Pose) -> list[Record]:
+        """Every accepted pose (the odometry integrates them all, also while a segment
+        converges)."""
+        # the position's uncertainty comes from the scale's standard error (MetricStage)
+        n = max(self.estimator.samples, 1)
+        sigma_scale = MEDIAN_STD_ERROR * self.estimator.spread() / math.sqrt(n)
+        share = sum(self._sources) / len(self._sources) if self._sources else 0.0
+        plane = self.ground.plane(self.map)
+        return self._metric(PendingOdometry(pose.stamp_ns, self.child_frame_id, self.segment,
+                                            pose.R_wc, pose.c_map, sigma_scale, plane, share))
+
+    def _metric(self, pending: Pending) -> list[Record]:
+        """A metric record: kept as it is offline (resolved at the end), else resolved at once."""
+        if self.journal is not None:
+            return [pending]
+        return list(self.metric.apply(pending, self.published_scale))
+
+    def _diagnostics(self, stamp_ns: int) -> list[Record]:
+        second = stamp_ns // NS
+        if self._diag_second is not None and second <= self._diag_second:
+            return []
+        self._diag_second = second
+        return self._metric(self.pending_status(stamp_ns))
