@@ -200,7 +200,7 @@ class Harness:
             pub.publish(event.msg)
         if event.kind == 'cloud':
             self.clouds_published += 1
-            assert wait_for(lambda: self.node.clouds_done >= self.clouds_published, 10.0), \
+            assert wait_for(lambda: self.node.maps.done >= self.clouds_published, 10.0), \
                 'the node did not take the map cloud'
 
     def _extra_publisher(self, topic: str, msgtype: str) -> Any:

@@ -12,13 +12,10 @@ thread takes the inbox in arrival order and feeds the calibrator; everything tha
 calibrator holds one lock, so the calibrator sees one caller at a time. When input comes faster
 than it is processed, the inbox drops the oldest joints frames beyond ``joints_backlog_max``
 (``frames_dropped``), never poses: no backlog builds, and without drops the calibrator sees what
-the replay's feed gives it. The map builder (:class:`hac_ros.bridge.inputs.MapBuilder`, as in the
-replay) decodes and indexes map clouds on a thread of its own: a cloud arrives as raw CDR bytes,
-its header is read on the executor thread (microseconds), and the finished index goes into the
-inbox. **While a map is being built, frames use the latest map already handed over** (the previous
-one); the new map is used from the first frame processed after it is ready whose stamp is not
-before the map's stamp. This is the one place where the node may differ from ``hac replay``,
-which always has the map at its stamp.
+the replay's feed gives it. Map clouds are decoded and indexed on a thread of their own
+(:mod:`hac_ros.ros.map_intake`); **while a map is being built, frames use the latest map already
+handed over**, the one place where the node may differ from ``hac replay``, which always has the
+map at its stamp.
 
 Status. ``/diagnostics`` follows stamp time as in the replay (:mod:`hac_ros.core.health`), with
 what only the node knows added: the latency and backlog of its frames, and warnings when one kind
@@ -40,9 +37,8 @@ import sys
 import threading
 import time
 import traceback
-from collections import Counter, deque
+from collections import Counter
 from collections.abc import Callable, Sequence
-from concurrent.futures import Future
 from typing import TYPE_CHECKING, Any
 
 from rcl_interfaces.msg import SetParametersResult
@@ -53,7 +49,7 @@ from rclpy.parameter import Parameter
 from rclpy.qos import qos_policy_name_from_kind
 from rclpy.serialization import deserialize_message
 
-from hac_ros.bridge.inputs import MapBuilder, add_camera_info_msg, add_joints_msg, add_pose_msg
+from hac_ros.bridge.inputs import add_camera_info_msg, add_joints_msg, add_pose_msg
 from hac_ros.bridge.messages import DIAGNOSTICS, OUTPUT_TOPICS, OutputMessages, input_msgtype
 from hac_ros.core.calibrator import Calibrator
 from hac_ros.core.errors import ParameterError
@@ -63,25 +59,23 @@ from hac_ros.core.params import NODE_NAME, POSE_MSGTYPES, HacParams, names
 from hac_ros.core.reference import MapIndex
 from hac_ros.ros.arguments import run
 from hac_ros.ros.intake import Inbox, Item, Liveness, Processor
+from hac_ros.ros.map_intake import MapIntake
 from hac_ros.ros.parameters import (
-    RESUBSCRIBE,
-    SHELL_ONLY,
-    TF_PARAMETERS,
     declare_parameters,
+    judge_change,
+    our_values,
     startup_warnings,
 )
 from hac_ros.ros.qos import cloud_qos, input_qos, output_qos, qos_hint
 from hac_ros.ros.tf_broadcast import TfSender
 from hac_ros.ros.tf_input import TfPoseInput, transform_listener_class
-from msg_adapters import MessageError, RawCloud, parse_cloud_cdr, rclpy_types
+from msg_adapters import rclpy_types
 
 TYPES = rclpy_types()  # rclpy's message classes by ROS name
 # Environment variables naming a Fast DDS XML profile (config/fastdds_large_data.xml): Fast DDS
 # 2.x reads the first, 3.x the second; read once per process, when rclpy starts
 DDS_PROFILE_VARIABLES = ('FASTRTPS_DEFAULT_PROFILES_FILE', 'FASTDDS_DEFAULT_PROFILES_FILE')
 
-# ---------------------------------------------------------------------------------------- maps
-MAPS_WAITING_MAX = 8  # accumulate mode: clouds waiting for the builder (older ones are dropped)
 GRAPH_CHECK_S = 2.0  # wall seconds between checks of the input topics' publisher types
 STALE_CHECK_S = 0.5  # wall seconds between looks at whether input stopped coming
 STEADY = Clock(clock_type=ClockType.STEADY_TIME)  # timers that must run without /clock
@@ -137,18 +131,8 @@ class HacShell(_NodeMixinBase):
         self.outputs = OutputMessages(self.params)
         self.notices: Counter[str] = Counter()  # causes of the NoticeOut logged (once each)
         self.qos_incompatible: Counter[str] = Counter()  # topics with an incompatible publisher
-        self.maps_indexed = 0  # map indexes handed to the calibrator
-        self.maps_superseded = 0  # clouds dropped unbuilt: a newer one arrived first
-        self._clouds_rejected = 0  # undecodable clouds
-        self.map_build_s: deque[float] = deque(maxlen=100)  # recent decode+index durations
         self._camera_info: tuple[Any, int, int] | None = None  # (K, width, height) last valid
-        self._map_index: MapIndex | None = None  # the last index handed to the calibrator
-        self._last_cloud: RawCloud | None = None  # the last cloud received (its bytes are kept)
         self._failed_callbacks: set[str] = set()
-        self._builder = MapBuilder(self._build_index, workers=1)
-        self._maps_building: deque[Future] = deque()  # in arrival order
-        # a finished map wakes the executor, which puts it into the inbox in order
-        self._maps_ready = self.create_guard_condition(self._on_maps_ready)
         self._output_publishers: dict[str, Any] = {}
         self._subscriptions_by_kind: dict[str, Any] = {}
         self._hac_services: list[Any] = []
@@ -161,6 +145,10 @@ class HacShell(_NodeMixinBase):
         self._inbox = Inbox(self.params.joints_backlog_max)
         self._processor = Processor(self._inbox, self._handle, self._on_dropped, self.lock,
                                     self.liveness.load)
+        # map clouds built off the executor's thread (hac_ros.ros.map_intake)
+        self._maps_ready = self.create_guard_condition(lambda: self.maps.ready())
+        self.maps = MapIntake(self._build_index, self._inbox, self.params.cloud_mode,
+                              lambda: self._maps_ready.trigger())
         self.outputs.extra_status = self._node_status
 
     def _activate(self) -> None:
@@ -208,7 +196,7 @@ class HacShell(_NodeMixinBase):
         if self.calibrator is None:
             return
         self._processor.close()
-        self._builder.close()
+        self.maps.close()
         self.destroy_guard_condition(self._maps_ready)
         self.calibrator = None
 
@@ -291,12 +279,7 @@ class HacShell(_NodeMixinBase):
                 callback(msg)
             except Exception:
                 with self.lock:
-                    self._emit(self.core.reject('internal_error', -1))
-                if kind not in self._failed_callbacks:
-                    self._failed_callbacks.add(kind)
-                    self.get_logger().error(f'error handling a {kind} message (further ones are '
-                                            f'counted as rejected.internal_error):\n'
-                                            f'{traceback.format_exc()}')
+                    self._internal_error(kind)
         return run
 
     # ------------------------------------------------------------------ inputs
@@ -339,12 +322,16 @@ class HacShell(_NodeMixinBase):
             elif item.kind == 'call':  # a transform of pose_source tf, in arrival order
                 item.data()
         except Exception:
-            self._emit(self.core.reject('internal_error', -1))
-            if item.kind not in self._failed_callbacks:
-                self._failed_callbacks.add(item.kind)
-                self.get_logger().error(f'error handling a {item.kind} message (further ones '
-                                        'are counted as rejected.internal_error):\n'
-                                        f'{traceback.format_exc()}')
+            self._internal_error(item.kind)
+
+    def _internal_error(self, kind: str) -> None:
+        """An unexpected error handling a ``kind`` input (holding the lock): counted as
+        ``internal_error``, its traceback logged the first time for each kind."""
+        self._emit(self.core.reject('internal_error', -1))
+        if kind not in self._failed_callbacks:
+            self._failed_callbacks.add(kind)
+            self.get_logger().error(f'error handling a {kind} message (further ones are counted '
+                                    f'as rejected.internal_error):\n{traceback.format_exc()}')
 
     def _queued(self, kind: str, callback: Callable[[Any], None]) -> Callable[[Any], None]:
         """``callback`` run on the processing thread, in arrival order with the other inputs
@@ -359,53 +346,14 @@ class HacShell(_NodeMixinBase):
         self._emit(self.core.reject('frames_dropped', -1))
 
     def _on_cloud(self, data: bytes) -> None:
-        """Raw CDR bytes: read the header here, decode and index on the builder thread."""
-        try:
-            cloud = parse_cloud_cdr(data)
-        except MessageError:
-            self._clouds_rejected += 1
+        """Raw CDR bytes: the header read here, decoded and indexed on the builder's thread."""
+        if not self.maps.receive(data):
             with self.lock:
                 self._emit(self.core.reject('cloud_malformed', -1))
-            return
-        self._last_cloud = cloud
-        self._submit(cloud)
 
     def _build_index(self, stamp_ns: int, points_map: Any, frame_id: str) -> MapIndex:
         """The builder thread's index, with the current calibrator's parameters."""
         return self.core.build_index(stamp_ns, points_map, frame_id)
-
-    def _submit(self, cloud: RawCloud) -> None:
-        """Queue a cloud for the builder. In ``replace`` mode a cloud still waiting is superseded
-        (it would be replaced anyway); ``accumulate`` keeps up to MAPS_WAITING_MAX waiting."""
-        waiting = [f for f in self._maps_building if not f.done()]
-        if self.params.cloud_mode == 'replace':
-            superseded = waiting
-        else:
-            superseded = waiting[:max(0, len(waiting) - MAPS_WAITING_MAX + 1)]
-        self.maps_superseded += sum(f.cancel() for f in superseded)
-        future = self._builder.submit(cloud)
-        future.add_done_callback(lambda _: self._maps_ready.trigger())
-        self._maps_building.append(future)
-
-    def _on_maps_ready(self) -> None:
-        """Executor thread: the maps the builder finished, in order, into the inbox."""
-        while self._maps_building and self._maps_building[0].done():
-            future = self._maps_building.popleft()
-            if future.cancelled():
-                continue
-            built = future.result()
-            self.map_build_s.append(built.build_s)
-            if built.index is None:
-                self._clouds_rejected += 1
-            else:
-                self.maps_indexed += 1
-                self._map_index = built.index
-            self._inbox.put('map', built)
-
-    @property
-    def clouds_done(self) -> int:
-        """Clouds received and finished with: indexed, rejected, or superseded by a newer one."""
-        return self.maps_indexed + self._clouds_rejected + self.maps_superseded
 
     # ------------------------------------------------------------------ outputs
     def _emit(self, outputs: Sequence[Output]) -> None:
@@ -470,52 +418,43 @@ class HacShell(_NodeMixinBase):
         return response
 
     # ------------------------------------------------------------------ parameters
-    def _changes(self, parameters: list[Parameter]) -> dict[str, Any]:
-        ours = set(names())
-        return {p.name: p.value for p in parameters if p.name in ours}
-
     def _validate_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
         """All or nothing: the whole set is checked by HacParams.replace before anything changes
         (before configure, against the defaults: configure reads and checks them all)."""
         try:
-            new = (self.params if self.calibrator is not None else HacParams()).replace(
-                **self._changes(parameters))
-            if new.pose_source == 'tf':
+            change = judge_change(self.params if self.calibrator is not None else HacParams(),
+                                  our_values(parameters))
+            if change.params.pose_source == 'tf':
                 transform_listener_class()  # ParameterError naming what to install
         except ParameterError as exc:
             return SetParametersResult(successful=False, reason=str(exc))
         return SetParametersResult(successful=True)
 
     def _apply_parameters(self, parameters: list[Parameter]) -> None:
-        """A runtime change (node_parameters: re-subscribes, takes effect at once or rebuilds the
-        estimator). Unconfigured, nothing: configure reads the parameters; inactive, the new
-        subscriptions and TF wait for activate."""
-        changes = self._changes(parameters)
-        if not changes or self.calibrator is None:
+        """A runtime change (ros.parameters.judge_change: re-subscribes, takes effect at once or
+        rebuilds the estimator). Unconfigured, nothing: configure reads the parameters; inactive,
+        the new subscriptions and TF wait for activate."""
+        values = our_values(parameters)
+        if not values or self.calibrator is None:
             return
         with self.lock:
-            self._apply_changes(changes)
-
-    def _apply_changes(self, changes: dict[str, Any]) -> None:
-        new = self.params.replace(**changes)  # validated in _validate_parameters
-        changed = {k for k in changes if getattr(new, k) != getattr(self.params, k)}
-        if not changed:
-            return
-        self.params = new
-        self.outputs.params = new
-        self._inbox.backlog_max = new.joints_backlog_max
-        if self.active:
-            for kind in sorted({kind for name in changed for kind in RESUBSCRIBE.get(name, ())}):
-                self._subscribe(kind)
-            if changed & TF_PARAMETERS:
-                self._update_tf()
-        estimator = sorted(changed - SHELL_ONLY - set(RESUBSCRIBE))
-        if estimator:
-            self._rebuild_calibrator(estimator)
-        else:
-            self.core.params = new  # fields the calibrator does not read: kept consistent
-        self.get_logger().info('parameters changed: ' + ', '.join(
-            f'{k}={getattr(new, k)!r}' for k in sorted(changed)))
+            change = judge_change(self.params, values)  # validated in _validate_parameters
+            if not change.changed:
+                return
+            self.params = self.outputs.params = change.params
+            self._inbox.backlog_max = change.params.joints_backlog_max
+            self.maps.cloud_mode = change.params.cloud_mode
+            if self.active:
+                for kind in change.resubscribe:
+                    self._subscribe(kind)
+                if change.tf:
+                    self._update_tf()
+            if change.estimator:
+                self._rebuild_calibrator(change.estimator)
+            else:
+                self.core.params = change.params  # fields the calibrator does not read
+            self.get_logger().info('parameters changed: ' + ', '.join(
+                f'{k}={getattr(change.params, k)!r}' for k in sorted(change.changed)))
 
     def _rebuild_calibrator(self, changed: list[str]) -> None:
         """Estimator parameters: a new calibrator, given the current map and CameraInfo.
@@ -528,11 +467,11 @@ class HacShell(_NodeMixinBase):
         self.calibrator = Calibrator(self.params)
         if self._camera_info is not None:
             self._emit(self.calibrator.add_camera_info(*self._camera_info))
-        current_map = old.map if old.map is not None else self._map_index
+        current_map = old.map if old.map is not None else self.maps.last_index
         if current_map is not None:
             self._emit(self.calibrator.add_map_index(current_map))
-        if 'index_max_points' in changed and self._last_cloud is not None:
-            self._submit(self._last_cloud)
+        if 'index_max_points' in changed and self.maps.last_cloud is not None:
+            self.maps.submit(self.maps.last_cloud)
         self.notices.clear()
         self.get_logger().warning(
             f'estimator parameter(s) {", ".join(changed)} changed: the estimator was rebuilt and '
@@ -550,7 +489,6 @@ class HacShell(_NodeMixinBase):
 class HacNode(HacShell, Node):
     """hac_node: subscribes to the inputs, feeds the calibrator, publishes its outputs
     (docs/node.md)."""
-
 
     def __init__(self, node_name: str = NODE_NAME, params_files: Sequence[str] = (),
                  **kwargs: Any) -> None:

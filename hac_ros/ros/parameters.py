@@ -10,10 +10,11 @@ functions that take a node import rclpy when called.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any
 
 from hac_ros.core.errors import ParameterError
-from hac_ros.core.params import describe, lengths_text, names
+from hac_ros.core.params import HacParams, describe, lengths_text, names
 from hac_ros.files.params_file import (
     ROS_OWN_PARAMETERS,
     ROS_OWN_PREFIXES,
@@ -50,6 +51,37 @@ ESTIMATOR_NOTE = 'rebuilds the estimator (estimate restarts)'
 def runtime_effect(name: str) -> str:
     """What changing parameter ``name`` at runtime does (for descriptors and docs)."""
     return RUNTIME_NOTE.get(name, ESTIMATOR_NOTE)
+
+
+@dataclass
+class Change:
+    """A runtime change of the node's parameters, judged (docs/node.md, "Parameters at runtime").
+
+    params: the new values; changed: the names whose value differs; resubscribe: the input kinds
+    whose subscription must be re-created; tf: whether the TF senders must be remade; estimator:
+    the estimator parameters among them (non-empty: the calibrator is rebuilt).
+    """
+
+    params: HacParams
+    changed: frozenset[str]
+    resubscribe: list[str]
+    tf: bool
+    estimator: list[str]
+
+
+def our_values(parameters: Sequence[Any]) -> dict[str, Any]:
+    """name -> value of the rclpy Parameters that are the node's (HacParams fields)."""
+    ours = set(names())
+    return {p.name: p.value for p in parameters if p.name in ours}
+
+
+def judge_change(params: HacParams, values: dict[str, Any]) -> Change:
+    """What setting ``values`` over ``params`` does (ParameterError naming a bad value)."""
+    new = params.replace(**values)
+    changed = frozenset(k for k in values if getattr(new, k) != getattr(params, k))
+    return Change(new, changed,
+                  sorted({kind for name in changed for kind in RESUBSCRIBE.get(name, ())}),
+                  bool(changed & TF_PARAMETERS), sorted(changed - SHELL_ONLY - set(RESUBSCRIBE)))
 
 
 def parameter_descriptor(name: str) -> Any:
