@@ -98,20 +98,7 @@ def pose_to_rt(pose: Any) -> tuple[np.ndarray, np.ndarray]:
     MessageError for a non-finite position or orientation, or a quaternion whose norm is not 1
     within QUATERNION_NORM_TOL (a zero quaternion included).
     """
-    try:
-        p, q = pose.position, pose.orientation
-        c = np.array([p.x, p.y, p.z], dtype=float)
-        quat = (q.x, q.y, q.z, q.w)
-    except (AttributeError, TypeError, ValueError) as exc:
-        raise MessageError(f'Pose: expected position (x, y, z) and orientation (x, y, z, w) '
-                           f'({exc})') from exc
-    if not np.isfinite(c).all():
-        raise MessageError(f'Pose: position is not finite: {c.tolist()}')
-    try:
-        R = quat_to_matrix(*quat)
-    except MessageError as exc:
-        raise MessageError(f'Pose: orientation: {exc}') from exc
-    return R, c
+    return _rigid(pose, 'position', 'orientation', 'Pose')
 
 
 def pose_msg_to_rt(msg: Any) -> tuple[np.ndarray, np.ndarray]:
@@ -141,20 +128,27 @@ def transform_to_rt(msg: Any) -> tuple[np.ndarray, np.ndarray]:
     within QUATERNION_NORM_TOL.
     """
     transform = getattr(msg, 'transform', msg)
+    return _rigid(transform, 'translation', 'rotation', 'Transform')
+
+
+def _rigid(msg: Any, where: str, turn: str, what: str) -> tuple[np.ndarray, np.ndarray]:
+    """A Pose (``position``, ``orientation``) or Transform (``translation``, ``rotation``) → (R
+    (3, 3) float64, the rotation; c (3,) float64, the position, its unit); MessageError naming
+    ``what`` for a missing field, a non-finite position or a quaternion not of norm 1."""
     try:
-        v, q = transform.translation, transform.rotation
-        t = np.array([v.x, v.y, v.z], dtype=float)
+        v, q = getattr(msg, where), getattr(msg, turn)
+        c = np.array([v.x, v.y, v.z], dtype=float)
         quat = (q.x, q.y, q.z, q.w)
     except (AttributeError, TypeError, ValueError) as exc:
-        raise MessageError(f'Transform: expected translation (x, y, z) and rotation (x, y, z, w) '
+        raise MessageError(f'{what}: expected {where} (x, y, z) and {turn} (x, y, z, w) '
                            f'({exc})') from exc
-    if not np.isfinite(t).all():
-        raise MessageError(f'Transform: translation is not finite: {t.tolist()}')
+    if not np.isfinite(c).all():
+        raise MessageError(f'{what}: {where} is not finite: {c.tolist()}')
     try:
         R = quat_to_matrix(*quat)
     except MessageError as exc:
-        raise MessageError(f'Transform: rotation: {exc}') from exc
-    return R, t
+        raise MessageError(f'{what}: {turn}: {exc}') from exc
+    return R, c
 
 
 def _vector(v: Any, what: str) -> tuple[float, float, float]:

@@ -82,6 +82,16 @@ def existing_file(path: str | Path, what: str) -> Path:
     return path
 
 
+def _unit_quaternions(path: str | Path, what: str, quats: np.ndarray, labels: list[str]
+                      ) -> np.ndarray:
+    """(N, 4) quaternions x y z w normalised; InputError naming the line of a zero one."""
+    norms = np.linalg.norm(quats, axis=1)
+    if (norms < 1e-6).any():
+        raise InputError(f'{what} {path}: {labels[int(np.argmax(norms < 1e-6))]}: the quaternion '
+                         'is zero')
+    return quats / norms[:, None]
+
+
 def _check_increasing(path: Path, what: str, stamps_ns: np.ndarray, labels: list[str]) -> None:
     bad = np.flatnonzero(np.diff(stamps_ns) <= 0)
     if len(bad):
@@ -120,12 +130,8 @@ def read_trajectory(path: str | Path, what: str = 'trajectory',
         keep = np.setdiff1d(np.arange(len(stamps)), repeated)
         data, stamps, labels = data[keep], stamps[keep], [labels[i] for i in keep]
     _check_increasing(path, what, stamps, labels)
-    quats = data[:, 4:8]
-    norms = np.linalg.norm(quats, axis=1)
-    if (norms < 1e-6).any():
-        raise InputError(f'{what} {path}: {labels[int(np.argmax(norms < 1e-6))]}: the quaternion '
-                         'is zero')
-    return Trajectory(path, stamps, data[:, 1:4], quats / norms[:, None])
+    return Trajectory(path, stamps, data[:, 1:4], _unit_quaternions(path, what, data[:, 4:8],
+                                                                    labels))
 
 
 def _load_npz(path: Path, what: str) -> dict[str, np.ndarray]:
@@ -193,12 +199,8 @@ def read_droid_trajectory(path: str | Path, what: str = 'trajectory', fps: float
                         'taken as seconds: if they are frame indices, give the frame rate (fps)')
     stamps = seconds_to_ns(t / fps if fps is not None else t, f'{what} {path}', labels)
     _check_increasing(path, what, stamps, labels)
-    quats = traj[:, 3:7]
-    norms = np.linalg.norm(quats, axis=1)
-    if (norms < 1e-6).any():
-        raise InputError(f'{what} {path}: {labels[int(np.argmax(norms < 1e-6))]}: the quaternion '
-                         'is zero')
-    return Trajectory(path, stamps, traj[:, :3], quats / norms[:, None])
+    return Trajectory(path, stamps, traj[:, :3], _unit_quaternions(path, what, traj[:, 3:7],
+                                                                   labels))
 
 
 def read_joints(path: str | Path, what: str = 'joints',
