@@ -89,6 +89,10 @@ FRAME_REASONS = ('late_frame', 'no_pose', 'pending_overflow', 'joints_malformed'
                  'joints_wrong_layout', 'joints_wrong_frame')
 DRAIN_S = 2.0  # after the last frame: wait for the last outputs
 STARTUP_S = 30.0  # the node process must subscribe within this long
+# after the player's writers have matched the node's readers, the node's readers may not have
+# matched the writers yet: a best-effort frame sent meanwhile is lost with no message-lost event
+# (seen: 3-6 of the first overload frames), so the play starts this long after the match
+DISCOVERY_SETTLE_S = 1.0
 FLOOR_MARGIN_MS = 10.0  # guard: node p99 <= echo p99 + 10 ms
 TARGET_POINTS = 100_000
 DDS_PROFILE_VARIABLES = ('FASTRTPS_DEFAULT_PROFILES_FILE', 'FASTDDS_DEFAULT_PROFILES_FILE')
@@ -245,6 +249,7 @@ def measure(kind: str, map_raw: bytes, duration_s: float, people: int = 1,
                 if time.monotonic() > deadline or proc.poll() is not None:
                     raise RuntimeError(f'{KINDS[kind]} did not come up')
                 time.sleep(0.05)
+            time.sleep(DISCOVERY_SETTLE_S)
             player.start_maps()
             player.play(poses, joints, rate_hz)
             time.sleep(DRAIN_S)
