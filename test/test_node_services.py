@@ -20,6 +20,7 @@ pytestmark = pytest.mark.ros
 from rclpy.context import Context
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from test_node import (  # noqa: F401
+    PATIENCE_S,
     RELIABLE,
     TEST_PARAMS,
     TYPES,
@@ -47,7 +48,7 @@ def walk():
 
 def test_freeze_and_reset_services_over_dds(harness, walk):
     r = harness(**MIN_SAMPLES)
-    assert wait_for(r.connected, 10.0)
+    assert wait_for(r.connected, PATIENCE_S)
     a, b = frames_after(walk, 0.4), frames_after(walk, 0.7)
     r.play(walk.events[:a])
     r.settle_to(walk.events[a - 1].stamp_ns)
@@ -76,13 +77,13 @@ def test_freeze_and_reset_services_over_dds(harness, walk):
 
 def test_a_late_subscriber_receives_the_metric_map(harness, walk):
     r = harness(**MIN_SAMPLES)
-    assert wait_for(r.connected, 10.0)
+    assert wait_for(r.connected, PATIENCE_S)
     r.play(walk.events)
     r.settle_to(walk.events[-1].stamp_ns)
     late: list[Any] = []
     r.io.create_subscription(TYPES.get('sensor_msgs/msg/PointCloud2'), 'hac/cloud',
                              late.append, CLOUD_LATE)
-    assert wait_for(lambda: late, 10.0), 'a late subscriber got no /hac/cloud'
+    assert wait_for(lambda: late, PATIENCE_S), 'a late subscriber got no /hac/cloud'
     cloud = late[-1]
     assert cloud.header.frame_id == 'map_metric' and cloud.width > 1000
     points = cloud_to_xyz(cloud)
@@ -93,10 +94,10 @@ def test_a_late_subscriber_receives_the_metric_map(harness, walk):
 
 def test_a_namespace_moves_every_topic_and_service(harness, walk):
     r = harness(namespace='robot1', **MIN_SAMPLES)
-    assert wait_for(r.connected, 10.0)
+    assert wait_for(r.connected, PATIENCE_S)
     assert r.node.resolve_topic_name(r.node.params.pose_topic) == '/robot1/slam/pose'
     r.play(walk.events[:frames_after(walk, 0.5)])
-    assert wait_for(lambda: r.messages('/hac/odometry') and r.messages('/hac/pose'), 10.0)
+    assert wait_for(lambda: r.messages('/hac/odometry') and r.messages('/hac/pose'), PATIENCE_S)
     topics = dict(r.io.get_topic_names_and_types())
     for name in ('/robot1/hac/odometry', '/robot1/hac/pose', '/robot1/hac/cloud',
                  '/robot1/hac/scale', '/diagnostics'):
@@ -122,7 +123,7 @@ def test_the_lifecycle_node_publishes_only_while_active_and_keeps_its_state(harn
     r.play(walk.events[:5])  # nobody listens yet
     assert lifecycle(r, 'configure') and state(r) == 'inactive'
     assert lifecycle(r, 'activate') and state(r) == 'active'
-    assert wait_for(r.connected, 10.0)
+    assert wait_for(r.connected, PATIENCE_S)
     half = frames_after(walk, 0.5)
     r.play(walk.events[:half])
     r.settle_to(walk.events[half - 1].stamp_ns)
@@ -135,7 +136,7 @@ def test_the_lifecycle_node_publishes_only_while_active_and_keeps_its_state(harn
     time.sleep(0.5)
     assert len(r.messages('/hac/odometry')) == count  # inactive: nothing in, nothing out
     assert lifecycle(r, 'activate')
-    assert wait_for(r.connected, 10.0)
+    assert wait_for(r.connected, PATIENCE_S)
     before = len(r.messages('/hac/scale'))
     r.play(walk.events[half + 60:])
     r.settle_to(walk.events[-1].stamp_ns)
@@ -162,7 +163,7 @@ def test_tf_through_a_stand_in_broadcaster(tmp_path, walk):
         for event in walk.events[:frames_after(walk, 0.6)]:
             client.publishers[event.kind].publish(event.msg)
             time.sleep(0.5 if event.kind == 'cloud' else 0.004 if event.kind == 'joints' else 0)
-        assert wait_for(lambda: len(got['/hac/pose']) > 50 and len(tfs) > 100, 15.0)
+        assert wait_for(lambda: len(got['/hac/pose']) > 50 and len(tfs) > 100, PATIENCE_S)
     finally:
         client.close()
         _, log = stop(node, signal.SIGINT)
@@ -238,7 +239,7 @@ def test_pose_source_tf_through_a_stand_in_listener(tmp_path, walk):
             time.sleep(0.5 if event.kind == 'cloud' else 0.004 if event.kind == 'joints' else 0)
         last = int(walk.pose_stamps[-1])
         assert wait_for(lambda: got['/hac/pose'] and stamp_to_ns(
-            got['/hac/pose'][-1].header.stamp) == last, 15.0), 'the last pose was not taken'
+            got['/hac/pose'][-1].header.stamp) == last, PATIENCE_S), 'the last pose was not taken'
     finally:
         client.close()
         code, log = stop(node, signal.SIGINT)
@@ -273,7 +274,7 @@ def test_pose_source_tf_refuses_a_chain_through_a_second_dynamic_transform(harne
     r = harness(wait=False, pose_source='tf', slam_pose_frame='camera_optical')
     tf = r.io.create_publisher(TYPES.get('geometry_msgs/msg/TransformStamped'), '/tf_standin',
                                RELIABLE)
-    assert wait_for(lambda: tf.get_subscription_count() > 0, 10.0), 'the listener did not connect'
+    assert wait_for(lambda: tf.get_subscription_count() > 0, PATIENCE_S), 'the listener did not connect'
     pairs = 20
     for i in range(pairs):
         stamp = 1_000_000_000 + i * 33_000_000
@@ -287,7 +288,7 @@ def test_pose_source_tf_refuses_a_chain_through_a_second_dynamic_transform(harne
             return dict(r.node.core.status().rejected)
     # the first map -> odom cannot reach camera_optical yet; every transform after it closes a
     # chain through both
-    assert wait_for(lambda: rejected().get('tf_chain_dynamic', 0) == 2 * pairs - 1, 20.0), \
+    assert wait_for(lambda: rejected().get('tf_chain_dynamic', 0) == 2 * pairs - 1, PATIENCE_S), \
         rejected()
     assert rejected().get('tf_unconnected') == 1
     with r.node.lock:
@@ -312,13 +313,13 @@ def test_a_publisher_of_another_type_on_the_pose_topic_is_counted_and_named(harn
     """Odometry on slam/pose while pose_type is PoseStamped: DDS delivers nothing and says nothing
     (this rmw reports no incompatible-type event); the node's graph check names it."""
     r = harness(**MIN_SAMPLES)
-    assert wait_for(r.connected, 10.0)
+    assert wait_for(r.connected, PATIENCE_S)
     context = Context()  # another participant: one participant refuses two types on one topic
     rclpy.init(context=context)
     other = rclpy.create_node('hac_wrong_type', context=context)
     try:
         other.create_publisher(TYPES.get('nav_msgs/msg/Odometry'), 'slam/pose', RELIABLE)
-        assert wait_for(lambda: r.node.calibrator.rejected['pose_wrong_type'] > 0, 10.0), \
+        assert wait_for(lambda: r.node.calibrator.rejected['pose_wrong_type'] > 0, PATIENCE_S), \
             'a publisher of nav_msgs/Odometry on slam/pose went unnoticed'
         time.sleep(2.5)  # another graph check: the same publisher is not counted twice
         assert r.node.calibrator.rejected['pose_wrong_type'] == 1

@@ -42,7 +42,7 @@ LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
 INPUTS = {'/slam/pose': 'geometry_msgs/msg/PoseStamped', '/slam/cloud': 'sensor_msgs/msg/PointCloud2',
           '/hmr/joints': 'geometry_msgs/msg/PoseArray',
           '/camera/camera_info': 'sensor_msgs/msg/CameraInfo'}
-WAIT_S = 20.0
+WAIT_S = 60.0  # at most (waiting returns once it has happened)
 
 
 @pytest.fixture(scope='module')

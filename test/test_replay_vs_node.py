@@ -44,7 +44,7 @@ COMPARED = {'/hac/odometry': 'nav_msgs/msg/Odometry',
             '/hac/scale': 'std_msgs/msg/Float64',
             '/hac/cloud': 'sensor_msgs/msg/PointCloud2'}
 STAMPED = {'/hac/scale': '/hac/human_joints'}  # Float64 has no header: the joints' stamps
-WAIT_S = 10.0
+WAIT_S = 60.0  # at most (waiting returns once it has happened)
 
 
 def wait_for(predicate: Callable[[], bool], timeout: float = WAIT_S) -> bool:
