@@ -147,18 +147,25 @@ def _anchor(heading: str) -> str:
     return re.sub(r'[^\w\- ]', '', heading.lower()).replace(' ', '-')
 
 
+def _code_files() -> list[Path]:
+    """The product's code and configuration, whose comments and docstrings cite docs/ too."""
+    return [p for folder in ('hac_ros', 'msg_adapters', 'launch', 'config')
+            for p in sorted((REPO / folder).rglob('*')) if p.suffix in ('.py', '.yaml', '.xml')]
+
+
 def test_links_and_named_sections_point_to_headings_that_exist():
-    """[text](page.md#anchor) links and the prose's 'docs/page.md, "Section"' references."""
+    """[text](page.md#anchor) links and the 'docs/page.md, "Section"' references of the docs, the
+    code and the configuration."""
     pages = {page.name: page for page in PAGES}
     checked, broken = 0, []
-    for page in PAGES:
-        text = _text(page)
-        for target, anchor in re.findall(r'\]\(([\w./-]*\.md|)#([\w-]+)\)', text):
+    for page in PAGES + _code_files():
+        text = _text(page).replace('#', ' ')  # a reference wrapped across comment lines
+        for target, anchor in re.findall(r'\]\(([\w./-]*\.md|)#([\w-]+)\)', _text(page)):
             linked = (page.parent / target).resolve() if target else page
             checked += 1
             if anchor not in {_anchor(h) for h in _headings(linked)}:
                 broken.append(f'{page.name}: {target}#{anchor}')
-        for name, section in re.findall(r'(?:docs/)?([\w-]+\.md),? "([^"]+)"', text):
+        for name, section in re.findall(r'(?:docs/)?([\w-]+\.md),?\s+\(?"([^"]+)"', text):
             section = ' '.join(section.split()).replace('`', '')  # wrapped across lines
             checked += 1
             if name not in pages or not any(h.replace('`', '').startswith(section)

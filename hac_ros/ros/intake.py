@@ -7,7 +7,7 @@ the inbox never lets a backlog build: beyond ``joints_backlog_max`` joints frame
 oldest are dropped (counted by the node as ``frames_dropped``). Poses, CameraInfo and maps are
 never dropped: the odometry and the jump detector need every pose, and they cost microseconds.
 Without drops the calibrator sees exactly the messages, in exactly the order, of the replay's
-feed (docs/node.md, "Overload").
+feed (docs/node.md, "What the node does with each message": Overload).
 
 :class:`LoadStats` keeps what ``/diagnostics`` reports of it: the latency from arrival to
 processed of the recent joints frames (wall clock, the node's own), and the backlog. Wall time
