@@ -173,3 +173,23 @@ def test_links_and_named_sections_point_to_headings_that_exist():
                 broken.append(f'{page.name}: {name}, "{section}"')
     assert checked > 30
     assert broken == []
+
+
+def test_the_readme_layout_names_every_library_module():
+    """README's "Layout" names each module of the library's subpackages (the simulator's and the
+    command's are described by what they do)."""
+    block = re.search(r'## Layout\n.*?```\n(.*?)```', _text(REPO / 'README.md'), re.S)
+    assert block
+    described: dict[str, str] = {}
+    current = ''
+    for line in block.group(1).splitlines():
+        head = re.match(r'(hac_ros/\w+)/', line)
+        current = head.group(1) if head else current if line.startswith(' ') else ''
+        if current:
+            described[current] = described.get(current, '') + ' ' + line
+    packages = ('core', 'ros', 'bridge', 'recording', 'replay', 'batch', 'files', 'evaluation')
+    missing = [f'hac_ros/{package}/{module.stem}.py' for package in packages
+               for module in sorted((REPO / 'hac_ros' / package).glob('*.py'))
+               if module.stem != '__init__'
+               and not re.search(rf'\b{module.stem}\b', described.get(f'hac_ros/{package}', ''))]
+    assert missing == []
