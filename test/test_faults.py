@@ -834,6 +834,62 @@ def test_a_recording_looped_into_the_node_calibrates_its_second_loop(walk, live)
     assert not any('pose_out_of_order' in values for _, _, values in statuses)
 
 
+def test_the_inbox_drops_the_oldest_joints_frames_never_a_pose():
+    """Input faster than processing, in the node's inbox (joints_backlog_max 2): of six joints
+    frames waiting, the four oldest are dropped, in order; every pose stays, in arrival order."""
+    from hac_ros.ros.intake import Inbox
+
+    inbox = Inbox(backlog_max=2)
+    for k in range(6):
+        inbox.put('pose', k)
+        inbox.put('joints', k)
+    taken, dropped = [], []
+    while True:
+        item, lost, waiting = inbox.get()
+        assert item is not None
+        dropped += [frame.data for frame in lost]
+        taken.append((item.kind, item.data))
+        assert waiting <= 2
+        if (item.kind, item.data) == ('joints', 5):
+            break
+    assert taken == [('pose', k) for k in range(5)] + [('joints', 4), ('pose', 5), ('joints', 5)]
+    assert dropped == [0, 1, 2, 3]
+    assert inbox.received == {'pose': 6, 'joints': 6}
+
+
+def test_the_node_warns_latency_backlog_and_a_silent_input():
+    """The node's own findings for /diagnostics (wall clock, the margins seconds wide): WARN
+    latency over latency_warn_s, backlog at joints_backlog_max, no_joints while poses come;
+    on its steady-clock timer WARN no_status while input comes but makes no status, STALE
+    no_input when nothing comes."""
+    from hac_ros.ros.intake import Liveness
+
+    params = HacParams(latency_warn_s=0.1, joints_backlog_max=2, stale_after_s=2.0)
+    quiet = Liveness()
+    assert quiet.findings(params)[0] == []  # no frame yet: no latency, nothing silent yet
+    busy = Liveness()
+    for _ in range(100):
+        busy.load.frame(0.5, 2)  # half a second from arrival to processed, two frames waiting
+    now = time.monotonic()
+    busy.arrived = {'pose': now, 'joints': now - 60.0}
+    found, values = busy.findings(params)
+    assert {f.reason for f in found} == {'latency', 'backlog', 'no_joints'}
+    assert all(f.level == WARN for f in found)
+    assert dict(values)['latency_p99_ms'] == '500.0' and dict(values)['backlog'] == '2'
+    assert busy.findings(params)[1][2] == ('backlog', '0')  # counted again since the last status
+    busy.status_sent_s = now - 60.0
+    busy.first_arrival_s = now - 120.0
+    late = busy.stale(params)
+    assert late is not None and late.reason == 'no_status' and late.level == WARN
+    busy.arrived = {'pose': now - 60.0, 'joints': now - 60.0}
+    gone = busy.stale(params)
+    assert gone is not None and gone.reason == 'no_input' and gone.level == STALE
+    never = Liveness()  # no input ever
+    never.status_sent_s = now - 60.0
+    blind = never.stale(params)
+    assert blind is not None and blind.reason == 'no_input' and blind.level == STALE
+
+
 @pytest.mark.slow
 def test_overload_drops_the_oldest_frames_counts_them_and_warns(live):
     """Twenty people at 200 frames/s, more than the node can process: it never lets a backlog
