@@ -4,10 +4,10 @@ PYTHON  ?= python3
 PY      := $(VENV)/bin/python
 STAMP   := $(VENV)/.hac_installed
 
-# DDS never leaves this machine, and every run gets its own domain so runs never hear each other
-# (test fixtures pick a per-process domain on top of this).
+# DDS never leaves this machine, and runs get their own domain so they never hear each other:
+# 90..99 here (demo), while each test process locks one of 10..89 (test/conftest.py).
 export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
-export ROS_DOMAIN_ID ?= $(shell echo $$(( $$$$ % 90 + 10 )))
+export ROS_DOMAIN_ID ?= $(shell echo $$(( $$$$ % 10 + 90 )))
 
 .PHONY: all install lint test demo bench bags clean
 

@@ -5,15 +5,18 @@ DDS stays on this machine and each test process gets its own ROS domain, so that
 """
 from __future__ import annotations
 
+import contextlib
 import fcntl
 import os
+import signal
 import tempfile
 from pathlib import Path
 
 import pytest
 
-# 0..101 are safe domain ids on Linux; 10..99 leaves room for the Makefile's and users' own.
-DOMAINS = range(10, 100)
+# 0..101 are safe domain ids on Linux; tests take 10..89, the Makefile's runs (demo) and the
+# benchmarks 90..99: a benchmark or a demo never shares a test's domain.
+DOMAINS = range(10, 90)
 _domain_lock = None  # the open lock file of this process's domain, held until it exits
 
 
@@ -52,3 +55,38 @@ def shared_data() -> Path:
         pytest.skip(f'real data not found at {SHARED_DATA} (../shared/data is only beside the '
                     'repository in CI and on developer machines)')
     return SHARED_DATA
+
+
+# ================================================================ no node outlives its test
+NODE_COMMANDS = ('hac_node', 'hac_lifecycle_node', 'hac_ros.ros.node', 'hac_ros.ros.lifecycle_node',
+                 'hac_ros.cli play', 'hac_ros.cli demo')
+
+
+def _live_children() -> dict[int, str]:
+    """pid -> command line of this process's children that run a node or a player."""
+    found = {}
+    for entry in Path('/proc').iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            stat = (entry / 'stat').read_text()
+            cmdline = (entry / 'cmdline').read_bytes().replace(b'\0', b' ').decode(errors='replace')
+        except OSError:
+            continue
+        fields = stat.rsplit(')', 1)[-1].split()  # after "pid (comm)": state, ppid, ...
+        if fields[0] != 'Z' and int(fields[1]) == os.getpid() and any(
+                command in cmdline for command in NODE_COMMANDS):
+            found[int(entry.name)] = cmdline.strip()
+    return found
+
+
+@pytest.fixture(autouse=True)
+def no_node_left_running():
+    """A test that leaves a node or a player process running fails (and the process is killed):
+    left in the test domain, it would answer every later test's inputs too."""
+    yield
+    left = _live_children()
+    for pid in left:
+        with contextlib.suppress(ProcessLookupError):
+            os.kill(pid, signal.SIGKILL)
+    assert not left, f'processes left running by the test (killed now): {left}'

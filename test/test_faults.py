@@ -830,7 +830,8 @@ def test_a_recording_looped_into_the_node_calibrates_its_second_loop(walk, live)
     assert abs(second[-1] / truth - 1) < 0.03
     assert np.all(np.abs(second[len(second) // 10:] / truth - 1) < 0.03)
     statuses = node.statuses()
-    assert any(values.get('event.time_jump_back') == '1' for _, _, values in statuses)
+    # one jump back per loop played (a busy machine drops frames and plays more loops)
+    assert any(int(values.get('event.time_jump_back', 0)) >= 1 for _, _, values in statuses)
     assert not any('pose_out_of_order' in values for _, _, values in statuses)
 
 
