@@ -144,13 +144,17 @@ def test_topics_remap_and_clock(walk_bag, player_context):
         with Player(walk_bag, rate=10.0, clock_hz=50.0, topics=['/slam/pose'],
                     remap={'/slam/pose': '/robot/pose'}, wait_s=WAIT_S,
                     context=player_context) as player:
+            # the player waits for its topics' subscribers, not /clock's: wait here, so that no
+            # /clock message goes out before the listener has matched (a busy machine's race)
+            assert wait_for(lambda: player.node.count_subscribers('/clock') > 0)
             stats = player.run()
         poses = [log_ns for t, log_ns, _ in recorded(walk_bag, ['/slam/pose'])]
         assert dict(stats.published) == {'/robot/pose': len(poses)}
         assert wait_for(lambda: len(listener.received['/robot/pose']) == len(poses))
         assert [stamp_to_ns(m.header.stamp) for m in listener.received['/robot/pose']] == poses
+        # one before each message, more in between
+        assert wait_for(lambda: len(listener.received['/clock']) >= len(poses))
         clock = [stamp_to_ns(m.clock) for m in listener.received['/clock']]
-        assert len(clock) >= len(poses)  # one before each message, more in between
         assert clock == sorted(clock) and poses[0] <= clock[0] and clock[-1] <= poses[-1]
     finally:
         listener.close()
