@@ -581,9 +581,9 @@ def test_a_signal_to_hac_batch_stops_its_workers_and_keeps_what_finished(walk, t
         lambda pid: bool(list(out.glob('*.done.json'))) and any(out.glob('.*partial')),
         signal.SIGTERM, tmp_path)
     assert_clean_interruption(code, stderr, signal.SIGTERM)
-    assert time.monotonic() - start < 120.0
+    assert time.monotonic() - start < 300.0  # a hang, not a busy machine
     finished = {p.name[:-len('.done.json')] for p in out.glob('*.done.json')}
-    assert len(finished) == 1
+    assert len(finished) == 1  # the recording in progress was stopped, not let finish
     assert not list(out.glob('.*partial')) and not (out / 'summary.csv').exists()
     assert {p.name for p in out.iterdir() if p.is_dir()} == finished | {'logs'}
     result = batch(inputs, out, workers=1, resume=True)
