@@ -18,6 +18,7 @@ from msg_adapters.poses import (
                                 rt_to_odometry,
                                 rt_to_pose,
                                 rt_to_pose_stamped,
+                                rt_to_pose_with_covariance_stamped,
                                 rt_to_transform_stamped,
                                 transform_to_rt,
 )
@@ -29,6 +30,7 @@ __all__ = [
     'cloud_points', 'cloud_to_xyz', 'intrinsics_to_camera_info', 'joints_to_pose_array',
     'make_header', 'matrix_to_quat', 'ns_to_stamp', 'parse_cloud_cdr', 'pose_array_to_joints',
     'pose_msg_to_rt', 'pose_to_rt', 'quat_to_matrix', 'rclpy_types', 'rosbags_types',
-    'rt_to_odometry', 'rt_to_pose', 'rt_to_pose_stamped', 'rt_to_transform_stamped',
+    'rt_to_odometry', 'rt_to_pose', 'rt_to_pose_stamped', 'rt_to_pose_with_covariance_stamped',
+    'rt_to_transform_stamped',
     'stamp_to_ns', 'transform_to_rt', 'xyz_from_buffer', 'xyz_to_cloud',
 ]

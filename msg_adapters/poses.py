@@ -194,6 +194,23 @@ def rt_to_pose_stamped(R: np.ndarray, c: np.ndarray, stamp_ns: int, frame_id: st
         header=make_header(stamp_ns, frame_id, types), pose=rt_to_pose(R, c, types))
 
 
+def _pose_with_covariance(R: np.ndarray, c: np.ndarray, covariance: Any, what: str,
+                          types: MessageTypes) -> Any:
+    return types.get('geometry_msgs/msg/PoseWithCovariance')(
+        pose=rt_to_pose(R, c, types), covariance=_covariance(covariance, what))
+
+
+def rt_to_pose_with_covariance_stamped(R: np.ndarray, c: np.ndarray, stamp_ns: int,
+                                       frame_id: str, types: MessageTypes,
+                                       covariance: Any = None) -> Any:
+    """``geometry_msgs/PoseWithCovarianceStamped``: R (3, 3) child-to-``frame_id`` rotation, c (3,)
+    child origin in ``frame_id`` (its unit), covariance (6, 6) or None (zeros), ROS order."""
+    return types.get('geometry_msgs/msg/PoseWithCovarianceStamped')(
+        header=make_header(stamp_ns, frame_id, types),
+        pose=_pose_with_covariance(R, c, covariance, 'PoseWithCovarianceStamped: covariance',
+                                   types))
+
+
 def rt_to_odometry(R: np.ndarray, c: np.ndarray, stamp_ns: int, frame_id: str, child_frame_id: str,
                    types: MessageTypes, covariance: Any = None, linear: Any = None,
                    angular: Any = None, twist_covariance: Any = None) -> Any:
@@ -210,8 +227,7 @@ def rt_to_odometry(R: np.ndarray, c: np.ndarray, stamp_ns: int, frame_id: str, c
     Vector3 = t.get('geometry_msgs/msg/Vector3')
     return t.get('nav_msgs/msg/Odometry')(
         header=make_header(stamp_ns, frame_id, t), child_frame_id=child_frame_id,
-        pose=t.get('geometry_msgs/msg/PoseWithCovariance')(
-            pose=rt_to_pose(R, c, t), covariance=_covariance(covariance, 'Odometry: covariance')),
+        pose=_pose_with_covariance(R, c, covariance, 'Odometry: covariance', t),
         twist=t.get('geometry_msgs/msg/TwistWithCovariance')(
             twist=t.get('geometry_msgs/msg/Twist')(linear=Vector3(x=vx, y=vy, z=vz),
                                                    angular=Vector3(x=wx, y=wy, z=wz)),

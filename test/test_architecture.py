@@ -91,7 +91,7 @@ def test_no_module_imports_itself_back_through_others():
     # the graph is read right: a few edges every reader of the code knows
     assert 'hac_ros.core.frame_loop' in graph['hac_ros.core.calibrator']
     assert 'hac_ros.core.calibrator' in graph['hac_ros.replay.replayer']
-    assert 'msg_adapters.cdr_write' in graph['hac_ros.bridge.messages']
+    assert 'msg_adapters' in graph['hac_ros.bridge.messages']
     assert _cycles(graph) == []
 
 

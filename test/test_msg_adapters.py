@@ -99,11 +99,8 @@ def test_poses_round_trip_through_cdr(types):
         'geometry_msgs/msg/PoseStamped': ma.rt_to_pose_stamped(R, c, 5, 'map', types),
         'nav_msgs/msg/Odometry': ma.rt_to_odometry(R, c, 5, 'map', 'cam', types, covariance=cov,
                                                    linear=[1, 2, 3], angular=np.array([4., 5, 6])),
-        'geometry_msgs/msg/PoseWithCovarianceStamped': types.get(
-            'geometry_msgs/msg/PoseWithCovarianceStamped')(
-                header=ma.make_header(5, 'map', types),
-                pose=types.get('geometry_msgs/msg/PoseWithCovariance')(
-                    pose=ma.rt_to_pose(R, c, types), covariance=np.zeros(36))),
+        'geometry_msgs/msg/PoseWithCovarianceStamped': ma.rt_to_pose_with_covariance_stamped(
+            R, c, 5, 'map', types, covariance=cov),
         'geometry_msgs/msg/Pose': ma.rt_to_pose(R, c, types),
     }
     for name, msg in msgs.items():
@@ -118,6 +115,10 @@ def test_poses_round_trip_through_cdr(types):
     assert (twist.linear.x, twist.linear.y, twist.linear.z) == (1, 2, 3)
     assert (twist.angular.x, twist.angular.y, twist.angular.z) == (4, 5, 6)
     np.testing.assert_array_equal(odom.twist.covariance, np.zeros(36))
+    stamped = cdr_round_trip(msgs['geometry_msgs/msg/PoseWithCovarianceStamped'],
+                             'geometry_msgs/msg/PoseWithCovarianceStamped', types)
+    assert (ma.stamp_to_ns(stamped.header.stamp), stamped.header.frame_id) == (5, 'map')
+    np.testing.assert_array_equal(np.reshape(stamped.pose.covariance, (6, 6)), cov)
 
     tf = cdr_round_trip(ma.rt_to_transform_stamped(R, c, 9, 'world', 'camera', types),
                         'geometry_msgs/msg/TransformStamped', types)
@@ -368,6 +369,9 @@ def test_builders_refuse_what_is_not_a_pose():
         ma.rt_to_odometry(np.eye(3), np.zeros(3), 0, 'map', 'cam', t, covariance=np.eye(3))
     with pytest.raises(MessageError, match='linear velocity: expected shape'):
         ma.rt_to_odometry(np.eye(3), np.zeros(3), 0, 'map', 'cam', t, linear=[1.0, 2.0])
+    with pytest.raises(MessageError, match='PoseWithCovarianceStamped: covariance'):
+        ma.rt_to_pose_with_covariance_stamped(np.eye(3), np.zeros(3), 0, 'map', t,
+                                              covariance=np.eye(5))
 
 
 def test_bad_joints_are_message_errors():

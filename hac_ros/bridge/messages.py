@@ -2,9 +2,9 @@
 
 Both shells call :meth:`OutputMessages.convert` on every output of the
 :class:`~hac_ros.core.calibrator.Calibrator` and publish (``Publisher.publish(bytes)``) or write
-what comes back, so that the same recording gives the same bytes online and replayed. The messages
-are encoded straight from numpy by :mod:`msg_adapters.cdr_write` (the same bytes as building the
-message objects and serializing them, at a fraction of the cost). Topics and types:
+what comes back, so that the same recording gives the same bytes online and replayed. Each message
+is built as a rosbags ROS 2 Jazzy message object (by :mod:`msg_adapters` where it converts numpy)
+and serialized by rosbags' ``serialize_cdr``: CDR that rclpy reads as its own. Topics and types:
 docs/interface.md, "Topics".
 
 Topic names are relative (a namespaced node moves them all) except ``/diagnostics``; the replay
@@ -15,8 +15,10 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+from rosbags.typesys import Stores, get_typestore
 from scipy.spatial.transform import Rotation
 
 from hac_ros.core.health import Finding, HealthMonitor
@@ -33,8 +35,14 @@ from hac_ros.core.outputs import (
     Status,
 )
 from hac_ros.core.params import POSE_MSGTYPES, HacParams
-from msg_adapters import cdr_write
-from msg_adapters.poses import matrix_to_quat
+from msg_adapters import (
+    joints_to_pose_array,
+    make_header,
+    rosbags_types,
+    rt_to_odometry,
+    rt_to_pose_with_covariance_stamped,
+    xyz_to_cloud,
+)
 
 ODOMETRY = ('hac/odometry', 'nav_msgs/msg/Odometry')
 POSE = ('hac/pose', 'geometry_msgs/msg/PoseWithCovarianceStamped')
@@ -77,6 +85,14 @@ SKELETON_RGBA = (0.1, 0.9, 0.2, 1.0)
 PATH_RGBA = (0.2, 0.4, 1.0, 1.0)
 PLANE_RGBA = (0.6, 0.6, 0.6, 0.4)
 SKELETON_WIDTH_M, PATH_WIDTH_M = 0.03, 0.02
+IDENTITY_POSE = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0])  # position, quaternion (x, y, z, w)
+TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
+TYPES = rosbags_types(TYPESTORE)  # its message classes (dataclasses), by ROS name
+
+
+def serialize(msg: Any, msgtype: str) -> bytes:
+    """A message object of :data:`TYPES` of type ``msgtype`` -> its CDR bytes (little endian)."""
+    return bytes(TYPESTORE.serialize_cdr(msg, msgtype))
 
 
 def in_root(topic: str) -> str:
@@ -96,6 +112,12 @@ class Message:
     msgtype: str
     msg: bytes
     stamp_ns: int
+
+
+def message(topic: tuple[str, str], msg: Any, stamp_ns: int) -> Message:
+    """The :class:`Message` of a rosbags message object on ``topic`` (name, type)."""
+    name, msgtype = topic
+    return Message(name, msgtype, serialize(msg, msgtype), stamp_ns)
 
 
 class OutputMessages:
@@ -132,35 +154,32 @@ class OutputMessages:
         if isinstance(output, PoseOut):
             self._path[self._path_count % PATH_LENGTH] = output.position_metric
             self._path_count += 1
-            data = cdr_write.pose_with_covariance_stamped(
-                stamp, frame, output.position_metric, matrix_to_quat(output.rotation_metric),
-                output.covariance)
-            return [Message(*POSE, data, stamp)]
+            return [message(POSE, rt_to_pose_with_covariance_stamped(
+                output.rotation_metric, output.position_metric, stamp, frame, TYPES,
+                output.covariance), stamp)]
         if isinstance(output, OdometryOut):
-            data = cdr_write.odometry(stamp, self.params.odom_frame, output.child_frame_id,
-                                      output.position_metric,
-                                      matrix_to_quat(output.rotation_metric), output.covariance,
-                                      output.linear_velocity, output.angular_velocity,
-                                      output.twist_covariance)
-            return [Message(*ODOMETRY, data, stamp)]
+            return [message(ODOMETRY, rt_to_odometry(
+                output.rotation_metric, output.position_metric, stamp, self.params.odom_frame,
+                output.child_frame_id, TYPES, output.covariance, output.linear_velocity,
+                output.angular_velocity, output.twist_covariance), stamp)]
         if isinstance(output, CloudOut):
-            msgs = [Message(*CLOUD, cdr_write.point_cloud_xyz32(stamp, frame, output.points_metric),
-                            stamp)]
+            points = output.points_metric
+            msgs = [message(CLOUD, xyz_to_cloud(points, stamp, frame, TYPES), stamp)]
             if self.params.publish_obstacles and output.levelled:
-                z = output.points_metric[:, 2]
+                z = points[:, 2]
                 band = ((z >= self.params.obstacle_min_height)
                         & (z <= self.params.obstacle_max_height))
-                msgs.append(Message(*OBSTACLES, cdr_write.point_cloud_xyz32(
-                    stamp, frame, output.points_metric[band]), stamp))
+                msgs.append(message(OBSTACLES, xyz_to_cloud(points[band], stamp, frame, TYPES),
+                                    stamp))
             return msgs
         if isinstance(output, HumanJointsOut):
-            msgs = [Message(*HUMAN_JOINTS, cdr_write.pose_array(stamp, frame, output.joints_metric),
-                            stamp)]
+            msgs = [message(HUMAN_JOINTS,
+                            joints_to_pose_array(output.joints_metric, stamp, frame, TYPES), stamp)]
             if self.params.publish_markers:
                 msgs.append(Message(*MARKERS, self.markers(output), stamp))
             return msgs
         if isinstance(output, ScaleOut):
-            return [Message(*SCALE, cdr_write.float64(output.scale), stamp)]
+            return [message(SCALE, TYPES.get(SCALE[1])(data=float(output.scale)), stamp)]
         if isinstance(output, DiagnosticsOut):
             self._status = output.status
             extra, values = self.extra_status() if self.extra_status is not None else ([], [])
@@ -205,10 +224,13 @@ class OutputMessages:
         values += list(extra_values)
         health = self.health.assess(status, extra) if take else self.health.peek(status, extra)
         values.append(('reasons', ','.join(health.reasons)))
-        level, message = health.level, health.message
-        return cdr_write.diagnostic_array(
-            status.stamp_ns, '',
-            [(level, DIAGNOSTIC_NAME, message, self.params.metric_frame, values)])
+        KeyValue = TYPES.get('diagnostic_msgs/msg/KeyValue')
+        diagnostic = TYPES.get('diagnostic_msgs/msg/DiagnosticStatus')(
+            level=health.level, name=DIAGNOSTIC_NAME, message=health.message,
+            hardware_id=self.params.metric_frame,
+            values=[KeyValue(key=key, value=value) for key, value in values])
+        return serialize(TYPES.get(DIAGNOSTICS[1])(header=make_header(status.stamp_ns, '', TYPES),
+                                                   status=[diagnostic]), DIAGNOSTICS[1])
 
     # ------------------------------------------------------------------ markers
     def markers(self, output: HumanJointsOut) -> bytes:
@@ -223,19 +245,16 @@ class OutputMessages:
             path, plane = self._path_points(), self._plane_pose()
             if len(path) >= 2 or plane is not None:
                 self._slow_sent_ns = stamp
-        w = cdr_write.CdrWriter()
-        w.u32(len(people) + (len(path) >= 2) + (plane is not None))
-        for person, joints in people:
-            cdr_write.marker(w, stamp, frame, 'skeleton', person, LINE_LIST, ADD,
-                             cdr_write.IDENTITY_POSE, (SKELETON_WIDTH_M, 0.0, 0.0), SKELETON_RGBA,
-                             joints[self._bone_joints])
+        markers = [marker(stamp, frame, 'skeleton', person, LINE_LIST, IDENTITY_POSE,
+                          (SKELETON_WIDTH_M, 0.0, 0.0), SKELETON_RGBA, joints[self._bone_joints])
+                   for person, joints in people]
         if len(path) >= 2:
-            cdr_write.marker(w, stamp, frame, 'camera_path', 0, LINE_STRIP, ADD,
-                             cdr_write.IDENTITY_POSE, (PATH_WIDTH_M, 0.0, 0.0), PATH_RGBA, path)
+            markers.append(marker(stamp, frame, 'camera_path', 0, LINE_STRIP, IDENTITY_POSE,
+                                  (PATH_WIDTH_M, 0.0, 0.0), PATH_RGBA, path))
         if plane is not None:
-            cdr_write.marker(w, stamp, frame, 'ground_plane', 0, CUBE, ADD, plane,
-                             (PLANE_SIZE_M, PLANE_SIZE_M, PLANE_THICKNESS_M), PLANE_RGBA)
-        return w.bytes()
+            markers.append(marker(stamp, frame, 'ground_plane', 0, CUBE, plane,
+                                  (PLANE_SIZE_M, PLANE_SIZE_M, PLANE_THICKNESS_M), PLANE_RGBA))
+        return serialize(TYPES.get(MARKERS[1])(markers=markers), MARKERS[1])
 
     def _path_points(self) -> np.ndarray:
         """The last PATH_LENGTH camera positions (N, 3), metres, oldest first."""
@@ -261,6 +280,34 @@ class OutputMessages:
 _NO_POINTS = np.empty((0, 3))
 
 
+def marker(stamp_ns: int, frame_id: str, ns: str, marker_id: int, kind: int, pose: np.ndarray,
+           scale: Sequence[float], rgba: Sequence[float], points: np.ndarray = _NO_POINTS) -> Any:
+    """One visualization_msgs/Marker (ADD) in ``frame_id``: pose (7,) position (metres) and
+    quaternion (x, y, z, w); scale (3,) metres; colour rgba (4,) in [0, 1]; points (N, 3) metres.
+    Every other field is empty: lifetime 0 (kept until replaced), not frame-locked, no per-point
+    colours, texture, mesh or text."""
+    t = TYPES
+    Point, no_bytes = t.get('geometry_msgs/msg/Point'), np.empty(0, np.uint8)
+    x, y, z, qx, qy, qz, qw = np.asarray(pose, dtype=float).tolist()
+    sx, sy, sz = scale
+    r, g, b, a = rgba
+    return t.get('visualization_msgs/msg/Marker')(
+        header=make_header(stamp_ns, frame_id, t), ns=ns, id=marker_id, type=kind, action=ADD,
+        pose=t.get('geometry_msgs/msg/Pose')(
+            position=Point(x=x, y=y, z=z),
+            orientation=t.get('geometry_msgs/msg/Quaternion')(x=qx, y=qy, z=qz, w=qw)),
+        scale=t.get('geometry_msgs/msg/Vector3')(x=sx, y=sy, z=sz),
+        color=t.get('std_msgs/msg/ColorRGBA')(r=r, g=g, b=b, a=a),
+        lifetime=t.get('builtin_interfaces/msg/Duration')(sec=0, nanosec=0), frame_locked=False,
+        points=[Point(x=px, y=py, z=pz) for px, py, pz in np.asarray(points, dtype=float).tolist()],
+        colors=[], texture_resource='',
+        texture=t.get('sensor_msgs/msg/CompressedImage')(
+            header=make_header(0, '', t), format='', data=no_bytes),
+        uv_coordinates=[], text='', mesh_resource='',
+        mesh_file=t.get('visualization_msgs/msg/MeshFile')(filename='', data=no_bytes),
+        mesh_use_embedded_materials=False)
+
+
 def samples_message(samples: list[SampleOut]) -> bytes:
     """The /hac/samples message of one frame (see :data:`SAMPLES`)."""
     data = np.empty(SAMPLE_FIELDS * len(samples))
@@ -270,4 +317,8 @@ def samples_message(samples: list[SampleOut]) -> bytes:
         start = SAMPLE_FIELDS * k
         data[start:start + SAMPLE_FIELDS] = (s.person, s.scale, code, float(s.accepted))
     dims = [('sample', len(samples), len(data)), (SAMPLE_LABEL, SAMPLE_FIELDS, SAMPLE_FIELDS)]
-    return cdr_write.float64_multi_array(dims, data)
+    Dimension = TYPES.get('std_msgs/msg/MultiArrayDimension')
+    layout = TYPES.get('std_msgs/msg/MultiArrayLayout')(
+        dim=[Dimension(label=label, size=size, stride=stride) for label, size, stride in dims],
+        data_offset=0)
+    return serialize(TYPES.get(SAMPLES[1])(layout=layout, data=data), SAMPLES[1])
