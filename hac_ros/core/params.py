@@ -136,8 +136,11 @@ class HacParams:
                                     'more than this fraction', low=0.0, high=10.0)
     cloud_min_period_s: float = _p(5.0, '/hac/cloud at most once per this much stamp time, '
                                    'seconds', low=0.0, high=1e6)
-    cloud_out_max_points: int = _p(200_000, 'points of /hac/cloud at most (the map thinned evenly)',
-                                   low=1, high=100_000_000)
+    cloud_out_max_points: int = _p(30_000, 'points of /hac/cloud at most (the map thinned '
+                                   'evenly); 30000 fit Fast DDS\'s default shared-memory segment: '
+                                   'raise it with config/fastdds_large_data.xml in every process '
+                                   'of the host (a larger cloud delays the other topics of a '
+                                   'process that also takes it)', low=1, high=100_000_000)
     publish_obstacles: bool = _p(False, 'publish /hac/obstacles with /hac/cloud: its points '
                                  'between obstacle_min_height and obstacle_max_height above the '
                                  'floor (gravity alignment only), for costmaps')
