@@ -88,3 +88,28 @@ def test_argument_errors_are_said_with_the_commands_own_options(tmp_path):
     assert text == 'use pose_type or joints_topic; {other} stays'
     assert text.naming({'pose_type': '--pose-type'}) == \
         'use --pose-type or joints_topic; {other} stays'
+
+
+def test_a_signal_wrapped_by_the_library_it_interrupted_is_still_an_interruption():
+    """A SIGTERM that lands while a module initialises can come back as that library's error
+    (seen under load: exit 1 where 143 was due); the command still says "interrupted"."""
+    import signal
+
+    from hac_ros.cli import interruption
+    from hac_ros.recording.atomic import Interrupted
+
+    try:
+        try:
+            raise Interrupted(signal.SIGTERM)
+        except KeyboardInterrupt as inner:
+            raise SystemError('initialization of _x raised unreported exception') from inner
+    except SystemError as wrapped:
+        assert interruption(wrapped) == signal.SIGTERM
+    try:
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt:
+            raise ImportError('cannot import name x') from None  # chained as context only
+    except ImportError as wrapped:
+        assert interruption(wrapped) == signal.SIGINT
+    assert interruption(ValueError('a bug')) is None

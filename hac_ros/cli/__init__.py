@@ -94,16 +94,39 @@ def main(argv: Sequence[str] | None = None) -> int:
             with terminal_logging(args.command):
                 return int(args._run(args) or 0)
         except KeyboardInterrupt as exc:  # Interrupted: SIGINT, SIGTERM or SIGHUP
-            signum = exc.signum if isinstance(exc, Interrupted) else signal.SIGINT
-            print(f'{command}: interrupted ({signal.Signals(signum).name}): nothing partial '
-                  'left behind', file=sys.stderr)
-            return 128 + signum
+            return interrupted(command, exc.signum if isinstance(exc, Interrupted)
+                               else signal.SIGINT)
         except Exception as exc:
+            signum = interruption(exc)
+            if signum is not None:  # a signal, wrapped by the library it interrupted
+                return interrupted(command, signum)
             reason = user_error(exc, args if 'args' in locals() else None)
             if reason is None:
                 raise
             print(f'{command}: error: {reason}', file=sys.stderr)
             return 2
+
+
+def interrupted(command: str, signum: int) -> int:
+    """The one line of a command ended by ``signum``, and its exit code (128 + the signal)."""
+    print(f'{command}: interrupted ({signal.Signals(signum).name}): nothing partial left behind',
+          file=sys.stderr)
+    return 128 + signum
+
+
+def interruption(exc: BaseException) -> int | None:
+    """The signal behind ``exc`` when a KeyboardInterrupt is in its chain (``__cause__`` or
+    ``__context__``), else None: a signal that lands while a library runs its own code (a module
+    being imported, a C extension initialising) can come back as that library's error, such as
+    ``SystemError: initialization of ... raised unreported exception``."""
+    seen: set[int] = set()
+    cause: BaseException | None = exc
+    while cause is not None and id(cause) not in seen:
+        seen.add(id(cause))
+        if isinstance(cause, KeyboardInterrupt):
+            return cause.signum if isinstance(cause, Interrupted) else int(signal.SIGINT)
+        cause = cause.__cause__ or cause.__context__
+    return None
 
 
 def user_error(exc: BaseException, args: argparse.Namespace | None) -> str | None:
