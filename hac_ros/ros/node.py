@@ -46,7 +46,6 @@ from rclpy.clock import Clock, ClockType
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import qos_policy_name_from_kind
 from rclpy.serialization import deserialize_message
 
 from hac_ros.bridge.inputs import add_camera_info_msg, add_joints_msg, add_pose_msg
@@ -58,6 +57,7 @@ from hac_ros.core.outputs import DiagnosticsOut, NoticeOut, OdometryOut, Output,
 from hac_ros.core.params import NODE_NAME, POSE_MSGTYPES, HacParams, names
 from hac_ros.core.reference import MapIndex
 from hac_ros.ros.arguments import run
+from hac_ros.ros.graph_watch import GRAPH_CHECK_S, GraphWatch
 from hac_ros.ros.intake import Inbox, Item, Liveness, Processor
 from hac_ros.ros.map_intake import MapIntake
 from hac_ros.ros.parameters import (
@@ -66,7 +66,7 @@ from hac_ros.ros.parameters import (
     our_values,
     startup_warnings,
 )
-from hac_ros.ros.qos import cloud_qos, input_qos, output_qos, qos_hint
+from hac_ros.ros.qos import cloud_qos, input_qos, output_qos
 from hac_ros.ros.tf_broadcast import TfSender
 from hac_ros.ros.tf_input import TfPoseInput, transform_listener_class
 from msg_adapters import rclpy_types
@@ -76,7 +76,6 @@ TYPES = rclpy_types()  # rclpy's message classes by ROS name
 # 2.x reads the first, 3.x the second; read once per process, when rclpy starts
 DDS_PROFILE_VARIABLES = ('FASTRTPS_DEFAULT_PROFILES_FILE', 'FASTDDS_DEFAULT_PROFILES_FILE')
 
-GRAPH_CHECK_S = 2.0  # wall seconds between checks of the input topics' publisher types
 STALE_CHECK_S = 0.5  # wall seconds between looks at whether input stopped coming
 STEADY = Clock(clock_type=ClockType.STEADY_TIME)  # timers that must run without /clock
 
@@ -130,13 +129,12 @@ class HacShell(_NodeMixinBase):
         self.calibrator = Calibrator(self.params)
         self.outputs = OutputMessages(self.params)
         self.notices: Counter[str] = Counter()  # causes of the NoticeOut logged (once each)
-        self.qos_incompatible: Counter[str] = Counter()  # topics with an incompatible publisher
+        self.graph = GraphWatch(self, self._reject)  # QoS, lost messages, wrong types
         self._camera_info: tuple[Any, int, int] | None = None  # (K, width, height) last valid
         self._failed_callbacks: set[str] = set()
         self._output_publishers: dict[str, Any] = {}
         self._subscriptions_by_kind: dict[str, Any] = {}
         self._hac_services: list[Any] = []
-        self._wrong_types: set[tuple[str, str, str, str]] = set()  # publishers reported
         self.tf: TfSender | None = None
         self.tf_input: TfPoseInput | None = None  # pose_source tf (hac_ros.ros.tf_input)
         # the intake (hac_ros.ros.intake): every access to the calibrator holds the lock
@@ -162,7 +160,9 @@ class HacShell(_NodeMixinBase):
                           self.create_service(TYPES.get('std_srvs/srv/SetBool'), '~/freeze',
                                               self._on_freeze)]
         self._update_tf()
-        self._type_check = self.create_timer(GRAPH_CHECK_S, self._check_input_types, clock=STEADY)
+        self._type_check = self.create_timer(
+            GRAPH_CHECK_S, lambda: self.graph.check_types(self._subscriptions_by_kind,
+                                                          self.params.pose_type), clock=STEADY)
         self._stale_check = self.create_timer(STALE_CHECK_S, self._check_stale, clock=STEADY)
         self.active = True
         p = self.params
@@ -223,8 +223,8 @@ class HacShell(_NodeMixinBase):
         callback = {'pose': self._on_pose, 'joints': self._on_joints,
                     'camera_info': self._on_camera_info, 'cloud': self._on_cloud}[kind]
         events = SubscriptionEventCallbacks(
-            incompatible_qos=functools.partial(self._on_incompatible_qos, kind, topic),
-            message_lost=functools.partial(self._on_message_lost, kind))
+            incompatible_qos=functools.partial(self.graph.incompatible_qos, kind, topic),
+            message_lost=functools.partial(self.graph.message_lost, kind))
         self._subscriptions_by_kind[kind] = self.create_subscription(
             msg_type, topic, self._guarded(kind, callback), qos, event_callbacks=events, raw=raw)
 
@@ -233,44 +233,15 @@ class HacShell(_NodeMixinBase):
         ``cloud``), or None when it is turned off."""
         return self._subscriptions_by_kind.get(kind)
 
-    def _on_incompatible_qos(self, kind: str, topic: str, info: Any) -> None:
-        policy = qos_policy_name_from_kind(info.last_policy_kind)
-        topic = self.resolve_topic_name(topic)
-        self.qos_incompatible[topic] += 1
-        self.get_logger().warning(
-            f'QoS mismatch on {topic}: a publisher offers an incompatible {policy} policy, so no '
-            f'messages from it will arrive; {qos_hint(kind, policy)}')
-
-    def _check_input_types(self) -> None:
-        """A publisher of another message type on an input topic gets no message through and
-        DDS says nothing (this rmw does not report the incompatible-type event): the graph is
-        checked every GRAPH_CHECK_S; each such publisher is counted as ``<kind>_wrong_type`` in
-        /diagnostics, logged once naming the parameter to change."""
-        for kind, subscription in self._subscriptions_by_kind.items():
-            topic, expected = subscription.topic_name, input_msgtype(kind, self.params.pose_type)
-            for info in self.get_publishers_info_by_topic(topic):
-                key = (topic, info.node_namespace, info.node_name, info.topic_type)
-                if info.topic_type == expected or key in self._wrong_types:
-                    continue
-                self._wrong_types.add(key)
-                hint = (f'set pose_type to {info.topic_type.rsplit("/", 1)[-1]!r}'
-                        if kind == 'pose' and info.topic_type in POSE_MSGTYPES.values() else
-                        f'{kind}_topic may name the wrong topic')
-                with self.lock:
-                    outputs = self.core.reject(f'{kind}_wrong_type', -1)
-                for notice in outputs:  # the first time: say what to change
-                    assert isinstance(notice, NoticeOut)
-                    notice.text = (f'type mismatch on {topic}: {info.node_name} publishes '
-                                   f'{info.topic_type}, the node subscribes {expected}, so none of '
-                                   f'its messages arrive; {hint}')
-                self._emit(outputs)
-
-    def _on_message_lost(self, kind: str, info: Any) -> None:
-        """The middleware saw messages that never reached this subscription (best-effort input
-        under load): counted as ``<kind>_lost`` in /diagnostics, logged once."""
+    def _reject(self, reason: str, text: str = '') -> None:
+        """Count one rejection of the ``reason`` (hac_ros.ros.graph_watch's faults); ``text``, when
+        given, is what its first notice says."""
         with self.lock:
-            for _ in range(max(int(info.total_count_change), 0)):
-                self._emit(self.core.reject(f'{kind}_lost', -1))
+            outputs = self.core.reject(reason, -1)
+        for notice in outputs:  # the first time: say what to change
+            if text and isinstance(notice, NoticeOut):
+                notice.text = text
+        self._emit(outputs)
 
     def _guarded(self, kind: str, callback: Callable[[Any], None]) -> Callable[[Any], None]:
         """The node never dies on input: an unexpected error is logged once and counted."""
