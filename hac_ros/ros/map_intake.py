@@ -30,9 +30,7 @@ class MapIntake:
     maps into the inbox.
     """
 
-    def __init__(self, build_index: IndexBuilder, inbox: Inbox, cloud_mode: str,
-                 wake: Callable[[], None]) -> None:
-        self.cloud_mode = cloud_mode  # the node's cloud_mode parameter (it may change at runtime)
+    def __init__(self, build_index: IndexBuilder, inbox: Inbox, wake: Callable[[], None]) -> None:
         self.indexed = 0  # map indexes put into the inbox
         self.superseded = 0  # clouds dropped unbuilt: a newer one arrived first
         self.rejected = 0  # clouds that could not be decoded
@@ -44,22 +42,23 @@ class MapIntake:
         self._builder = MapBuilder(build_index, workers=1)
         self._building: deque[Future[MapBuilt]] = deque()  # in arrival order
 
-    def receive(self, data: bytes) -> bool:
+    def receive(self, data: bytes, cloud_mode: str) -> bool:
         """Executor thread: the header of a cloud's CDR bytes read, the cloud queued for the
-        builder. False when the bytes are not a PointCloud2 (the node rejects it)."""
+        builder (``cloud_mode``: the node's parameter). False when the bytes are not a
+        PointCloud2 (the node rejects it)."""
         try:
             cloud = parse_cloud_cdr(data)
         except MessageError:
             self.rejected += 1
             return False
         self.last_cloud = cloud
-        self.submit(cloud)
+        self.submit(cloud, cloud_mode)
         return True
 
-    def submit(self, cloud: RawCloud) -> None:
+    def submit(self, cloud: RawCloud, cloud_mode: str) -> None:
         """Queue ``cloud`` for the builder; what ``cloud_mode`` no longer needs is superseded."""
         waiting = [f for f in self._building if not f.done()]
-        if self.cloud_mode == 'replace':
+        if cloud_mode == 'replace':
             superseded = waiting
         else:
             superseded = waiting[:max(0, len(waiting) - MAPS_WAITING_MAX + 1)]

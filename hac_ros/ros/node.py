@@ -145,8 +145,7 @@ class HacShell(_NodeMixinBase):
                                     self.liveness.load)
         # map clouds built off the executor's thread (hac_ros.ros.map_intake)
         self._maps_ready = self.create_guard_condition(lambda: self.maps.ready())
-        self.maps = MapIntake(self._build_index, self._inbox, self.params.cloud_mode,
-                              lambda: self._maps_ready.trigger())
+        self.maps = MapIntake(self._build_index, self._inbox, lambda: self._maps_ready.trigger())
         self.outputs.extra_status = self._node_status
 
     def _activate(self) -> None:
@@ -318,7 +317,7 @@ class HacShell(_NodeMixinBase):
 
     def _on_cloud(self, data: bytes) -> None:
         """Raw CDR bytes: the header read here, decoded and indexed on the builder's thread."""
-        if not self.maps.receive(data):
+        if not self.maps.receive(data, self.params.cloud_mode):
             with self.lock:
                 self._emit(self.core.reject('cloud_malformed', -1))
 
@@ -414,7 +413,6 @@ class HacShell(_NodeMixinBase):
                 return
             self.params = self.outputs.params = change.params
             self._inbox.backlog_max = change.params.joints_backlog_max
-            self.maps.cloud_mode = change.params.cloud_mode
             if self.active:
                 for kind in change.resubscribe:
                     self._subscribe(kind)
@@ -442,7 +440,7 @@ class HacShell(_NodeMixinBase):
         if current_map is not None:
             self._emit(self.calibrator.add_map_index(current_map))
         if 'index_max_points' in changed and self.maps.last_cloud is not None:
-            self.maps.submit(self.maps.last_cloud)
+            self.maps.submit(self.maps.last_cloud, self.params.cloud_mode)
         self.notices.clear()
         self.get_logger().warning(
             f'estimator parameter(s) {", ".join(changed)} changed: the estimator was rebuilt and '
