@@ -12,7 +12,7 @@ from hac_ros.batch.pool import default_workers, run_pool
 from hac_ros.batch.summary import medians_line, write_summary
 from hac_ros.core.errors import ArgumentError
 from hac_ros.core.params import HacParams
-from hac_ros.replay.feeder import Progress
+from hac_ros.replay.feeder import Progress, progress_pass
 
 
 # ============================================================================ the batch
@@ -75,8 +75,7 @@ def batch(inputs: Sequence[str | Path], out_dir: str | Path, params: HacParams |
                       f'{out_dir / name} is complete for the same input, parameters and mode',
                       file=log)
         total = len(jobs) + len(done)
-        bar = (stack.enter_context(progress(total, 'hac batch')) if progress is not None
-               else None)
+        bar = stack.enter_context(progress_pass(progress, total, 'hac batch'))
         if bar is not None and done:
             bar.update(len(done))
 

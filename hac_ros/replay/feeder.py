@@ -7,6 +7,7 @@ the same decoders and the same map builder). The replay, the evaluation and the 
 """
 from __future__ import annotations
 
+import contextlib
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import Future
@@ -44,6 +45,12 @@ class ProgressBar(Protocol):
 # whose value is a ProgressBar. The library draws nothing itself (the ``hac`` command passes a bar
 # on a terminal: hac_ros.cli.terminal).
 Progress = Callable[[int, str], AbstractContextManager[ProgressBar]]
+
+
+def progress_pass(progress: Progress | None, total: int, label: str
+                  ) -> AbstractContextManager[ProgressBar | None]:
+    """The caller's progress display for one pass of ``total`` units, or nothing (None)."""
+    return contextlib.nullcontext() if progress is None else progress(total, label)
 
 # Messages of the same log time are fed in this order (then any other topic): the camera's
 # intrinsics and the map before the frame they serve, the pose (the clock) before its joints.

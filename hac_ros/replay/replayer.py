@@ -21,7 +21,6 @@ Besides the node's output topics the replay writes ``/hac/samples`` (per-frame s
 """
 from __future__ import annotations
 
-import contextlib
 import logging
 import math
 import time
@@ -62,7 +61,7 @@ from hac_ros.files.tum import write_tum_exports
 from hac_ros.recording.atomic import staged_output
 from hac_ros.recording.reader import STORAGES, Recording, layout_data
 from hac_ros.recording.writer import OutputWriter, check_output_path
-from hac_ros.replay.feeder import CoreFeeder, InputTopics, Progress, ProgressBar
+from hac_ros.replay.feeder import CoreFeeder, InputTopics, Progress, ProgressBar, progress_pass
 
 MODES = ('offline', 'online')
 NOTICE_LEVELS = {'info': logging.INFO, 'warn': logging.WARNING, 'error': logging.ERROR}
@@ -273,7 +272,7 @@ def replay(input_path: str | Path, output_path: str | Path, params: HacParams | 
                                     keep_poses=export_tum is not None)
                 on_message = _input_copier(recording, writer) if copy_inputs else None
                 if mode == 'online':
-                    with _progress(progress, n_pass, 'replay') as bar:
+                    with progress_pass(progress, n_pass, 'replay') as bar:
                         feeder.run(handler, on_message=on_message, progress=bar)
                     status = feeder.calibrator.status()
                 else:
@@ -300,11 +299,11 @@ def _offline(feeder: CoreFeeder, handler: OutputHandler,
     Memory: the run's records are kept until the schedule is known (about 1.9 kB per frame of one
     person, docs/replay.md).
     """
-    with _progress(progress, n_pass, 'estimate') as bar:
+    with progress_pass(progress, n_pass, 'estimate') as bar:
         feeder.run(lambda _: None, on_message=on_message, progress=bar)
     run = resolve_offline(feeder.calibrator)
     assert run.schedule is not None
-    with _progress(progress, len(run.outputs), 'write') as bar:
+    with progress_pass(progress, len(run.outputs), 'write') as bar:
         handler(run.outputs, bar)
     return run.status, run.schedule
 
@@ -326,9 +325,3 @@ def _input_copier(recording: Recording, writer: OutputWriter) -> Callable[[str, 
         conn = writer.connection(topic, recording.topics[topic], typestore=typestore)
         writer.write_raw(conn, log_ns, recording.to_cdr(raw, topic, log_ns))
     return copy
-
-
-def _progress(progress: Progress | None, total: int, label: str
-              ) -> contextlib.AbstractContextManager[ProgressBar | None]:
-    """The caller's progress display for one pass, or nothing."""
-    return contextlib.nullcontext() if progress is None else progress(total, label)
