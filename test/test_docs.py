@@ -193,3 +193,74 @@ def test_the_readme_layout_names_every_library_module():
                if module.stem != '__init__'
                and not re.search(rf'\b{module.stem}\b', described.get(f'hac_ros/{package}', ''))]
     assert missing == []
+
+
+# ---------------------------------------------------------------- layouts: one source, the registry
+def _layout_statements(text: str) -> list[str]:
+    """What a text says about the built-in layouts that the registry (hac_ros.core.layouts) does
+    not: a list of choices (names ending with ``custom``) that leaves a built-in layout out, a
+    name that is not a layout in such a list, and a joint count stated for a layout ("smpl24: 24",
+    "`coco17` and `h36m17`: 17", "24 for `smpl24`", "`smpl24`, K = 24") that is not its K."""
+    from hac_ros.core.layouts import BUILT_IN
+
+    name = r'`?([a-z][a-z0-9]*\d\d|custom)`?(?: \([^)]*\))?'
+    separator = r'(?:,? (?:or|and) |, | \| | / )'
+    wrong = []
+    for m in re.finditer(rf'{name}(?:{separator}{name})+', text):
+        listed = re.findall(name, m.group(0))
+        if listed[-1] != 'custom':
+            continue
+        missing = [n for n in BUILT_IN if n not in listed]
+        unknown = [n for n in listed if n not in BUILT_IN and n != 'custom']
+        if missing or unknown:
+            wrong.append(f'"{m.group(0)}" lists {listed}: missing {missing}, unknown {unknown}')
+    known = '|'.join(BUILT_IN)
+    counts = [(m.group(1), m.group(2)) for m in re.finditer(
+        rf'`?({known})`?(?:,? K =|:) (\d+)\b', text)]
+    counts += [(m.group(2), m.group(1)) for m in re.finditer(rf'\b(\d+) for `?({known})\b', text)]
+    for m in re.finditer(rf'`?({known})`? and `?({known})`?: (\d+)\b', text):
+        counts += [(m.group(1), m.group(3)), (m.group(2), m.group(3))]
+    wrong += [f'{layout}: {count} joints stated, K is {BUILT_IN[layout].joints_per_person}'
+              for layout, count in sorted(set(counts)) if int(count) != BUILT_IN[layout].joints_per_person]
+    return wrong
+
+
+def test_the_layout_checker_finds_stale_lists_and_counts():
+    """The check below can fail: a list of choices without a layout, a layout that is not one,
+    a wrong count, each form."""
+    from hac_ros.core.layouts import BUILT_IN
+
+    all_but_one = [*BUILT_IN][:-1]
+    assert len(_layout_statements('(' + ' | '.join([*all_but_one, 'custom']) + ')')) == 1
+    assert _layout_statements('(' + ' | '.join([*BUILT_IN, 'custom']) + ')') == []
+    assert len(_layout_statements('`smpl24`, `coco18`, `custom`')) == 1
+    assert len(_layout_statements('set joint_layout (smpl24: 24, coco17: 24)')) == 1
+    assert len(_layout_statements('24 for `coco17`, 17 for `h36m17`')) == 1
+    assert len(_layout_statements('`coco17` and `h36m17`: 33')) == 2
+    assert len(_layout_statements('`h36m17`, K = 24')) == 1
+    assert _layout_statements('`coco17` / `smpl24` for a 17-joint or a 24-joint model') == []
+
+
+def test_the_docs_and_code_name_the_layouts_and_counts_the_registry_has():
+    """README, docs/, config/ and the package's own texts: every list of joint_layout's choices
+    has every built-in layout, every stated joint count is the layout's; docs/inputs.md's table of
+    layouts is the registry's (hac_ros.core.layouts.markdown_table)."""
+    from hac_ros.core.layouts import markdown_table
+
+    wrong = [f'{page.relative_to(REPO)}: {w}' for page in PAGES + _code_files()
+             for w in _layout_statements(_text(page))]
+    assert wrong == []
+    table = re.search(r'<!-- layouts:start -->\n(.*?)\n<!-- layouts:end -->',
+                      _text(REPO / 'docs' / 'inputs.md'), re.S)
+    assert table and table.group(1) == markdown_table(), (
+        'docs/inputs.md\'s table of layouts is stale: paste hac_ros.core.layouts.markdown_table()')
+
+
+def test_config_comments_list_each_parameters_choices():
+    """config/hac.yaml: the "(a | b | c)" a parameter's comment ends with is its choices."""
+    listed = re.findall(r'^    (\w+): .*\(([\w | ]+)\)$', _text(REPO / 'config' / 'hac.yaml'),
+                        re.M)
+    with_choices = [(n, c) for n, c in listed if ' | ' in c]
+    assert len(with_choices) >= 8
+    assert [(n, c.split(' | ')) for n, c in with_choices] == [
+        (n, list(describe(n)['choices'])) for n, _ in with_choices]

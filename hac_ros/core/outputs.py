@@ -10,6 +10,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from hac_ros.core.layouts import counts_text
+
 
 @dataclass(slots=True)
 class OdometryOut:
@@ -156,8 +158,7 @@ REASONS = {
     'late_frame': 'joints frame older than the last processed frame: dropped',
     'joints_malformed': 'joints message is not P blocks of the layout\'s joints',
     'joints_wrong_layout': ('the number of joints is not a multiple of the joint layout\'s joints '
-                            'per person: set joint_layout (smpl24: 24, coco17 and h36m17: 17, '
-                            'custom: joints_per_person)'),
+                            f'per person: set joint_layout ({counts_text()})'),
     'joints_wrong_frame': 'joints in a frame other than the camera frame',
     'nonfinite_joints': 'a person with NaN/inf joints',
     'joints_not_metres': ('a person whose joints spread over more than 4 m or less than 0.3 m: '
