@@ -16,7 +16,7 @@ all: test
 $(STAMP): setup.py setup.cfg package.xml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
-	$(PY) -m pip install -q -e '.[ros,dev]'
+	$(PY) -m pip install -q -e '.[ros,dev,people]'
 	touch $(STAMP)
 
 install: $(STAMP)

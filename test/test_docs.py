@@ -70,7 +70,7 @@ def _parameter_sets(text: str) -> list[dict]:
     sets = [f['hac_node']['ros__parameters'] for f in found if f and 'hac_node' in f]
     for snippet in _snippets(text):
         pairs = re.findall(r'-p (\w+):=(\S+)', snippet)
-        if pairs:
+        if pairs and 'hac_people_node' not in snippet:
             sets.append({k: yaml.safe_load(v) for k, v in pairs})
     return sets
 
@@ -80,6 +80,24 @@ def test_every_parameter_set_the_docs_show_is_valid():
     assert len(sets) >= 4
     for _, values in sets:
         HacParams.from_dict(values)  # raises naming the parameter: unknown or invalid
+
+
+def test_the_people_node_parameters_the_docs_show_are_its_own():
+    """hac_people_node's command lines set its parameters (hac_ros.people.params), and
+    docs/people.md's table is the code's."""
+    from hac_ros.people.params import PeopleParams, parameter_table
+
+    shown = [dict(re.findall(r'-p (\w+):=(\S+)', snippet)) for page in PAGES
+             for snippet in _snippets(_text(page)) if 'hac_people_node' in snippet]
+    shown = [s for s in shown if s]
+    assert shown
+    for values in shown:
+        PeopleParams.from_dict({k: yaml.safe_load(v) for k, v in values.items()})
+    table = re.search(r'<!-- people_params:start -->\n(.*?)\n<!-- people_params:end -->',
+                      _text(REPO / 'docs' / 'people.md'), re.S)
+    assert table and table.group(1) == parameter_table(), (
+        'docs/people.md\'s parameter table is stale: paste '
+        'hac_ros.people.params.parameter_table()')
 
 
 def _stated_defaults(text: str) -> list[tuple[str, object, object]]:
@@ -187,7 +205,8 @@ def test_the_readme_layout_names_every_library_module():
         current = head.group(1) if head else current if line.startswith(' ') else ''
         if current:
             described[current] = described.get(current, '') + ' ' + line
-    packages = ('core', 'ros', 'bridge', 'recording', 'replay', 'batch', 'files', 'evaluation')
+    packages = ('core', 'ros', 'bridge', 'recording', 'replay', 'batch', 'files', 'evaluation',
+                'people')
     missing = [f'hac_ros/{package}/{module.stem}.py' for package in packages
                for module in sorted((REPO / 'hac_ros' / package).glob('*.py'))
                if module.stem != '__init__'
