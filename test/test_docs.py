@@ -84,7 +84,9 @@ def test_every_parameter_set_the_docs_show_is_valid():
 
 def test_the_people_node_parameters_the_docs_show_are_its_own():
     """hac_people_node's command lines set its parameters (hac_ros.people.params), and
-    docs/people.md's table is the code's."""
+    docs/people.md's table is the code's (a block of regen_docs)."""
+    from regen_docs import BLOCKS
+
     from hac_ros.people.params import PeopleParams, parameter_table
 
     shown = [dict(re.findall(r'-p (\w+):=(\S+)', snippet)) for page in PAGES
@@ -93,11 +95,8 @@ def test_the_people_node_parameters_the_docs_show_are_its_own():
     assert shown
     for values in shown:
         PeopleParams.from_dict({k: yaml.safe_load(v) for k, v in values.items()})
-    table = re.search(r'<!-- people_params:start -->\n(.*?)\n<!-- people_params:end -->',
-                      _text(REPO / 'docs' / 'people.md'), re.S)
-    assert table and table.group(1) == parameter_table(), (
-        'docs/people.md\'s parameter table is stale: paste '
-        'hac_ros.people.params.parameter_table()')
+    assert BLOCKS[('docs/people.md', 'people_params')]() == parameter_table() + '\n'
+
 
 
 def _stated_defaults(text: str) -> list[tuple[str, object, object]]:
@@ -263,16 +262,13 @@ def test_the_layout_checker_finds_stale_lists_and_counts():
 def test_the_docs_and_code_name_the_layouts_and_counts_the_registry_has():
     """README, docs/, config/ and the package's own texts: every list of joint_layout's choices
     has every built-in layout, every stated joint count is the layout's; docs/inputs.md's table of
-    layouts is the registry's (hac_ros.core.layouts.markdown_table)."""
-    from hac_ros.core.layouts import markdown_table
+    layouts is the registry's (hac_ros.core.layouts.markdown_table, a block of regen_docs)."""
+    from regen_docs import BLOCKS
 
     wrong = [f'{page.relative_to(REPO)}: {w}' for page in PAGES + _code_files()
              for w in _layout_statements(_text(page))]
     assert wrong == []
-    table = re.search(r'<!-- layouts:start -->\n(.*?)\n<!-- layouts:end -->',
-                      _text(REPO / 'docs' / 'inputs.md'), re.S)
-    assert table and table.group(1) == markdown_table(), (
-        'docs/inputs.md\'s table of layouts is stale: paste hac_ros.core.layouts.markdown_table()')
+    assert 'layouts' in {name for _, name in BLOCKS}  # the table: a generated block (make docs)
 
 
 def test_config_comments_list_each_parameters_choices():
@@ -283,3 +279,42 @@ def test_config_comments_list_each_parameters_choices():
     assert len(with_choices) >= 8
     assert [(n, c.split(' | ')) for n, c in with_choices] == [
         (n, list(describe(n)['choices'])) for n, _ in with_choices]
+
+
+def test_the_generated_blocks_of_the_docs_are_up_to_date():
+    """docs/node.md's reason table is made from hac_ros/core/reasons.py: `make docs` rewrites it."""
+    from regen_docs import stale
+
+    assert stale() == [], 'run `make docs` (test/regen_docs.py)'
+
+
+# the calls that count, announce or find a reason, with the reason as a string literal
+_REASON_CALLS = re.compile(
+    r"""(?:_reject|\.reject|_rejected_sample\([^)]*?|no_sample|Finding|reason_text|events\[|"""
+    r"""conditions\(\)\[)\(?\s*'([a-z_]+)'""")
+
+
+def test_every_reason_the_code_gives_is_in_the_one_table():
+    """A reason counted, held or found anywhere in the library is an entry of the core's table
+    (so its text, level and remedy are said once); the transport reasons are made per input kind."""
+    from hac_ros.core.reasons import REASONS
+
+    used: set[str] = set()
+    for path in (REPO / 'hac_ros').rglob('*.py'):
+        if 'people' not in path.relative_to(REPO / 'hac_ros').parts:  # its own table, below
+            used.update(_REASON_CALLS.findall(_text(path)))
+    used.update(f'{kind}_{what}' for kind in ('pose', 'joints', 'camera_info', 'cloud')
+                for what in ('lost', 'wrong_type'))
+    assert len(used) > 30
+    assert sorted(used - set(REASONS)) == []
+
+
+def test_every_reason_the_people_node_gives_is_in_its_table():
+    """hac_people_node's reasons (hac_ros/people/): its own one table."""
+    from hac_ros.people.reasons import REJECTIONS
+
+    used: set[str] = set()
+    for path in (REPO / 'hac_ros' / 'people').rglob('*.py'):
+        used.update(_REASON_CALLS.findall(_text(path)))
+    assert len(used) >= 5
+    assert sorted(used - set(REJECTIONS)) == []

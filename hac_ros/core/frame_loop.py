@@ -24,7 +24,7 @@ from hac_ros.core.human_filter import RootFilter
 from hac_ros.core.map_book import MapBook
 from hac_ros.core.metric_stage import MetricStage, ScaleAt, StageConfig, finite_scale
 from hac_ros.core.numeric import MEDIAN_STD_ERROR, NS
-from hac_ros.core.outputs import REASONS, NoticeOut, ResetOut, SampleOut, Status
+from hac_ros.core.outputs import NoticeOut, ResetOut, SampleOut, Status
 from hac_ros.core.params import HacParams
 from hac_ros.core.pending import (
     Pending,
@@ -37,6 +37,7 @@ from hac_ros.core.pending import (
 )
 from hac_ros.core.plausibility import body_unit_problem
 from hac_ros.core.pose_stream import FreezeWatch, Pose, PoseTrack
+from hac_ros.core.reasons import text as reason_text
 from hac_ros.core.reference import MapIndex
 from hac_ros.core.sample import Scene, person_sample
 from hac_ros.core.services import ServiceRequests
@@ -157,11 +158,9 @@ class FrameLoop:
         """What holds now and makes /diagnostics WARN (hac_ros.core.health): reason -> text."""
         out = {}
         if self.freeze.holds:
-            out['slam_frozen'] = ('the SLAM pose repeats bit for bit while the people move: '
-                                  'tracking lost? (frames not sampled)')
+            out['slam_frozen'] = reason_text('slam_frozen')
         if self.ground.floor_missing:
-            out['floor_unknown'] = ('no floor found in the map: the contacts\' map hits are not '
-                                    'checked against it (a table top or a step could pass for it)')
+            out['floor_unknown'] = reason_text('floor_unknown')
         return out
 
     @property
@@ -180,7 +179,7 @@ class FrameLoop:
         if reason in self._noticed:
             return []
         self._noticed.add(reason)
-        text = detail or REASONS.get(reason, reason)
+        text = detail or reason_text(reason)
         return [NoticeOut(int(stamp_ns), reason, f'rejected input ({reason}): {text}; '
                           'further ones are counted in /diagnostics')]
 

@@ -35,6 +35,7 @@ from hac_ros.people import extra
 from hac_ros.people.frontend import PeopleFromImages, size_matches
 from hac_ros.people.lifting import Camera
 from hac_ros.people.params import NODE_NAME, PeopleParams, describe, names
+from hac_ros.people.reasons import REJECTIONS
 from hac_ros.ros.arguments import run
 from msg_adapters import (
     MessageError,
@@ -58,17 +59,6 @@ OUTPUT_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
 STEADY = Clock(clock_type=ClockType.STEADY_TIME)
 OK, WARN, ERROR = b'\x00', b'\x01', b'\x02'
 
-# reason -> what it means (the log's first line of each; the keys appear as rejected.<reason>)
-REJECTIONS = {
-    'wrong_encoding': 'an image of an encoding the node does not read (Image: rgb8, bgr8, mono8, '
-                      'rgba8, bgra8; CompressedImage: JPEG or PNG)',
-    'empty_image': 'an image of no pixels',
-    'corrupt_image': 'an image whose bytes do not match its size, or do not decode',
-    'no_camera_info': 'an image before any CameraInfo',
-    'camera_info_size_mismatch': 'an image whose size is not the CameraInfo\'s',
-    'camera_info_invalid': 'a CameraInfo with an invalid K, size or distortion',
-    'processing_error': 'an error inside the model or the lifting (logged with its traceback)',
-}
 USAGE = """\
 usage: {program} [-h] [--ros-args [--params-file FILE] [-p NAME:=VALUE] [-r FROM:=TO] ...]
 

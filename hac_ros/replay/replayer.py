@@ -47,7 +47,6 @@ from hac_ros.core.errors import ArgumentError
 from hac_ros.core.numeric import NS
 from hac_ros.core.offline import OfflineScale, resolve_offline
 from hac_ros.core.outputs import (
-    REASONS,
     NoticeOut,
     Output,
     PoseOut,
@@ -57,6 +56,7 @@ from hac_ros.core.outputs import (
     Status,
 )
 from hac_ros.core.params import HacParams
+from hac_ros.core.reasons import text as reason_text
 from hac_ros.files.tum import write_tum_exports
 from hac_ros.recording.atomic import staged_output
 from hac_ros.recording.reader import STORAGES, Recording, layout_data
@@ -181,7 +181,7 @@ class ReplaySummary:
                 'samples: the estimate never converged)')
         if s.rejected:
             reason, count = max(s.rejected.items(), key=lambda item: item[1])
-            text += f'; rejected most: {reason} {count} ({REASONS.get(reason, reason)})'
+            text += f'; rejected most: {reason} {count} ({reason_text(reason)})'
         return text
 
     @property
