@@ -31,7 +31,8 @@ class ImageError(MessageError):
 
 
 def image_to_rgb(msg: Any) -> np.ndarray:
-    """Image → (height, width, 3) uint8 RGB (a copy)."""
+    """Image → (height, width, 3) uint8 RGB: a read-only view of the message's bytes for
+    unpadded rgb8, a copy otherwise."""
     try:
         encoding, height, width = str(msg.encoding).lower(), msg.height, msg.width
         step, data = msg.step, msg.data
@@ -57,8 +58,11 @@ def image_to_rgb(msg: Any) -> np.ndarray:
         raise ImageError('corrupt_image', f'Image: {len(raw)} bytes for {width} x {height} '
                          f'{encoding} with step {step}')
     rows = np.lib.stride_tricks.as_strided(raw, shape=(height, width, channels),
-                                           strides=(step, channels, 1))
-    return np.ascontiguousarray(rows[:, :, list(order)])
+                                           strides=(step, channels, 1), writeable=False)
+    if channels == 1:
+        return np.repeat(rows, 3, axis=2)
+    rgb = rows[:, :, :3] if order == (0, 1, 2) else rows[:, :, 2::-1]
+    return np.ascontiguousarray(rgb)  # no copy for unpadded rgb8: a read-only view
 
 
 def rgb_to_image(rgb: np.ndarray, stamp_ns: int, frame_id: str, types: MessageTypes,

@@ -50,9 +50,7 @@ from msg_adapters.stamps import make_header
 TYPES = rclpy_types()
 DIAGNOSTICS_TOPIC = '/diagnostics'
 DIAGNOSTICS_PERIOD_S = 1.0
-IMAGE_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
-                       reliability=ReliabilityPolicy.BEST_EFFORT,
-                       durability=DurabilityPolicy.VOLATILE)
+IMAGE_DEPTH = 10  # images kept by the middleware until the executor takes them (it is quick)
 OUTPUT_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
                         reliability=ReliabilityPolicy.RELIABLE,
                         durability=DurabilityPolicy.VOLATILE)
@@ -120,11 +118,18 @@ class PeopleNode(Node):
         msgtype = ('sensor_msgs/msg/CompressedImage' if self._compressed
                    else 'sensor_msgs/msg/Image')
         self.image_topic = topic
-        self.create_subscription(TYPES.get(msgtype), topic, self._on_image, IMAGE_QOS,
-                                 event_callbacks=SubscriptionEventCallbacks(
-                                     message_lost=self._on_lost))
+        qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=IMAGE_DEPTH,
+                         reliability=ReliabilityPolicy.RELIABLE
+                         if self.params.image_qos == 'reliable' else ReliabilityPolicy.BEST_EFFORT,
+                         durability=DurabilityPolicy.VOLATILE)
+        events = SubscriptionEventCallbacks(message_lost=self._on_lost,
+                                            incompatible_qos=self._on_incompatible)
+        self.create_subscription(TYPES.get(msgtype), topic, self._on_image, qos,
+                                 event_callbacks=events)
         self.create_subscription(TYPES.get('sensor_msgs/msg/CameraInfo'),
-                                 self.params.camera_info_topic, self._on_camera_info, IMAGE_QOS)
+                                 self.params.camera_info_topic, self._on_camera_info, qos,
+                                 event_callbacks=SubscriptionEventCallbacks(
+                                     incompatible_qos=self._on_incompatible))
         self._joints = self.create_publisher(TYPES.get('geometry_msgs/msg/PoseArray'),
                                              self.params.joints_topic, OUTPUT_QOS)
         self._diagnostics = self.create_publisher(
@@ -163,6 +168,20 @@ class PeopleNode(Node):
         IMAGE_QOS.depth was full: images faster than the executor takes them)."""
         with self._lock:
             self._count('dropped.lost', max(int(info.total_count_change), 0))
+
+    def _on_incompatible(self, info: Any) -> None:
+        """A publisher whose QoS cannot match (a best-effort camera while image_qos is
+        reliable): counted, said once."""
+        with self._lock:
+            self._count('qos_incompatible')
+            first = 'qos_incompatible' not in self._told
+            self._told.add('qos_incompatible')
+        if first:
+            self.get_logger().warning(
+                f'a publisher on {self.image_topic} or {self.params.camera_info_topic} cannot '
+                f'match this node\'s {self.params.image_qos} subscription: its images never '
+                'arrive; set image_qos to best_effort for a best-effort camera (counted as '
+                'qos_incompatible in /diagnostics; said once)')
 
     def _on_image(self, msg: Any) -> None:
         """Executor thread: the rate cap, then the slot (the newest image waits there)."""
@@ -253,7 +272,9 @@ class PeopleNode(Node):
             counts = dict(self.counts)
             has_camera = self._camera is not None
         problems = sorted(k.split('.', 1)[1] for k in period if k.startswith('rejected.'))
-        if problems:
+        if counts.get('qos_incompatible'):
+            level, message = WARN, 'a camera publisher\'s QoS does not match image_qos'
+        elif problems:
             level, message = WARN, 'images rejected: ' + ', '.join(problems)
         elif not has_camera:
             level, message = WARN, f'no CameraInfo on {self.params.camera_info_topic}'

@@ -12,6 +12,7 @@ from hac_ros.core.errors import ParameterError
 
 NODE_NAME = 'hac_people_node'
 IMAGE_TRANSPORTS = ('raw', 'compressed')
+IMAGE_QOS = ('reliable', 'best_effort')
 PERSON_DETECTORS = ('hog', 'none')
 
 
@@ -30,6 +31,10 @@ class PeopleParams:
     image_transport: str = _p('raw', 'raw: image_topic; compressed: image_topic + '
                               '"/compressed" (sensor_msgs/CompressedImage, JPEG or PNG)',
                               choices=IMAGE_TRANSPORTS)
+    image_qos: str = _p('reliable', 'QoS reliability of the image and CameraInfo subscriptions: '
+                        'reliable (a raw image is larger than Fast DDS\'s default shared-memory '
+                        'segment: best effort loses most of them between processes) or '
+                        'best_effort (for a best-effort camera publisher)', choices=IMAGE_QOS)
     camera_info_topic: str = _p('camera/camera_info', 'the camera\'s CameraInfo: K, D, size '
                                 '(nothing metric is published without it)')
     joints_topic: str = _p('hmr/joints', 'output: each person\'s 33 landmarks in metres, camera '
