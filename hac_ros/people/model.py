@@ -148,6 +148,10 @@ class PoseModel:
             self._hog = self.cv2.HOGDescriptor()
             self._hog.setSVMDetector(self.cv2.HOGDescriptor_getDefaultPeopleDetector())
         self.model_calls = 0  # landmarker calls made (whole images and crops)
+        # the person detector's boxes of the last image (x0, y0, x1, y1 pixels) and what came of
+        # each: 'covered' (a pose already there), 'pose', 'duplicate' (its pose was one already
+        # found), 'no_pose' or 'too_small'
+        self.last_boxes: list[tuple[np.ndarray, str]] = []
 
     def close(self) -> None:
         for landmarker in (self._whole, self._crop):
@@ -183,24 +187,31 @@ class PoseModel:
         """Every person found in ``rgb`` (H, W, 3) uint8: the landmarker on the whole image, then
         on the person detector's crops that no pose covers."""
         people = self._landmarks(self._whole, rgb)
+        self.last_boxes = []
         if self._crop is None:
             return people
         height, width = rgb.shape[:2]
         for box in self.person_boxes(rgb):
             if any(_iou(box, p.box()) > COVERED_IOU for p in people):
+                self.last_boxes.append((box, 'covered'))
                 continue
             size = box[2:] - box[:2]
             x0, y0 = np.maximum(box[:2] - CROP_MARGIN * size, 0).astype(int)
             x1, y1 = np.minimum(box[2:] + CROP_MARGIN * size, (width, height)).astype(int)
             if x1 - x0 < 8 or y1 - y0 < 8:
+                self.last_boxes.append((box, 'too_small'))
                 continue
             zoom = CROP_HEIGHT_PX / (y1 - y0)
             crop = self.cv2.resize(rgb[y0:y1, x0:x1], None, fx=zoom, fy=zoom,
                                    interpolation=self.cv2.INTER_LINEAR)
+            outcome = 'no_pose'
             for found in self._landmarks(self._crop, crop):
                 person = Landmarks(pixels=found.pixels / zoom + (x0, y0),
                                    visibility=found.visibility, world=found.world,
                                    from_crop=True)
+                outcome = 'duplicate'
                 if all(_iou(person.box(), p.box()) <= DUPLICATE_IOU for p in people):
                     people.append(person)
+                    outcome = 'pose'
+            self.last_boxes.append((box, outcome))
         return people

@@ -4,9 +4,9 @@ and ``hac people`` publish (docs/people.md).
 Its root is the mid-hips and its body axis mid-hips → mid-shoulders (the model's own origin is the
 mid-hips); the contact candidates are the heels, the foot indices (the tips of the feet) and the
 ankles, the fixed ``feet`` mode's joints the heels. Their heights above the sole were measured on
-BlazePose's own landmarks of real people standing (docs/method.md, "People from pixels": the
-heights of the foot landmarks). The simulator places the face, hands and feet at fixed offsets
-from SMPL's head, hand, ankle and foot joints.
+BlazePose's landmarks of real people walking (docs/method.md, "People from pixels"). The
+simulator places the face, hands and feet at fixed offsets from SMPL's head, hand, ankle and foot
+joints.
 """
 from __future__ import annotations
 
@@ -21,10 +21,14 @@ NAMES = ('nose', 'left_eye_inner', 'left_eye', 'left_eye_outer', 'right_eye_inne
 HIPS, SHOULDERS = (23, 24), (11, 12)
 ANKLES, HEELS, FOOT_INDICES = (27, 28), (29, 30), (31, 32)
 
-# Heights above the sole, fraction of the leg (docs/method.md, "People from pixels")
-HEEL_REL = 0.035
-FOOT_INDEX_REL = 0.02
-ANKLE_REL = 0.10
+# Heights above the sole, fraction of the leg (thigh + shank): measured on real people
+# (bench/people_real.py: 350 stance feet of vtest.avi, along the floor's normal) the heel stands
+# 2.1 cm and the ankle 6.3 cm above the same foot's foot index, on a 0.765 m leg; the foot index
+# (the tip of the shoe) is taken 1.5 cm above the sole, which images cannot tell (docs/method.md,
+# "People from pixels")
+FOOT_INDEX_REL = 0.020
+HEEL_REL = 0.047
+ANKLE_REL = 0.102
 
 LAYOUT = JointLayout(
     name='blazepose33', joints_per_person=33, root=HIPS, axis_lower=HIPS, axis_upper=SHOULDERS,
