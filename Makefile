@@ -43,6 +43,9 @@ bench: $(STAMP)
 	$(PY) bench/batch_throughput.py
 	$(PY) bench/node_latency.py
 	$(PY) bench/node_memory.py
+	$(PY) bench/people_speed.py
+	$(PY) bench/people_accuracy.py
+	$(PY) bench/people_real.py
 
 clean:
 	rm -rf out build install log .pytest_cache

@@ -11,10 +11,11 @@
 - **vtest.avi** (768 x 576, a static camera above a flat square, every ``--step``-th frame): the
   share of the HOG person detector's boxes at least 100 px tall that yield a pose; the people
   lifted with an assumed camera (fx = fy = 700 px, principal point at the centre, no
-  distortion: the video's own is unknown), linked into tracks across frames (hip pixels); a floor
-  plane fitted (RANSAC, 3 cm) to their lowest foot landmarks, stance frames only; per person the
-  camera height their soles imply (median over their frames) and the spread between people; the
-  heights of the heel, foot index and ankle above that plane on stance feet (what the
+  distortion: the video's own is unknown), linked into tracks across frames (hip pixels); down
+  from the floor: the normal of a plane fitted (trimmed least squares) to every person's lowest
+  foot landmark (the size prior moves a person along it, not across); per person the camera height
+  their soles imply along it (median over their stance frames) and the spread between people; on
+  stance feet the heights of the heel and the ankle above the same foot's foot index (what the
   ``blazepose33`` sole heights are set from: docs/method.md).
 - **Stature**: each person's leg (thigh + shank) in the model's metric landmarks, in the stills
   and over the vtest tracks: does the model's size vary between people.
@@ -50,8 +51,8 @@ NAME = 'people_real'
 VTEST_FOCAL_PX = 700.0
 BOX_MIN_PX = 100
 TRACK_LINK_PX = 40.0  # a person's hips move less than this between two processed frames
-PLANE_INLIER_M = 0.03
-STANCE_GAP_M = 0.03  # the other foot's lowest landmark this much higher: a clear stance
+STANCE_GAP_M = 0.03
+TRIM_KEEP = 0.8  # the other foot's lowest landmark this much higher: a clear stance
 
 
 def tasks_vs_legacy(model: Any) -> list[list[Any]]:
@@ -84,24 +85,18 @@ def mosaics(model: Any) -> list[list[Any]]:
     return rows
 
 
-def fit_plane(points: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, float]:
-    """RANSAC (PLANE_INLIER_M) then least squares: a unit normal n pointing away from the camera
-    (n · p > 0 on the plane) and the distance d (n · p = d)."""
-    best = np.zeros(len(points), dtype=bool)
-    for _ in range(2000):
-        a, b, c = points[rng.choice(len(points), 3, replace=False)]
-        n = np.cross(b - a, c - a)
-        if np.linalg.norm(n) < 1e-9:
-            continue
-        n /= np.linalg.norm(n)
-        inliers = np.abs((points - a) @ n) < PLANE_INLIER_M
-        if inliers.sum() > best.sum():
-            best = inliers
-    centre = points[best].mean(axis=0)
-    n = np.linalg.svd(points[best] - centre)[2][2]
-    if n @ centre < 0:
-        n = -n
-    return n, float(n @ centre)
+def floor_normal(points: np.ndarray) -> np.ndarray:
+    """Down: the unit normal of the plane fitted to the people's soles (camera frame), by least
+    squares trimmed to the TRIM_KEEP best-fitting share three times over (a person placed too far
+    or too near by the size prior stands on a parallel plane: the spread is along the normal,
+    the plane's direction holds), turned away from the camera."""
+    keep = np.ones(len(points), dtype=bool)
+    for _ in range(3):
+        centre = points[keep].mean(axis=0)
+        n = np.linalg.svd(points[keep] - centre)[2][2]
+        residual = np.abs((points - centre) @ n)
+        keep = residual <= np.quantile(residual, TRIM_KEEP)
+    return n if n @ centre > 0 else -n
 
 
 def vtest(model: Any, step: int) -> dict[str, Any]:
@@ -161,17 +156,16 @@ def stance(joints: np.ndarray, n: np.ndarray) -> tuple[int, float] | None:
 
 
 def floor_analysis(data: dict[str, Any]) -> dict[str, Any]:
-    """The floor plane of the lowest foot landmarks, the camera height each person implies, and
-    the foot landmarks' heights above the plane on stance feet."""
-    rng = np.random.default_rng(0)
+    """Down from the bodies, the camera height each person's soles imply along it, and the foot
+    landmarks' heights on stance feet."""
     people = [p for p in data['people'] if p['visibility'][[*HEELS, *FOOT_INDICES]].min() > 0.5]
-    lowest = np.array([p['joints'][[*HEELS, *FOOT_INDICES]][
+    soles = np.array([p['joints'][[*HEELS, *FOOT_INDICES]][
         int(np.argmax(p['joints'][[*HEELS, *FOOT_INDICES], 1]))] for p in people])
-    n, d = fit_plane(lowest, rng)
+    n = floor_normal(soles)
     heights: dict[str, list[float]] = {'heel': [], 'ankle': [], 'leg': []}
     per_track: dict[int, list[float]] = {}
     for p in people:
-        found = stance(p['joints'], n)
+        found = stance(p['joints'], n)  # n: down
         if found is None:
             continue
         side, low = found
@@ -188,11 +182,12 @@ def floor_analysis(data: dict[str, Any]) -> dict[str, Any]:
         sole = low + LAYOUT.sole_height_rel[j] * leg_length(LAYOUT, p['joints'])
         per_track.setdefault(p['track'], []).append(sole)
     camera_heights = {t: float(np.median(v)) for t, v in per_track.items() if len(v) >= 5}
-    return {'normal': n.tolist(), 'distance_m': d, 'stance_feet': len(heights['heel']),
+    return {'normal': n.tolist(), 'stance_feet': len(heights['heel']),
             'heights': {k: float(np.median(v)) for k, v in heights.items()},
             'heights_iqr': {k: [float(np.percentile(v, 25)), float(np.percentile(v, 75))]
                             for k, v in heights.items()},
-            'camera_heights': camera_heights, 'used_people': len(people)}
+            'camera_heights': camera_heights, 'used_people': len(people),
+            'tilt_deg': float(np.degrees(np.arccos(np.clip(n[1], -1.0, 1.0))))}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -231,18 +226,20 @@ def main(argv: list[str] | None = None) -> int:
         table(['image', 'ours', 'legacy', 'median px'], legacy_rows), '',
         '**Mosaics** (bench/_people_scenes.py; 640 x 480):', '',
         table(['mosaic', 'people in it', 'found', 'of them through HOG crops'], mosaic_rows), '',
-        f'**vtest.avi**, every {args.step}th of its frames ({data["frames"]}): HOG boxes at '
-        f'least {BOX_MIN_PX} px tall: {tall}; a pose from {boxes["pose"] + boxes["duplicate"]} '
+        f'**vtest.avi**, one frame in {args.step} ({data["frames"]}): HOG boxes at least '
+        f'{BOX_MIN_PX} px tall: {tall}; a pose from {boxes["pose"] + boxes["duplicate"]} '
         f'(**{100 * share:.0f} %**, target >= 80 %); none from {boxes["no_pose"]}. Lifted with '
         f'fx = fy = {VTEST_FOCAL_PX:g} px (assumed): {len(data["people"])} people-frames in '
-        f'{len(data["tracks"])} tracks. Floor plane (RANSAC) through the lowest foot landmarks '
-        f'of {floor["used_people"]} people-frames with both feet visible: {floor["distance_m"]:.2f} m '
-        f'below the camera. The camera height each person implies ({len(heights)} people with at '
-        f'least 5 clear stance frames; their soles, blazepose33\'s heights): median '
+        f'{len(data["tracks"])} tracks; down: the normal of the plane of their lowest foot '
+        f'landmarks (trimmed least squares; {floor["tilt_deg"]:.0f} degrees from the optical y '
+        'axis). The camera height each person implies ('
+        f'{len(heights)} people with at least 5 clear stance frames, both feet visible; their '
+        'soles with blazepose33\'s heights, along down): median '
         f'{np.median(heights):.2f} m, spread {np.std(heights):.2f} m (std; '
-        f'{100 * np.std(heights) / np.median(heights):.0f} %), from {heights.min():.2f} to '
+        f'{100 * np.std(heights) / np.median(heights):.1f} %), from {heights.min():.2f} to '
         f'{heights.max():.2f} m. With a static camera over a flat floor every foot lies on one '
-        'plane: the spread is the people\'s depth error (the size prior and the model\'s noise).',
+        'plane: the spread is the people\'s depth error (the size prior and the model\'s '
+        'noise); the median scales with the assumed focal length.',
         '',
         f'**The foot landmarks\' heights** on {floor["stance_feet"]} clear stance feet (the '
         'other foot 3 cm higher or more): the heel and the ankle above the same foot\'s foot '

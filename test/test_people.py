@@ -116,6 +116,20 @@ def test_a_task_file_runs_as_model_path(model, opencv_images, tmp_path):
         PoseModel(model_path=str(tmp_path / 'missing.task'))
 
 
+def test_a_mosaic_of_four_standing_people_finds_each(model, opencv_images):
+    """Four people side by side at 640 x 480 (bench/_people_scenes.four_standing: the basketball
+    players and their mirror images, each about 370 px tall): each found once, in their strip
+    (two by the whole-image detector, two through the HOG crops)."""
+    sys.path.insert(0, str(REPO / 'bench'))
+    try:
+        from _people_scenes import four_standing
+    finally:
+        sys.path.remove(str(REPO / 'bench'))
+    found = model.detect(four_standing())
+    strips = sorted(int(p.pixels[list(HIPS)].mean(axis=0)[0] // 160) for p in found)
+    assert strips == [0, 1, 2, 3]
+
+
 def test_far_small_people_are_found_through_the_person_detectors_crops(model, opencv_images):
     """vtest.avi (a static camera over a square, pedestrians 60-100 px tall): BlazePose finds
     nobody on the whole frame; the HOG person detector's crops, scaled up, give poses that lift."""
@@ -427,3 +441,32 @@ def test_the_rate_cap_skips_images_by_stamp(people_extra, opencv_images):
         assert graph.status()['dropped.rate_cap'] == '8'
     finally:
         graph.close()
+
+
+def test_compressed_images_decode_or_name_their_fault(people_extra, opencv_images):
+    """CompressedImage: JPEG and PNG (image_transport's "bgr8; jpeg compressed bgr8" format too)
+    decode to RGB; another format, no bytes or bytes that do not decode raise ImageError with the
+    reason the node counts."""
+    import cv2
+
+    from hac_ros.people.images import compressed_to_rgb, rgb_to_jpeg
+    from msg_adapters import rclpy_types
+    from msg_adapters.image import ImageError
+    from msg_adapters.stamps import make_header
+
+    types = rclpy_types()
+    rgb = opencv_images['messi5.jpg']
+
+    def message(fmt: str, data: bytes) -> Any:
+        return types.get('sensor_msgs/msg/CompressedImage')(
+            header=make_header(1, 'camera_optical', types), format=fmt, data=data)
+
+    png = bytes(cv2.imencode('.png', rgb[:, :, ::-1])[1])
+    np.testing.assert_array_equal(compressed_to_rgb(message('png', png)), rgb)
+    decoded = compressed_to_rgb(message('bgr8; jpeg compressed bgr8', rgb_to_jpeg(rgb)))
+    assert decoded.shape == rgb.shape and np.abs(decoded.astype(int) - rgb).mean() < 4
+    for fmt, data, reason in (('theora', png, 'wrong_encoding'), ('jpeg', b'', 'empty_image'),
+                              ('jpeg', png[:200], 'corrupt_image')):
+        with pytest.raises(ImageError) as error:
+            compressed_to_rgb(message(fmt, data))
+        assert error.value.reason == reason

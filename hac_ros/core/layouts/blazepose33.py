@@ -22,8 +22,8 @@ HIPS, SHOULDERS = (23, 24), (11, 12)
 ANKLES, HEELS, FOOT_INDICES = (27, 28), (29, 30), (31, 32)
 
 # Heights above the sole, fraction of the leg (thigh + shank): measured on real people
-# (bench/people_real.py: 350 stance feet of vtest.avi, along the floor's normal) the heel stands
-# 2.1 cm and the ankle 6.3 cm above the same foot's foot index, on a 0.765 m leg; the foot index
+# (bench/people_real.py, vtest.avi's stance feet, along the floor's normal) the heel stands 2.0-2.1
+# cm and the ankle 6.3-6.4 cm above the same foot's foot index, on a 0.765 m leg; the foot index
 # (the tip of the shoe) is taken 1.5 cm above the sole, which images cannot tell (docs/method.md,
 # "People from pixels")
 FOOT_INDEX_REL = 0.020
