@@ -17,6 +17,7 @@ from typing import Any
 from hac_ros import __version__
 from hac_ros.core.errors import ArgumentError, HacError
 from hac_ros.core.params import HacParams
+from hac_ros.core.printable import PrintableFormatter, printable
 from hac_ros.recording.atomic import PARTIAL_SUFFIX, staged_output
 from hac_ros.recording.reader import GT_CAMERA, GT_JOINTS, GT_SCALE, Recording
 from hac_ros.replay.replayer import MODES
@@ -150,11 +151,12 @@ def run_job(job: Job) -> Row:
 @contextlib.contextmanager
 def job_log(path: Path) -> Iterator[None]:
     """Everything hac_ros logs meanwhile (the replay's notices, the summaries) goes to ``path``
-    (replaced), through a handler on the package's logger, at level INFO; the process's streams
-    are left alone. Used in a pool worker or a Ray task, one job at a time."""
+    (replaced), through a handler on the package's logger, at level INFO, every character a
+    terminal would obey escaped (:mod:`hac_ros.core.printable`); the process's streams are left
+    alone. Used in a pool worker or a Ray task, one job at a time."""
     path.parent.mkdir(parents=True, exist_ok=True)
     handler = logging.FileHandler(path, mode='w', encoding='utf-8')
-    handler.setFormatter(logging.Formatter(JOB_LOG_FORMAT))
+    handler.setFormatter(PrintableFormatter(JOB_LOG_FORMAT))
     package = logging.getLogger(PACKAGE_LOGGER)
     level = package.level
     package.addHandler(handler)
@@ -317,7 +319,7 @@ def one_line(exc: BaseException) -> str:
     """An exception as one line: a HacError's own text, otherwise prefixed with its type."""
     from msg_adapters import MessageError
 
-    text = (str(exc).strip().splitlines() or [''])[0]
+    text = printable((str(exc).strip().splitlines() or [''])[0])
     if isinstance(exc, (HacError, MessageError)) and text:
         return text
     return f'{type(exc).__name__}: {text}' if text else type(exc).__name__

@@ -12,6 +12,7 @@ from hac_ros.batch.pool import default_workers, run_pool
 from hac_ros.batch.summary import medians_line, write_summary
 from hac_ros.core.errors import ArgumentError
 from hac_ros.core.params import HacParams
+from hac_ros.core.printable import printable
 from hac_ros.replay.feeder import Progress, progress_pass
 
 
@@ -72,8 +73,8 @@ def batch(inputs: Sequence[str | Path], out_dir: str | Path, params: HacParams |
         for name in done:
             with open(out_dir / LOGS / f'{name}.log', 'a', encoding='utf-8') as log:
                 print(f'hac batch: {time.strftime("%Y-%m-%d %H:%M:%S")}: skipped (resumed): '
-                      f'{out_dir / name} is complete for the same input, parameters and mode',
-                      file=log)
+                      f'{printable(out_dir / name)} is complete for the same input, parameters '
+                      'and mode', file=log)
         total = len(jobs) + len(done)
         bar = stack.enter_context(progress_pass(progress, total, 'hac batch'))
         if bar is not None and done:

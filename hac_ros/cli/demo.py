@@ -20,6 +20,7 @@ import tempfile
 import time
 from pathlib import Path
 
+from hac_ros.cli import show
 from hac_ros.core.errors import HacError
 
 REPO = Path(__file__).resolve().parents[2]
@@ -58,7 +59,7 @@ def recording_or_simulated(recording: str | None, tmp: Path) -> Path:
     """The demo recording (:func:`find_recording`), else one simulated into ``tmp``."""
     source = find_recording(recording)
     if source is None:
-        print(f'{DEMO_RECORDING} not found: simulating a {SIMULATED["duration_s"]:.0f} s '
+        show(f'{DEMO_RECORDING} not found: simulating a {SIMULATED["duration_s"]:.0f} s '
               f'"{SIMULATED["scenario"]}" recording instead')
         source = simulate_into(tmp)
     return source
@@ -87,20 +88,20 @@ def demo(out_dir: Path, recording: str | None = None) -> int:
         try:
             summary = replay(source, out_dir / 'replay', mode='offline',
                              export_tum=out_dir / 'tum', progress=progress_bar('msg'))
-            print(summary.text())
-            print()
+            show(summary.text())
+            show('')
             result = evaluate(out_dir / 'replay', source)
-            print(result.text())
+            show(result.text())
             (out_dir / 'eval.json').write_text(json.dumps(result.as_dict(), indent=2) + '\n',
                                                encoding='utf-8')
             (out_dir / 'eval.md').write_text(result.markdown() + '\n', encoding='utf-8')
-            print()
+            show('')
             for name, path in make_plots(out_dir / 'replay', out_dir, source).items():
-                print(f'figure {name}: {path}')
+                show(f'figure {name}: {path}')
         except BaseException:  # interrupted or failed: no half set of results
             clear_results(out_dir)
             raise
-    print(f'\ndemo done in {time.perf_counter() - start:.1f} s; results in {out_dir}/')
+    show(f'\ndemo done in {time.perf_counter() - start:.1f} s; results in {out_dir}/')
     return 0
 
 
@@ -110,10 +111,10 @@ def live_demo(recording: str | None, rate: float, params_file: str | None) -> in
 
     with tempfile.TemporaryDirectory(prefix='hac_demo_') as tmp:
         source = recording_or_simulated(recording, Path(tmp))
-        print(f'starting hac_node and playing {source} into it at {rate:g}x real time '
-              '(hac play) ...', flush=True)
+        show(f'starting hac_node and playing {source} into it at {rate:g}x real time '
+              '(hac play) ...')
         summary = live_run(source, rate, params_file)
-    print(summary.text())
+    show(summary.text())
     return 0
 
 

@@ -16,6 +16,8 @@ import sys
 from collections.abc import Iterator
 from typing import TYPE_CHECKING, Any
 
+from hac_ros.core.printable import PrintableFormatter
+
 if TYPE_CHECKING:  # the command starts without importing the library
     from hac_ros.replay.feeder import Progress
 
@@ -35,8 +37,9 @@ class TerminalHandler(logging.Handler):
             self.handleError(record)
 
 
-class CommandFormatter(logging.Formatter):
-    """``hac COMMAND: level: message`` (and the traceback, when a record carries one)."""
+class CommandFormatter(PrintableFormatter):
+    """``hac COMMAND: level: message`` (and the traceback, when a record carries one); the
+    message's characters that a terminal would obey escaped (:mod:`hac_ros.core.printable`)."""
 
     def __init__(self, command: str) -> None:
         super().__init__()
