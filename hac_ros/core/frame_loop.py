@@ -47,6 +47,8 @@ GROUND_SHARE_SAMPLES = 30  # recent samples whose sources say whether the ground
 # resets that keep the map in use, and the ground model: the same SLAM map goes on
 KEEPS_MAP = ('map_overlap', 'service', 'time_jump_ahead')
 KEEPS_GROUND = ('service', 'time_jump_ahead')
+# rejections that correct runs meet: their first notice is INFO (a sample the outlier gate kept out)
+ROUTINE_REJECTIONS = ('gated',)
 
 
 @dataclass
@@ -70,6 +72,7 @@ class FrameLoop:
         self.rejected: Counter[str] = Counter()
         self.events: Counter[str] = Counter()  # time jumps (hac_ros.core.timeline)
         self._noticed: set[str] = set()
+        self._map_seen = False  # a map was in use for a frame (before: no_map is waiting for it)
         self.frames = self.people = self.map_hits = self.ground_fallbacks = self.resets = 0
         self._K: np.ndarray | None = None
         self._image_size = (0, 0)
@@ -179,9 +182,19 @@ class FrameLoop:
         if reason in self._noticed:
             return []
         self._noticed.add(reason)
+        if reason == 'no_map' and not self._map_seen:
+            return [NoticeOut(int(stamp_ns), reason, 'waiting for the first map: joints frames '
+                              'give no scale sample until it comes (counted as rejected.no_map '
+                              'in /diagnostics)', 'info')]
         text = detail or reason_text(reason)
         return [NoticeOut(int(stamp_ns), reason, f'rejected input ({reason}): {text}; '
-                          'further ones are counted in /diagnostics')]
+                          'further ones are counted in /diagnostics', self._notice_level(reason))]
+
+    @staticmethod
+    def _notice_level(reason: str) -> str:
+        """The level of a reason's first notice: ``info`` for what correct runs meet (the
+        outlier gate at work; waiting for the first map is said above), ``warn`` otherwise."""
+        return 'info' if reason in ROUTINE_REJECTIONS else 'warn'
 
     # ================================================================== poses
     def _accept_pose(self, pose: Pose, move: tuple[float, float] | None = None,
@@ -242,7 +255,7 @@ class FrameLoop:
         self._pending = [f for f in self._pending if f.stamp_ns >= first_pose.stamp_ns]
         out += [ResetOut(first_pose.stamp_ns, cause),
                 NoticeOut(first_pose.stamp_ns, 'reset', f'estimator reset ({cause}): {text}',
-                          'warn')]
+                          'info')]  # what a SLAM does; /diagnostics counts it
         for frame in stale:
             out += self._reject('no_pose', frame.stamp_ns)
         return out
@@ -275,6 +288,7 @@ class FrameLoop:
             return self._reject('no_pose', stamp)
         out += self._activate_map(stamp)
         out += self._hand_map(stamp)
+        self._map_seen = self._map_seen or self.map is not None
         R_wc, c_map = pose
         self._last_frame_ns = stamp
         self.frames += 1
