@@ -45,6 +45,8 @@ COLUMNS = {
     'spread': ('spread', '.4g', 'spread (m/SLAM unit)'),
     'fallback_pct': ('fallback_pct', '.1f', 'fallback (%)'),
     'resets': ('resets', 'd', 'resets'),
+    'warn_pct': ('warn_pct', '.1f', 'WARN (%)'),
+    'reasons': ('reasons', 's', 'reasons'),
     'wall_s': ('wall_s', '.2f', 'wall (s)'),
     'ATE': ('ate_m', '.4f', 'ATE (m)'),
     'ATE_S': ('ate_s_m', '.4f', 'ATE-S (m)'),
@@ -87,8 +89,10 @@ class Job:
 @dataclass
 class Row:
     """One line of the summary. Scale and spread in metres per SLAM unit (the last segment's),
-    fallback_pct: ground-plane share of the samples (%), wall_s: seconds this recording took
-    (replay and evaluation), ate_m / ate_s_m: metres, w_mpjpe_mm: mm, scale_err_pct: % of the
+    fallback_pct: ground-plane share of the samples (%), warn_pct: share of its /diagnostics
+    statuses that were not OK (%), reasons: the reasons they gave with their shares (the replay
+    summary's ``floor_unknown 30 %, ...``), wall_s: seconds this recording took (replay and
+    evaluation), ate_m / ate_s_m: metres, w_mpjpe_mm: mm, scale_err_pct: % of the
     final scale against the truth; None where not known (no ground truth, a failed row)."""
 
     input: str
@@ -99,6 +103,8 @@ class Row:
     spread: float | None = None
     fallback_pct: float | None = None
     resets: int | None = None
+    warn_pct: float | None = None
+    reasons: str = ''
     wall_s: float | None = None
     ate_m: float | None = None
     ate_s_m: float | None = None
@@ -190,7 +196,8 @@ def _calibrate(job: Job) -> Row:
         raise HacError(summary.why_not_calibrated())
     row = Row(job.input, 'ok', frames=status.frames, final_scale=summary.last_scale.scale,
               spread=summary.last_scale.spread, fallback_pct=100.0 * status.fallback_rate,
-              resets=status.resets)
+              resets=status.resets, warn_pct=summary.statuses.warn_pct,
+              reasons=summary.statuses.reasons_text())
     if has_ground_truth(job.input_path):
         evaluation = evaluate(output, job.input_path, params, references=False)
         log.info('%s', evaluation.text())

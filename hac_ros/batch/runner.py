@@ -15,6 +15,8 @@ from hac_ros.core.params import HacParams
 from hac_ros.core.printable import printable
 from hac_ros.replay.feeder import Progress, progress_pass
 
+MOSTLY_WARN_PCT = 50.0  # a recording WARN for more of its statuses is named in the summary
+
 
 # ============================================================================ the batch
 @dataclass
@@ -38,6 +40,9 @@ class BatchResult:
                  + f', {len(self.rows) - ok} failed -> {self.out_dir / SUMMARY_CSV}, '
                  f'{self.out_dir / SUMMARY_MD}']
         lines += [f'  failed: {row.input}: {row.error}' for row in self.rows if not row.ok]
+        lines += [f'  mostly WARN: {row.input}: WARN {row.warn_pct:.0f} % of its statuses '
+                  f'({row.reasons})' for row in self.rows
+                  if row.ok and row.warn_pct is not None and row.warn_pct > MOSTLY_WARN_PCT]
         medians = medians_line(self.rows)
         if medians:
             lines.append('  ' + medians)

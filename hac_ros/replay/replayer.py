@@ -47,6 +47,7 @@ from hac_ros.core.errors import ArgumentError
 from hac_ros.core.numeric import NS
 from hac_ros.core.offline import OfflineScale, resolve_offline
 from hac_ros.core.outputs import (
+    DiagnosticsOut,
     NoticeOut,
     Output,
     PoseOut,
@@ -57,6 +58,7 @@ from hac_ros.core.outputs import (
 )
 from hac_ros.core.params import HacParams
 from hac_ros.core.reasons import text as reason_text
+from hac_ros.core.status_shares import StatusShares
 from hac_ros.files.tum import write_tum_exports
 from hac_ros.recording.atomic import staged_output
 from hac_ros.recording.reader import STORAGES, Recording, layout_data
@@ -82,6 +84,7 @@ class OutputHandler:
         self.resets: list[ResetOut] = []
         self.poses: list[PoseOut] | None = [] if keep_poses else None  # /hac/pose, for TUM
         self.last_scale: ScaleOut | None = None  # the last /hac/scale written
+        self.statuses = StatusShares()  # what the /diagnostics written said
 
     def __call__(self, outputs: list[Output], progress: ProgressBar | None = None) -> None:
         """Write the messages of ``outputs``; ``progress``: a bar advanced as they are written."""
@@ -107,6 +110,9 @@ class OutputHandler:
                 self.last_scale = output
             for message in self.messages.convert(output):
                 self._write(message)
+            if isinstance(output, DiagnosticsOut) and self.messages.last_health is not None:
+                health = self.messages.last_health
+                self.statuses.add(health.level, health.reasons)
         if frame_samples:
             self._write_samples(frame_samples)
         if progress is not None:
@@ -162,6 +168,7 @@ class ReplaySummary:
     tum: dict[str, Path] = field(default_factory=dict)
     start_ns: int = 0  # the recording's first log time: times are printed relative to it
     last_scale: ScaleOut | None = None  # the last /hac/scale written (None: none was)
+    statuses: StatusShares = field(default_factory=StatusShares)  # the /diagnostics written
 
     @property
     def final_scale(self) -> float | None:
@@ -202,8 +209,11 @@ class ReplaySummary:
         else:
             lines.append(f'  final scale {self.last_scale.scale:.6g} m/SLAM unit, spread '
                          f'{self.last_scale.spread:.3g} (the last /hac/scale written)')
+        lines.append(f'  statuses ({self.statuses.total} /diagnostics, one per second): '
+                     f'{self.statuses.text()}')
         lines.append(f'  estimator at the end: {s.samples} samples in the window, '
-                     f'{"converged" if s.converged else "not converged"}')
+                     f'{"converged" if s.converged else "not converged"}, status '
+                     f'{self.statuses.last_text()}')
         lines.append(f'  fallback rate {100 * s.fallback_rate:.1f} % (map hits {s.map_hits}, '
                      f'ground plane {s.ground_fallbacks})')
         if s.pose_matches:
@@ -285,7 +295,7 @@ def replay(input_path: str | Path, output_path: str | Path, params: HacParams | 
                                         recording)
     return ReplaySummary(mode, input_path, output_path, status, time.perf_counter() - start,
                          n_inputs, dict(writer.counts), list(handler.resets), schedule, tum,
-                         start_ns, handler.last_scale)
+                         start_ns, handler.last_scale, handler.statuses)
 
 
 def _offline(feeder: CoreFeeder, handler: OutputHandler,

@@ -1,0 +1,99 @@
+"""The summaries say what the run measured and what its statuses said (issues 35 and 36).
+
+``hac replay``'s summary gives the share of its ``/diagnostics`` statuses at each level and each
+reason's share, never a bare "converged" over a run that was mostly WARN (exit 0 still means a scale
+was published); ``hac batch``'s summary.csv has them as ``warn_pct`` and ``reasons``.
+"""
+from __future__ import annotations
+
+import copy
+import csv
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from injected import JOINTS, _nth, rewrite, simulate
+
+from hac_ros.core.health import OK, WARN
+from hac_ros.core.status_shares import StatusShares
+from hac_ros.recording.reader import Recording
+
+REPO = Path(__file__).resolve().parents[1]
+DURATION_S = 20.0
+
+
+def hac(*argv: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, '-m', 'hac_ros.cli', *argv], cwd=REPO, text=True,
+                          capture_output=True, timeout=600)
+
+
+def _with_a_bystander_in_millimetres(frames: int):
+    """The joints messages of the first ``frames`` frames carry a second person in millimetres
+    (a second HMR output in the wrong unit): refused as joints_not_metres, a reason that makes
+    every status WARN while it grows."""
+    def add(msg):
+        msg = copy.deepcopy(msg)
+        extra = copy.deepcopy(msg.poses[:24])
+        for pose in extra:
+            pose.position.x *= 1000.0
+            pose.position.y *= 1000.0
+            pose.position.z *= 1000.0
+        msg.poses = list(msg.poses) + extra
+        return msg
+    return _nth(JOINTS, set(range(frames)), add)
+
+
+@pytest.fixture(scope='module')
+def mostly_warn(tmp_path_factory) -> Path:
+    """A 20 s walk whose first 14 s carry a bystander in millimetres: calibrated, mostly WARN."""
+    base = tmp_path_factory.mktemp('summaries')
+    walk = simulate(base / 'walk', 'walk', seed=3, duration=DURATION_S)
+    return rewrite(walk, base / 'mostly_warn', _with_a_bystander_in_millimetres(14 * 30))
+
+
+def _written_statuses(path: Path) -> StatusShares:
+    """The /diagnostics statuses a replay wrote, counted as its summary counts them."""
+    shares = StatusShares()
+    with Recording(path) as recording:
+        for _, msg in recording.read('/diagnostics'):
+            values = {kv.key: kv.value for kv in msg.status[0].values}
+            shares.add(int(msg.status[0].level), values['reasons'].split(','))
+    return shares
+
+
+def test_the_summary_says_what_the_statuses_said(mostly_warn, tmp_path):
+    result = hac('replay', str(mostly_warn), '-o', str(tmp_path / 'out'))
+    assert result.returncode == 0, result.stderr  # a scale was published
+    written = _written_statuses(tmp_path / 'out')
+    assert written.percent(written.levels[WARN]) > 60  # the run was mostly WARN
+    assert written.reasons['joints_not_metres'] > written.reasons['not_converged'] > 0
+    line, = [line for line in result.stdout.splitlines() if 'statuses (' in line]
+    assert line == f'  statuses ({written.total} /diagnostics, one per second): {written.text()}'
+    assert re.search(r'OK \d+ %, WARN \d+ % \(joints_not_metres \d+ %, not_converged \d+ %\)',
+                     line), line
+    at_end, = [line for line in result.stdout.splitlines() if 'at the end' in line]
+    assert at_end.endswith(f'converged, status {written.last_text()}'), at_end
+
+
+def test_batch_rows_have_the_statuses_share_and_reasons(mostly_warn, tmp_path):
+    result = hac('batch', str(mostly_warn), '-o', str(tmp_path / 'batch'), '--workers', '1')
+    assert result.returncode == 0, result.stderr
+    with open(tmp_path / 'batch' / 'summary.csv', encoding='utf-8') as f:
+        row, = csv.DictReader(f)
+    written = _written_statuses(tmp_path / 'batch' / 'mostly_warn')
+    assert float(row['warn_pct']) == pytest.approx(written.warn_pct, abs=0.05)
+    assert row['reasons'] == written.reasons_text()
+    assert f'mostly WARN: {mostly_warn}: WARN {written.warn_pct:.0f} %' in result.stdout
+
+
+def test_shares_are_said_in_whole_percent_without_hiding_a_rare_level():
+    shares = StatusShares()
+    for k in range(300):
+        shares.add(WARN if k == 0 else OK, ['not_converged'] if k == 0 else [])
+    assert shares.text() == 'OK >99 %, WARN <1 % (not_converged <1 %)'
+    shares.add(WARN, ['floor_unknown', 'floor_unknown', ''])  # each reason once per status
+    assert shares.reasons == {'not_converged': 1, 'floor_unknown': 1}
+    assert shares.last_text() == 'WARN (floor_unknown)'
+    assert StatusShares().text() == 'no status' and StatusShares().last_text() == 'no status'
