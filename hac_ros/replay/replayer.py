@@ -30,6 +30,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from hac_ros.bridge.messages import (
     CLOUD,
     LATCHED_TOPICS,
@@ -45,7 +47,7 @@ from hac_ros.bridge.messages import (
 from hac_ros.core.calibrator import Calibrator
 from hac_ros.core.errors import ArgumentError
 from hac_ros.core.numeric import NS
-from hac_ros.core.offline import OfflineScale, resolve_offline
+from hac_ros.core.offline import OfflineScale, SegmentScale, resolve_offline
 from hac_ros.core.outputs import (
     DiagnosticsOut,
     NoticeOut,
@@ -146,6 +148,29 @@ class NoticeLog:
         log.log(NOTICE_LEVELS.get(notice.level, logging.WARNING), '%s%s', when, notice.text)
 
 
+def segment_text(segment: SegmentScale, window_s: float, min_samples: int) -> str:
+    """An offline segment for the summary: its samples and scale, and the drift test's statistic
+    where the test ran, else why it did not (docs/replay.md, "The drift test")."""
+    if not math.isfinite(segment.median):
+        return f'{segment.samples} samples: too few (min_samples {min_samples}), no estimate'
+    kind = 'constant: median'
+    if segment.drift:
+        lo, hi = float(np.min(segment.knots_scale)), float(np.max(segment.knots_scale))
+        kind = f'drifting: centred rolling median {lo:.6g} .. {hi:.6g}'
+    span_s = (segment.last_sample_ns - segment.first_sample_ns) / NS
+    if span_s < window_s:
+        drift = (f'no drift test: its samples span {span_s:.1f} s, less than one window '
+                 f'(window_s {window_s:g} s)')
+    elif segment.drift_z == 0.0 and segment.drift_rel == 0.0 and segment.sigma > 0.0:
+        drift = (f'no drift test: no window of window_s {window_s:g} s held min_samples '
+                 f'{min_samples} samples')
+    else:
+        drift = (f'drift test: max z {segment.drift_z:.1f}, max departure '
+                 f'{100 * segment.drift_rel:.1f} %')
+    return (f'{segment.samples} samples, median {segment.median:.6g} +- {segment.sigma:.2g}, '
+            f'{kind} ({drift})')
+
+
 def _seconds(stamp_ns: int, start_ns: int) -> str:
     """A stamp as seconds into the recording (its absolute value would be unreadable)."""
     return f't+{(stamp_ns - start_ns) / NS:.3f} s'
@@ -169,6 +194,8 @@ class ReplaySummary:
     start_ns: int = 0  # the recording's first log time: times are printed relative to it
     last_scale: ScaleOut | None = None  # the last /hac/scale written (None: none was)
     statuses: StatusShares = field(default_factory=StatusShares)  # the /diagnostics written
+    window_s: float = HacParams.window_s  # the parameters the drift test ran with
+    min_samples: int = HacParams.min_samples
 
     @property
     def final_scale(self) -> float | None:
@@ -203,7 +230,8 @@ class ReplaySummary:
             for k, segment in enumerate(self.offline.segments):
                 start = ('the start' if segment.start_ns < self.start_ns
                          else _seconds(segment.start_ns, self.start_ns))
-                lines.append(f'  segment {k} (from {start}): {segment.describe()}')
+                lines.append(f'  segment {k} (from {start}): '
+                             f'{segment_text(segment, self.window_s, self.min_samples)}')
         if self.last_scale is None:
             lines.append(f'  final scale: none ({self.why_not_calibrated()})')
         else:
@@ -295,7 +323,8 @@ def replay(input_path: str | Path, output_path: str | Path, params: HacParams | 
                                         recording)
     return ReplaySummary(mode, input_path, output_path, status, time.perf_counter() - start,
                          n_inputs, dict(writer.counts), list(handler.resets), schedule, tum,
-                         start_ns, handler.last_scale, handler.statuses)
+                         start_ns, handler.last_scale, handler.statuses, params.window_s,
+                         params.min_samples)
 
 
 def _offline(feeder: CoreFeeder, handler: OutputHandler,
