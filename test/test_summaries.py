@@ -120,3 +120,82 @@ def test_the_drift_line_only_where_the_drift_test_ran(tmp_path):
     assert result.returncode == 0, result.stderr
     line, = _segment_lines(result.stdout)
     assert re.search(r'\(drift test: max z \d+\.\d, max departure \d+\.\d %\)$', line), line
+
+
+# ============================================================================ exit 3: why
+def _stamps_moved(topics: tuple[str, ...], by_s: float, until_s: float | None = None):
+    """Header stamps of ``topics`` moved by ``by_s`` (another clock); with ``until_s``, those
+    messages are dropped instead while their stamp is before the recording's first + until_s (a
+    SLAM that starts late)."""
+    from injected import _set_stamp, _stamp_ns
+
+    from hac_ros.core.numeric import NS
+
+    def edit(messages):
+        first = None
+        for topic, log_ns, msg in messages:
+            if topic in topics:
+                stamp = _stamp_ns(msg)
+                first = stamp if first is None else first
+                if until_s is not None:
+                    if stamp < first + until_s * NS:
+                        continue
+                else:
+                    msg = _set_stamp(msg, stamp + int(by_s * NS))
+            yield topic, log_ns, msg
+    return edit
+
+
+SLAM_TOPICS = ('/slam/pose', '/slam/cloud', '/camera/camera_info')
+
+
+@pytest.fixture(scope='module')
+def walk(tmp_path_factory) -> Path:
+    return simulate(tmp_path_factory.mktemp('walk') / 'walk', 'walk', seed=3, duration=12.0)
+
+
+def _why(result: subprocess.CompletedProcess) -> str:
+    assert result.returncode == 3, (result.returncode, result.stderr)
+    assert 'Traceback' not in result.stderr
+    why, = [line for line in result.stderr.splitlines()
+            if line.startswith('hac replay: nothing calibrated')]
+    return why
+
+
+def test_joints_and_poses_on_different_clocks_say_by_how_much(walk, tmp_path):
+    """The SLAM on a simulated clock that starts at 5 s, the joints on the wall clock: no frame
+    ever finds its pose; the notice and the exit-3 line say how far apart they are."""
+    from injected import _stamp_ns
+
+    with Recording(walk) as recording:
+        first_ns = _stamp_ns(recording.read('/slam/pose')[0][1])
+    apart_s = first_ns / 1e9 - 5.0  # the joints' stamps minus the poses'
+    path = rewrite(walk, tmp_path / 'clocks', _stamps_moved(SLAM_TOPICS, -apart_s))
+    result = hac('replay', str(path), '-o', str(tmp_path / 'out'))
+    why = _why(result)
+    said = f'the joints are stamped {apart_s:.6g} s after the poses (different clocks?)'
+    assert said in why, why
+    notices = [line for line in result.stderr.splitlines() if 'never come within reach' in line]
+    assert len(notices) == 1 and notices[0].startswith('hac replay: warning: ')
+    assert f'{apart_s:.6g} s after the newest SLAM pose (different clocks?' in notices[0]
+
+
+def test_a_slam_that_starts_late_is_not_taken_for_another_clock(walk, tmp_path):
+    path = rewrite(walk, tmp_path / 'late', _stamps_moved(SLAM_TOPICS, 0.0, until_s=4.0))
+    result = hac('replay', str(path), '-o', str(tmp_path / 'out'))
+    assert result.returncode == 0, result.stderr
+    assert 'within reach' not in result.stderr and 'no_pose' in result.stdout
+
+
+@pytest.mark.parametrize('min_samples, said', [
+    (100000, 'min_samples 100000 can never be reached: the window holds at most '
+             'window_max_samples 2000 samples'),
+    (1000, 'min_samples 1000 was never reached: the window of window_s 30 s held at most ')])
+def test_exit_3_names_the_setting_that_kept_the_scale_from_converging(walk, tmp_path,
+                                                                     min_samples, said):
+    """Not 'rejected most: no_map 9' (the few frames before the first map), but the reason."""
+    params = tmp_path / 'params.yaml'
+    params.write_text(f'hac_node:\n  ros__parameters:\n    min_samples: {min_samples}\n',
+                      encoding='utf-8')
+    why = _why(hac('replay', str(walk), '-o', str(tmp_path / 'out'), '--params', str(params)))
+    assert said in why and 'rejected most' not in why, why

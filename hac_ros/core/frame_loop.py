@@ -41,6 +41,7 @@ from hac_ros.core.reasons import text as reason_text
 from hac_ros.core.reference import MapIndex
 from hac_ros.core.sample import Scene, person_sample
 from hac_ros.core.services import ServiceRequests
+from hac_ros.core.stamp_reach import UNMATCHED, StampReach
 from hac_ros.core.timeline import Timeline
 
 GROUND_SHARE_SAMPLES = 30  # recent samples whose sources say whether the ground plane carries
@@ -73,6 +74,7 @@ class FrameLoop:
         self.events: Counter[str] = Counter()  # time jumps (hac_ros.core.timeline)
         self._noticed: set[str] = set()
         self._map_seen = False  # a map was in use for a frame (before: no_map is waiting for it)
+        self.reach = StampReach()  # joints and poses stamped apart (hac_ros.core.stamp_reach)
         self.frames = self.people = self.map_hits = self.ground_fallbacks = self.resets = 0
         self._K: np.ndarray | None = None
         self._image_size = (0, 0)
@@ -179,16 +181,24 @@ class FrameLoop:
         """Count a rejection; the first of each reason is announced with ``detail`` (else the
         reason's text)."""
         self.rejected[reason] += 1
+        out: list[Record] = []
+        if reason in UNMATCHED:  # a frame without its pose: two clocks? (said once)
+            track = self.track
+            first = (track.poses[0] if track.poses else
+                     track.candidates[0] if track.candidates else None)
+            out += self.reach.judge(int(stamp_ns), None if first is None else first.stamp_ns,
+                                    track.newest_stamp_ns, self.frames)
         if reason in self._noticed:
-            return []
+            return out
         self._noticed.add(reason)
         if reason == 'no_map' and not self._map_seen:
-            return [NoticeOut(int(stamp_ns), reason, 'waiting for the first map: joints frames '
-                              'give no scale sample until it comes (counted as rejected.no_map '
-                              'in /diagnostics)', 'info')]
+            return [*out, NoticeOut(int(stamp_ns), reason, 'waiting for the first map: joints '
+                                    'frames give no scale sample until it comes (counted as '
+                                    'rejected.no_map in /diagnostics)', 'info')]
         text = detail or reason_text(reason)
-        return [NoticeOut(int(stamp_ns), reason, f'rejected input ({reason}): {text}; '
-                          'further ones are counted in /diagnostics', self._notice_level(reason))]
+        return [*out, NoticeOut(int(stamp_ns), reason, f'rejected input ({reason}): {text}; '
+                                'further ones are counted in /diagnostics',
+                                self._notice_level(reason))]
 
     @staticmethod
     def _notice_level(reason: str) -> str:

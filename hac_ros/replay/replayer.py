@@ -87,6 +87,7 @@ class OutputHandler:
         self.poses: list[PoseOut] | None = [] if keep_poses else None  # /hac/pose, for TUM
         self.last_scale: ScaleOut | None = None  # the last /hac/scale written
         self.statuses = StatusShares()  # what the /diagnostics written said
+        self.max_samples = 0  # the most samples in the estimator's window, by its statuses
 
     def __call__(self, outputs: list[Output], progress: ProgressBar | None = None) -> None:
         """Write the messages of ``outputs``; ``progress``: a bar advanced as they are written."""
@@ -115,6 +116,7 @@ class OutputHandler:
             if isinstance(output, DiagnosticsOut) and self.messages.last_health is not None:
                 health = self.messages.last_health
                 self.statuses.add(health.level, health.reasons)
+                self.max_samples = max(self.max_samples, output.status.samples)
         if frame_samples:
             self._write_samples(frame_samples)
         if progress is not None:
@@ -150,7 +152,7 @@ class NoticeLog:
 
 def segment_text(segment: SegmentScale, window_s: float, min_samples: int) -> str:
     """An offline segment for the summary: its samples and scale, and the drift test's statistic
-    where the test ran, else why it did not (docs/replay.md, "The drift test")."""
+    where the test ran, else why it did not (docs/replay.md, "The two modes")."""
     if not math.isfinite(segment.median):
         return f'{segment.samples} samples: too few (min_samples {min_samples}), no estimate'
     kind = 'constant: median'
@@ -194,8 +196,9 @@ class ReplaySummary:
     start_ns: int = 0  # the recording's first log time: times are printed relative to it
     last_scale: ScaleOut | None = None  # the last /hac/scale written (None: none was)
     statuses: StatusShares = field(default_factory=StatusShares)  # the /diagnostics written
-    window_s: float = HacParams.window_s  # the parameters the drift test ran with
-    min_samples: int = HacParams.min_samples
+    params: HacParams = field(default_factory=HacParams)  # the replay's parameters
+    max_samples: int = 0  # the most samples the estimator's window held (its statuses)
+    stamps_apart_s: float | None = None  # joints minus poses, s, when they never met (core)
 
     @property
     def final_scale(self) -> float | None:
@@ -208,15 +211,41 @@ class ReplaySummary:
         return self.last_scale is not None
 
     def why_not_calibrated(self) -> str:
-        """One line: why no scale was written (the estimate never converged, and the input
-        rejected most often)."""
-        s = self.status
-        text = (f'nothing calibrated: no /hac/scale written ({s.frames} frames, {s.samples} '
-                'samples: the estimate never converged)')
-        if s.rejected:
-            reason, count = max(s.rejected.items(), key=lambda item: item[1])
-            text += f'; rejected most: {reason} {count} ({reason_text(reason)})'
-        return text
+        """One line: why no scale was written, naming what kept the estimate from converging
+        (:meth:`what_kept_it`)."""
+        return (f'nothing calibrated: no /hac/scale written ({self.status.frames} frames, at most '
+                f'{self.max_samples} samples in the window): {self.what_kept_it()}')
+
+    def what_kept_it(self) -> str:
+        """What kept the estimate from converging, the first that applies: no frame found its
+        SLAM pose (the joints and poses stamped apart, when they were), no frame gave a sample
+        (the reason most of them were refused), ``min_samples`` out of reach (beyond
+        ``window_max_samples``, or more than the window ever held), else the estimator's test."""
+        s, p = self.status, self.params
+        if s.frames == 0:
+            apart = self.stamps_apart_s
+            if apart is not None:
+                return (f'joints and SLAM poses never came within reach of each other: the joints '
+                        f'are stamped {abs(apart):.6g} s {"after" if apart > 0 else "before"} the '
+                        'poses (different clocks?)')
+            return 'no joints frame found its SLAM pose' + self._rejected_most()
+        if self.max_samples == 0:
+            return 'no frame gave a scale sample' + self._rejected_most()
+        if self.max_samples < p.min_samples:
+            if p.min_samples > p.window_max_samples:
+                return (f'min_samples {p.min_samples} can never be reached: the window holds at '
+                        f'most window_max_samples {p.window_max_samples} samples')
+            return (f'min_samples {p.min_samples} was never reached: the window of window_s '
+                    f'{p.window_s:g} s held at most {self.max_samples} samples')
+        return (f'the estimate never passed its convergence test although the window held '
+                f'{self.max_samples} samples (min_samples {p.min_samples})')
+
+    def _rejected_most(self) -> str:
+        """``; rejected most: no_map 901 (its text)``, or '' when nothing was rejected."""
+        if not self.status.rejected:
+            return ''
+        reason, count = max(self.status.rejected.items(), key=lambda item: item[1])
+        return f'; rejected most: {reason} {count} ({reason_text(reason)})'
 
     @property
     def frames_per_s(self) -> float:
@@ -227,11 +256,12 @@ class ReplaySummary:
         lines = [f'hac replay ({self.mode}): {self.input_path} -> {self.output_path}',
                  f'  frames {s.frames}, people {s.people}, input messages {self.input_messages}']
         if self.offline is not None:
+            window_s, min_samples = self.params.window_s, self.params.min_samples
             for k, segment in enumerate(self.offline.segments):
                 start = ('the start' if segment.start_ns < self.start_ns
                          else _seconds(segment.start_ns, self.start_ns))
                 lines.append(f'  segment {k} (from {start}): '
-                             f'{segment_text(segment, self.window_s, self.min_samples)}')
+                             f'{segment_text(segment, window_s, min_samples)}')
         if self.last_scale is None:
             lines.append(f'  final scale: none ({self.why_not_calibrated()})')
         else:
@@ -323,8 +353,8 @@ def replay(input_path: str | Path, output_path: str | Path, params: HacParams | 
                                         recording)
     return ReplaySummary(mode, input_path, output_path, status, time.perf_counter() - start,
                          n_inputs, dict(writer.counts), list(handler.resets), schedule, tum,
-                         start_ns, handler.last_scale, handler.statuses, params.window_s,
-                         params.min_samples)
+                         start_ns, handler.last_scale, handler.statuses, params,
+                         max(handler.max_samples, status.samples), feeder.calibrator.reach.apart_s)
 
 
 def _offline(feeder: CoreFeeder, handler: OutputHandler,
