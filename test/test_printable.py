@@ -3,7 +3,8 @@ from __future__ import annotations
 
 import logging
 
-from hac_ros.core.printable import PrintableFormatter, printable, printable_lines
+from hac_ros.cli.terminal import CommandFormatter
+from hac_ros.core.printable import printable, printable_lines
 
 # what a hostile recording or file name can hold: ESC (a control sequence that clears the screen),
 # BEL, CR, a newline, DEL, a C1 control, a right-to-left override, a lone surrogate (a file name
@@ -27,12 +28,13 @@ def test_lines_keep_their_breaks_and_nothing_else():
     assert printable_lines('summary\n  topic /a\x1b[31m\n') == 'summary\n  topic /a\\x1b[31m\n'
 
 
-def test_a_log_record_is_written_escaped_and_left_unchanged():
-    """The formatter is the last net (names are escaped where they are put in a message): every
-    control character but the record's own line breaks."""
+
+def test_a_log_line_of_the_command_is_written_escaped_and_the_record_left_unchanged():
+    """The command's formatter is the last net (names are escaped where they are put in a
+    message): every control character but the record's own line breaks."""
     name = HOSTILE.replace('\n', '')
     record = logging.LogRecord('hac_ros.test', logging.WARNING, __file__, 1,
                                'topic %s is missing\n  (twice)', (name,), None)
-    text = PrintableFormatter('%(levelname)s %(message)s').format(record)
-    assert text == f'WARNING topic {printable(name)} is missing\n  (twice)'
+    text = CommandFormatter('replay').format(record)
+    assert text == f'hac replay: warning: topic {printable(name)} is missing\n  (twice)'
     assert record.getMessage() == f'topic {name} is missing\n  (twice)'  # as other handlers see it

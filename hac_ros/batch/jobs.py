@@ -17,7 +17,7 @@ from typing import Any
 from hac_ros import __version__
 from hac_ros.core.errors import ArgumentError, HacError
 from hac_ros.core.params import HacParams
-from hac_ros.core.printable import PrintableFormatter, printable
+from hac_ros.core.printable import printable, printable_lines
 from hac_ros.recording.atomic import PARTIAL_SUFFIX, staged_output
 from hac_ros.recording.reader import GT_CAMERA, GT_JOINTS, GT_SCALE, Recording
 from hac_ros.replay.replayer import MODES
@@ -154,6 +154,14 @@ def run_job(job: Job) -> Row:
     return row
 
 
+class JobLogFormatter(logging.Formatter):
+    """A job log's line, every character a terminal would obey escaped (names and paths from the
+    recording: :mod:`hac_ros.core.printable`); a traceback is left as it is."""
+
+    def formatMessage(self, record: logging.LogRecord) -> str:
+        return printable_lines(super().formatMessage(record))
+
+
 @contextlib.contextmanager
 def job_log(path: Path) -> Iterator[None]:
     """Everything hac_ros logs meanwhile (the replay's notices, the summaries) goes to ``path``
@@ -162,7 +170,7 @@ def job_log(path: Path) -> Iterator[None]:
     alone. Used in a pool worker or a Ray task, one job at a time."""
     path.parent.mkdir(parents=True, exist_ok=True)
     handler = logging.FileHandler(path, mode='w', encoding='utf-8')
-    handler.setFormatter(PrintableFormatter(JOB_LOG_FORMAT))
+    handler.setFormatter(JobLogFormatter(JOB_LOG_FORMAT))
     package = logging.getLogger(PACKAGE_LOGGER)
     level = package.level
     package.addHandler(handler)

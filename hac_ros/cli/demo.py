@@ -14,14 +14,17 @@ directory.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import shutil
 import tempfile
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 from hac_ros.cli import show
 from hac_ros.core.errors import HacError
+from hac_ros.recording.atomic import signals_held
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -74,6 +77,26 @@ def clear_results(out_dir: Path) -> None:
         elif path.exists() or path.is_symlink():
             path.unlink()
 
+@contextlib.contextmanager
+def results_dir(out_dir: Path) -> Iterator[None]:
+    """``out_dir`` for the demo's results: made if missing (with its parents), an earlier demo's
+    results cleared. On an error or an interruption the results written so far are removed and so
+    are the directories made here: nothing partial, no empty ``-o NEWDIR`` left behind."""
+    made = [p for p in (out_dir, *out_dir.parents) if not p.exists()]  # the deepest first
+    with signals_held():  # a signal cannot land between the mkdir and the clean-up's reach
+        out_dir.mkdir(parents=True, exist_ok=True)
+    try:
+        clear_results(out_dir)
+        yield
+    except BaseException:
+        with signals_held():
+            clear_results(out_dir)
+            for path in made:
+                with contextlib.suppress(OSError):  # not empty: something else is in it
+                    path.rmdir()
+        raise
+
+
 def demo(out_dir: Path, recording: str | None = None) -> int:
     from hac_ros.cli.terminal import progress_bar
     from hac_ros.evaluation.evaluate import evaluate
@@ -83,9 +106,7 @@ def demo(out_dir: Path, recording: str | None = None) -> int:
     start = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix='hac_demo_') as tmp:
         source = recording_or_simulated(recording, Path(tmp))
-        out_dir.mkdir(parents=True, exist_ok=True)
-        clear_results(out_dir)
-        try:
+        with results_dir(out_dir):
             summary = replay(source, out_dir / 'replay', mode='offline',
                              export_tum=out_dir / 'tum', progress=progress_bar('msg'))
             show(summary.text())
@@ -98,9 +119,6 @@ def demo(out_dir: Path, recording: str | None = None) -> int:
             show('')
             for name, path in make_plots(out_dir / 'replay', out_dir, source).items():
                 show(f'figure {name}: {path}')
-        except BaseException:  # interrupted or failed: no half set of results
-            clear_results(out_dir)
-            raise
     show(f'\ndemo done in {time.perf_counter() - start:.1f} s; results in {out_dir}/')
     return 0
 

@@ -16,7 +16,7 @@ import sys
 from collections.abc import Iterator
 from typing import TYPE_CHECKING, Any
 
-from hac_ros.core.printable import PrintableFormatter
+from hac_ros.core.printable import printable_lines
 
 if TYPE_CHECKING:  # the command starts without importing the library
     from hac_ros.replay.feeder import Progress
@@ -37,7 +37,7 @@ class TerminalHandler(logging.Handler):
             self.handleError(record)
 
 
-class CommandFormatter(PrintableFormatter):
+class CommandFormatter(logging.Formatter):
     """``hac COMMAND: level: message`` (and the traceback, when a record carries one); the
     message's characters that a terminal would obey escaped (:mod:`hac_ros.core.printable`)."""
 
@@ -45,8 +45,9 @@ class CommandFormatter(PrintableFormatter):
         super().__init__()
         self.command = command
 
-    def format(self, record: logging.LogRecord) -> str:
-        return f'hac {self.command}: {record.levelname.lower()}: {super().format(record)}'
+    def formatMessage(self, record: logging.LogRecord) -> str:
+        return (f'hac {self.command}: {record.levelname.lower()}: '
+                f'{printable_lines(record.message)}')
 
 
 @contextlib.contextmanager

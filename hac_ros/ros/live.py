@@ -30,6 +30,7 @@ from hac_ros.core.numeric import NS
 from hac_ros.core.outputs import Status
 from hac_ros.core.params import NODE_NAME
 from hac_ros.core.status_shares import StatusShares
+from hac_ros.files.params_file import check_params_file
 from hac_ros.ros.intake import STEADY_CLOCK_REASONS
 
 log = logging.getLogger(__name__)
@@ -220,6 +221,8 @@ def live_run(recording: str | Path, rate: float = 1.0, params_file: str | Path |
     check_rate(rate)
     if not Path(recording).exists():
         raise HacError(f'recording {recording} does not exist')
+    if params_file:  # what rcl would refuse, said here in one line rather than by the node
+        check_params_file(params_file)
     with Recording(recording) as rec:
         start_ns = rec.start_ns
     domain = domain_id()
