@@ -140,8 +140,9 @@ def read_any_trajectory(path: str | Path, what: str = 'trajectory', fps: float |
     if Path(path).suffix.lower() == '.npz':
         return read_droid_trajectory(path, what, fps, warnings)
     if fps is not None:
-        raise InputError(f'{what} {path}: fps applies to the frame indices of a DROID-SLAM-style '
-                         '.npz trajectory, not to a TUM file (whose stamps are seconds)')
+        raise ArgumentError(f'{what} {path}: {{fps}} applies to the frame indices of a '
+                            'DROID-SLAM-style .npz trajectory, not to a TUM file (whose stamps are '
+                            'seconds)', 'fps')
     return read_trajectory(path, what)
 
 
@@ -152,7 +153,9 @@ def read_droid_trajectory(path: str | Path, what: str = 'trajectory', fps: float
     ``tstamp`` (N,) seconds, or frame indices when ``fps`` is given (seconds = index / fps; without
     ``tstamp`` frame i is at i / fps). Stamps must increase; quaternions are normalised (a zero
     one is an error). Stamps that are all whole numbers without ``fps`` look like frame indices:
-    a warning is appended to ``warnings``."""
+    an :class:`ArgumentError` naming ``fps`` (taken as seconds, a replay would keep only the
+    joints frames that fall on whole seconds). ``warnings``: where warnings would go (none
+    today)."""
     path = existing_file(path, what)
     arrays = _load_npz(path, what)
     if 'traj' not in arrays:
@@ -165,7 +168,7 @@ def read_droid_trajectory(path: str | Path, what: str = 'trajectory', fps: float
                          f'got shape {traj.shape} of {traj.dtype}')
     traj = traj.astype(float)
     if fps is not None and not 0.0 < fps < float('inf'):
-        raise InputError(f'{what} {path}: fps must be a number > 0, got {fps!r}')
+        raise ArgumentError(f'{what} {path}: {{fps}} must be a number > 0, got {fps!r}', 'fps')
     if 'tstamp' in arrays:
         tstamp = arrays['tstamp']
         if tstamp.shape != (len(traj),) or tstamp.dtype.kind not in 'iuf':
@@ -175,15 +178,16 @@ def read_droid_trajectory(path: str | Path, what: str = 'trajectory', fps: float
     elif fps is not None:
         t = np.arange(len(traj), dtype=float)
     else:
-        raise InputError(f'{what} {path}: no \'tstamp\' array: give the frame rate (fps) to '
-                         'stamp frame i at i / fps')
+        raise ArgumentError(f'{what} {path}: no \'tstamp\' array: give the frame rate ({{fps}}) '
+                            'to stamp frame i at i / fps', 'fps')
     labels = [f'row {i}' for i in range(len(traj))]
     bad = ~np.isfinite(traj).all(axis=1) | ~np.isfinite(t)
     if bad.any():
         raise InputError(f'{what} {path}: {labels[int(np.argmax(bad))]}: a value is not finite')
-    if fps is None and warnings is not None and len(t) > 1 and np.all(t == np.round(t)):
-        warnings.append(f'{what} {path}: tstamp holds whole numbers ({t[0]:g}, {t[1]:g}, ...), '
-                        'taken as seconds: if they are frame indices, give the frame rate (fps)')
+    if fps is None and len(t) > 1 and np.all(t == np.round(t)):
+        raise ArgumentError(f'{what} {path}: tstamp holds whole numbers ({t[0]:g}, {t[1]:g}, '
+                            '...): frame indices? give the frame rate, {fps} (seconds = index / '
+                            'fps); a trajectory at 1 Hz stamped in seconds is {fps} 1', 'fps')
     stamps = seconds_to_ns(t / fps if fps is not None else t, f'{what} {path}', labels)
     _check_increasing(path, what, stamps, labels)
     return Trajectory(path, stamps, traj[:, :3], _unit_quaternions(path, what, traj[:, 3:7],
