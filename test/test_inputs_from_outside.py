@@ -278,3 +278,6 @@ def test_hostile_frame_ids_and_paths_are_escaped_in_every_command(hostile, tmp_p
     text = ''.join(p.read_text(encoding='utf-8') for p in logs.iterdir())
     assert 'map\\x1b[2J' in text
     assert_escaped(text)
+    summary = (tmp_path / ('batch' + HOSTILE) / 'summary.md').read_text(encoding='utf-8')
+    assert 'frame\\x1b[2J' in summary  # the input's name, in the table for people
+    assert_escaped(summary)
