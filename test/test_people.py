@@ -314,8 +314,10 @@ def people_of(msg: Any) -> list[np.ndarray]:
 def test_people_node_feeds_hac_node_over_dds(people_extra, opencv_images, transport):
     """Camera images (Image, or CompressedImage JPEG) → hac_people_node → hac_node, with a static
     SLAM camera and a floor map FLOOR_SLAM units below it: every image gives joints with its
-    stamp, hac_node takes them (no joints_* rejection), converges, and its scale is within 1 % of
-    the one the lifted feet imply."""
+    stamp, hac_node takes them (no joints_* rejection), converges on accepted samples, and its
+    scale is within 1 % of the one the lifted feet imply (the median over the people: the man
+    seen from behind, his feet out of the image, is judged not standing by hac_node and is a
+    minority here)."""
     from msg_adapters import intrinsics_to_camera_info, rt_to_pose_stamped, xyz_to_cloud
 
     graph = Graph({'image_transport': transport, 'max_rate_hz': 0.0},
@@ -354,7 +356,7 @@ def test_people_node_feeds_hac_node_over_dds(people_extra, opencv_images, transp
             return False
         assert wait_for(hac_caught_up), 'hac_node did not process every frame'
         assert not [k for k in hac_status if k.startswith('rejected.joints_')], hac_status
-        assert int(hac_status['samples']) >= 20
+        assert int(hac_status['samples']) >= 10, sorted(hac_status.items())
         expected = implied_scale(people, FLOOR_SLAM)
         scale = graph.received['scale'][-1].data
         assert abs(scale / expected - 1) < 0.01, (scale, expected)

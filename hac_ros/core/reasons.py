@@ -72,6 +72,9 @@ REASONS: dict[str, Reason] = {
         REJECTED, 'people refused: joints spread over more than 4 m or less than 0.3 m (HMR '
         'joints must be metres)', warns=True),
     'behind_camera': Reason(REJECTED, 'a person entirely behind the camera'),
+    'not_standing': Reason(
+        REJECTED, 'a person seated, kneeling or lying: only standing people measure the floor '
+        '(the body cannot tell planted feet from hanging ones)'),
     'no_pose': Reason(REJECTED, 'no SLAM pose at (or around) the joints stamp'),
     'pending_overflow': Reason(REJECTED, 'joints waited too long for a SLAM pose: dropped'),
     # ------------------------------------------------------------ samples
@@ -79,6 +82,9 @@ REASONS: dict[str, Reason] = {
     'no_reference': Reason(
         REJECTED, 'no map hit and no usable ground plane for the contact joint'),
     'gated': Reason(REJECTED, 'scale sample far from the current estimate (outlier gate)'),
+    'no_down': Reason(
+        REJECTED, 'a body without an up axis (its axis joints on one point) while the scene has '
+        'not said which way is down (docs/method.md, "Which way is down")'),
     # ------------------------------------------------------------ maps
     'cloud_empty': Reason(REJECTED, 'map cloud with no valid point: previous map kept'),
     'cloud_malformed': Reason(REJECTED, 'map cloud that could not be decoded'),
@@ -86,7 +92,14 @@ REASONS: dict[str, Reason] = {
     'cloud_implausible': Reason(
         REJECTED, 'a map cloud of values no SLAM produces (a wrong byte order?) was refused',
         warns=True),
-    'map_late': Reason(REJECTED, 'map cloud older than the map in use'),
+    'map_degenerate': Reason(
+        CONDITION, 'a map cloud whose points lie at a point, on a line, or on one plane that '
+        'cannot be the floor (tilted from the bodies\' axis, or through the camera) was '
+        'refused, and no good map serves since', counted=True),
+    'map_superseded': Reason(
+        REJECTED, 'a map cloud stamped at or before the map in use: the newer map is kept'),
+    'map_old_segment': Reason(
+        REJECTED, 'a map cloud stamped before the SLAM re-initialised: the old map\'s, not used'),
     'camera_info_invalid': Reason(REJECTED, 'CameraInfo with invalid intrinsics'),
     # ------------------------------------------------------------ outputs
     'output_implausible': Reason(
