@@ -32,6 +32,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 
 from hac_ros.core.errors import InputError
 from hac_ros.people import extra
+from hac_ros.people.arguments import USAGE
 from hac_ros.people.frontend import PeopleFromImages, size_matches
 from hac_ros.people.lifting import Camera
 from hac_ros.people.params import NODE_NAME, PeopleParams, describe, names
@@ -57,22 +58,6 @@ OUTPUT_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
 STEADY = Clock(clock_type=ClockType.STEADY_TIME)
 OK, WARN, ERROR = b'\x00', b'\x01', b'\x02'
 
-USAGE = """\
-usage: {program} [-h] [--ros-args [--params-file FILE] [-p NAME:=VALUE] [-r FROM:=TO] ...]
-
-{what}
-
-Subscribes to camera/image_raw (sensor_msgs/Image; camera/image_raw/compressed with
--p image_transport:=compressed) and camera/camera_info; publishes hmr/joints (PoseArray: 33
-landmarks per person in metres, camera optical frame; hac_node takes them with
-joint_layout: blazepose33) and /diagnostics. Needs the [people] extra ({install}).
-
-options:
-  -h, --help            show this help and exit (ROS is not started)
-  --ros-args ...        ROS's own arguments, e.g. -p max_rate_hz:=5.0
-
-Parameters: docs/people.md ("Parameters").
-"""
 
 
 class PeopleNode(Node):
@@ -137,10 +122,11 @@ class PeopleNode(Node):
         self.create_timer(DIAGNOSTICS_PERIOD_S, self._publish_diagnostics, clock=STEADY)
         self._worker = threading.Thread(target=self._work, name='hac_people', daemon=True)
         self._worker.start()
+        rate = (f'at most {self.params.max_rate_hz:g} images/s of stamp time'
+                if self.params.max_rate_hz > 0 else 'every image')
         self.get_logger().info(
             f'people from {topic} with {self.params.camera_info_topic} -> '
-            f'{self.params.joints_topic} (joint_layout blazepose33), at most '
-            f'{self.params.max_rate_hz:g} images/s of stamp time, person detector '
+            f'{self.params.joints_topic} (joint_layout blazepose33), {rate}, person detector '
             f'{self.params.person_detector}')
 
     def destroy_node(self) -> None:
@@ -165,7 +151,7 @@ class PeopleNode(Node):
 
     def _on_lost(self, info: Any) -> None:
         """Images the middleware received but dropped before the node saw them (its queue of
-        IMAGE_QOS.depth was full: images faster than the executor takes them)."""
+        IMAGE_DEPTH was full: images faster than the executor takes them)."""
         with self._lock:
             self._count('dropped.lost', max(int(info.total_count_change), 0))
 
