@@ -193,6 +193,65 @@ def test_hac_people_then_import_and_replay_match_every_pose_exactly(people_extra
     assert abs(summary.status.scale / expected - 1) < 0.01, (summary.status.scale, expected)
 
 
+def test_hac_people_reads_a_video_and_a_stamps_file(people_extra, opencv_images, tmp_path):
+    """A video's frames are stamped at its own rate from --start; --stamps takes one stamp per
+    frame from a file's first column (a TUM trajectory works); a count that does not match is
+    refused naming --stamps, nothing written."""
+    import cv2
+
+    video = tmp_path / 'clip.avi'
+    writer = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*'MJPG'), 4.0, (640, 480))
+    for name in ('basketball1.png', 'basketball2.png', 'basketball1.png'):
+        writer.write(np.ascontiguousarray(opencv_images[name][:, :, ::-1]))
+    writer.release()
+    out = tmp_path / 'video.npz'
+    assert hac(['people', str(video), '--camera', CAMERA, '--start', '10', '-o', str(out),
+                '--person-detector', 'none', '--no-progress']) == 0
+    saved = np.load(out)
+    np.testing.assert_allclose(saved['stamps'], [10.0, 10.25, 10.5])
+    assert [int(np.isfinite(f[:, 0, 0]).sum()) for f in saved['joints']] == [1, 2, 1]
+    stamps = tmp_path / 'traj.txt'
+    stamps.write_text('# timestamp tx ty tz qx qy qz qw\n'
+                      + ''.join(f'{t} 0 0 0 0 0 0 1\n' for t in (3.5, 3.6, 3.8)))
+    assert hac(['people', str(video), '--camera', CAMERA, '--stamps', str(stamps), '-o',
+                str(tmp_path / 'stamped.npz'), '--person-detector', 'none',
+                '--no-progress']) == 0
+    np.testing.assert_allclose(np.load(tmp_path / 'stamped.npz')['stamps'], [3.5, 3.6, 3.8])
+    stamps.write_text('3.5\n3.6\n')
+    run = subprocess.run([sys.executable, '-m', 'hac_ros.cli', 'people', str(video), '--camera',
+                          CAMERA, '--stamps', str(stamps), '-o', str(tmp_path / 'short.npz'),
+                          '--person-detector', 'none', '--no-progress'],
+                         capture_output=True, text=True, cwd=REPO, timeout=300)
+    assert run.returncode == 2 and '--stamps' in run.stderr and 'Traceback' not in run.stderr
+    assert not (tmp_path / 'short.npz').exists()
+
+
+def test_num_threads_pins_the_node_process(people_extra):
+    """hac_people_node with num_threads 1 runs on one core (MediaPipe's Python API has no thread
+    option: the process is pinned), and ends cleanly on SIGINT."""
+    import os
+    import signal
+
+    allowed = sorted(os.sched_getaffinity(0))
+    if len(allowed) < 2:
+        pytest.skip('this process has one core: there is nothing to pin')
+    process = subprocess.Popen([sys.executable, '-m', 'hac_ros.people.node', '--ros-args', '-p',
+                                'num_threads:=1', '-p', 'person_detector:=none'],
+                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    status = Path(f'/proc/{process.pid}/status')
+
+    def cpus() -> str:
+        found = [line.split(':')[1].strip() for line in status.read_text().splitlines()
+                 if line.startswith('Cpus_allowed_list')]
+        return found[0] if found else ''
+    try:
+        assert wait_for(lambda: process.poll() is None and cpus() == str(allowed[0])), cpus()
+    finally:
+        process.send_signal(signal.SIGINT)
+        _, err = process.communicate(timeout=120)
+    assert process.returncode == 0, err
+
+
 def floor_points() -> np.ndarray:
     """A floor map in SLAM units: a 0.04-unit grid on the plane FLOOR_SLAM below the camera
     (optical y down), in front of it, in its view."""
