@@ -6,13 +6,15 @@ of its stated limitations change that picture, and the offline mode handles both
 - **SLAM re-initialisation.** A new map has a new scale, so the recording is cut into segments at
   the estimator's resets and each segment gets its own estimate from its own samples only.
 - **Scale drift.** Within a segment the median is the right answer only if the scale is constant.
-  The segment's samples go through the online estimator's filter forwards and a Rauch–Tung–
-  Striebel smoother backwards (hac_ros.core.scale_filter.smooth), with the noise measured on the
-  segment's samples about their centred rolling median (so that a drift is not taken for noise).
-  Where the smoothed rate gives evidence of drift (its drift probability above DRIFT_EVIDENCE at
-  some stamp), the segment's scale at a stamp is the smoothed level there, lifted by the median
-  of the samples' residuals about it (so that its level is a median's, as the constant case);
-  otherwise it keeps the segment's median (docs/replay.md's contract).
+  The evidence of drift is the trend of all the segment's samples at once (:func:`segment_drift`:
+  their least-squares slope against the online estimator's prior, with the noise measured about
+  it); the segment drifts when its probability is above DRIFT_EVIDENCE. Then the samples go
+  through the online estimator's filter forwards and a
+  Rauch–Tung–Striebel smoother backwards (hac_ros.core.scale_filter.smooth), with the noise
+  measured on the samples about their centred rolling median (so that the drift is not taken
+  for noise), and the segment's scale at a stamp is the smoothed level there, lifted by the
+  median of the samples' residuals about it (so that its level is a median's, as in the constant
+  case). Otherwise the segment keeps its median (docs/replay.md's contract).
 
 A segment with fewer than ``min_samples`` accepted samples has no estimate (NaN: nothing metric is
 published there, as online before convergence).
@@ -240,13 +242,11 @@ def segment_scale(stamps_ns: np.ndarray, scales: np.ndarray, start_ns: int, wind
     noise = noise_density(stamps_ns, log_scales - np.log(trend))
     sigma = median * math.sqrt(noise.sigma2) if noise is not None else 0.0
     span_s = float(stamps_ns[-1] - stamps_ns[0]) / NS
-    drift_p = 0.0
+    drift_p = segment_drift(stamps_ns, log_scales)
     smoothed = None
-    if noise is not None and noise.sigma2 > 0.0:
+    if noise is not None and drift_p > DRIFT_EVIDENCE:
         smoothed = smooth(stamps_ns, log_scales, noise)
-        drift_p = max(drift_probability(float(r), float(v))
-                      for r, v in zip(smoothed.rate, smoothed.rate_var))
-    if smoothed is not None and drift_p > DRIFT_EVIDENCE:
+    if smoothed is not None:
         step = max(1, int(2 * half_ns / KNOTS_PER_WINDOW))
         knots = np.unique(np.r_[np.arange(int(stamps_ns[0]), int(stamps_ns[-1]), step,
                                           dtype=np.int64), int(stamps_ns[-1])])
@@ -264,6 +264,23 @@ def segment_scale(stamps_ns: np.ndarray, scales: np.ndarray, start_ns: int, wind
         error = MEDIAN_STD_ERROR * median * math.sqrt(variance)
     return SegmentScale(int(start_ns), n, median, sigma, bool(drift_p > DRIFT_EVIDENCE), drift_p,
                         knots, values, int(stamps_ns[0]), int(stamps_ns[-1]), error)
+
+
+def segment_drift(stamps_ns: np.ndarray, log_scales: np.ndarray) -> float:
+    """The probability that a segment's scale drifts, from all its samples at once: the
+    least-squares slope of the log scale over the segment, its variance 12 N² / T³ (T the span,
+    N² the noise density of the residuals about the line: hac_ros.core.scale_filter), weighed by
+    the online estimator's prior (scale_filter.drift_probability). stamps_ns (n,) sorted int;
+    log_scales (n,) natural log of metres per SLAM unit."""
+    t = (stamps_ns - stamps_ns[0]) / NS
+    span = float(t[-1]) if len(t) else 0.0
+    if span <= 0.0:
+        return 0.0
+    slope, intercept = np.polyfit(t, log_scales, 1)
+    noise = noise_density(stamps_ns, log_scales - (slope * t + intercept))
+    if noise is None:
+        return 0.0
+    return drift_probability(float(slope), 12.0 * noise.density / span ** 3)
 
 
 def centred_medians(stamps_ns: np.ndarray, scales: np.ndarray, query_ns: np.ndarray, half_ns: int,
