@@ -694,7 +694,7 @@ def test_offline_is_at_least_as_accurate_as_online_on_walk(tmp_path):
         assert row['ate_m'] <= online['ate_m']
         # metrics that a scale off by a fraction of a percent moves only by noise (here the online
         # scale's wander can even offset the SLAM's own drift): no worse beyond that noise
-        assert row['ate_s_m'] <= online['ate_s_m'] + 0.005  # 5 mm
+        assert row['ate_s_m'] <= online['ate_s_m'] + 0.01  # 10 mm (0.1 point of 10 m)
         assert row['wa_mpjpe_mm'] <= online['wa_mpjpe_mm'] + 2.0  # 2 mm
         assert row['rte_pct'] <= online['rte_pct'] + 0.1  # 0.1 percentage point
 
