@@ -83,7 +83,8 @@ def hand_eye(R_gt: np.ndarray, R_slam_world: np.ndarray) -> np.ndarray:
 
 
 def build(shared: Path, seed: int = 0, hmr_bias: float = 0.0, sequence: str | None = None,
-          motion: int | None = None, rate: float | None = None) -> Composite:
+          motion: int | None = None, rate: float | None = None,
+          poses: str = 'orb') -> Composite:
     """The composite of ``seed``: sequence (fr2_desk for even seeds, freiburg1_xyz for every
     fourth odd one, unless given), motion (an index into MOTIONS, unless given), placement and
     noise drawn from the seed; ``hmr_bias``: the mean relative HMR depth bias (0: clean, no bias
@@ -94,7 +95,11 @@ def build(shared: Path, seed: int = 0, hmr_bias: float = 0.0, sequence: str | No
     between the first and the last keyframe, as a SLAM that publishes every frame: the true camera
     from the motion capture (interpolated), the SLAM pose the Sim(3) fit's image of it plus the
     SLAM's own error at the keyframes, interpolated between them (:func:`dense_poses`); its HMR
-    noise drawn from a generator of its own."""
+    noise drawn from a generator of its own.
+
+    ``poses`` 'orb': the SLAM poses are ORB-SLAM's; 'fit': the Sim(3) fit's image of the true
+    cameras, a SLAM without error (the map, the true floor brought into the SLAM frame by that
+    fit, is then exactly consistent with its poses: bench/steep_views.py)."""
     rng = np.random.default_rng([seed, 7])
     if sequence is None:
         sequence = 'freiburg1_xyz' if seed % 4 == 3 else 'fr2_desk'
@@ -107,6 +112,8 @@ def build(shared: Path, seed: int = 0, hmr_bias: float = 0.0, sequence: str | No
     c_gt, R_gt = gt_pos[ib], Rotation.from_quat(gt_q[ib]).as_matrix()
     s_fit, R_fit, t_fit = metrics.umeyama(c_slam, c_gt, with_scale=True)
     R_gt = R_gt @ hand_eye(R_gt, R_fit @ R_slam)
+    if poses == 'fit':
+        c_slam, R_slam = (c_gt - t_fit) @ R_fit / s_fit, np.einsum('ij,njk->nik', R_fit.T, R_gt)
     K = INTRINSICS[sequence]
 
     # the walker: real motion at its real heights, on the floor (z = 0) in front of the cameras
