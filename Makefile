@@ -9,7 +9,7 @@ STAMP   := $(VENV)/.hac_installed
 export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
 export ROS_DOMAIN_ID ?= $(shell echo $$(( $$$$ % 10 + 90 )))
 
-.PHONY: all install lint test demo bench bags clean
+.PHONY: all install lint test demo docs bench bags clean
 
 all: test
 
@@ -30,6 +30,10 @@ test: lint
 
 demo: $(STAMP)
 	$(PY) -m hac_ros.cli demo
+
+# the docs' generated blocks (the reason table, ...) from the code: test/regen_docs.py
+docs: $(STAMP)
+	$(PY) test/regen_docs.py
 
 bench: $(STAMP)
 	$(PY) bench/accuracy.py

@@ -251,7 +251,8 @@ def _online(scene: Scene, params: HacParams, offline_humans: World,
     true = scene.true_scale_at(np.array([st.stamp_ns for st in statuses], dtype=np.int64))
     log_err = np.array([abs(math.log(st.scale / t)) if st.scale > 0 else math.inf
                         for st, t in zip(statuses, true)])
-    off = [e > math.log1p(CONVERGED_REL) and st.converged for e, st in zip(log_err, statuses)]
+    off = [abs(st.scale / t - 1.0) > CONVERGED_REL and st.converged
+           for st, t in zip(statuses, true)]
     # the level /diagnostics gives each status, in order (hac_ros.core.health, as the node)
     monitor = HealthMonitor(params.metric_frame_alignment == 'gravity')
     ok = [monitor.assess(st).level == OK for st in statuses]

@@ -193,3 +193,30 @@ def test_the_readme_layout_names_every_library_module():
                if module.stem != '__init__'
                and not re.search(rf'\b{module.stem}\b', described.get(f'hac_ros/{package}', ''))]
     assert missing == []
+
+
+def test_the_generated_blocks_of_the_docs_are_up_to_date():
+    """docs/node.md's reason table is made from hac_ros/core/reasons.py: `make docs` rewrites it."""
+    from regen_docs import stale
+
+    assert stale() == [], 'run `make docs` (test/regen_docs.py)'
+
+
+# the calls that count, announce or find a reason, with the reason as a string literal
+_REASON_CALLS = re.compile(
+    r"""(?:_reject|\.reject|_rejected_sample\([^)]*?|no_sample|Finding|reason_text|events\[|"""
+    r"""conditions\(\)\[)\(?\s*'([a-z_]+)'""")
+
+
+def test_every_reason_the_code_gives_is_in_the_one_table():
+    """A reason counted, held or found anywhere in the library is an entry of the core's table
+    (so its text, level and remedy are said once); the transport reasons are made per input kind."""
+    from hac_ros.core.reasons import REASONS
+
+    used: set[str] = set()
+    for path in (REPO / 'hac_ros').rglob('*.py'):
+        used.update(_REASON_CALLS.findall(_text(path)))
+    used.update(f'{kind}_{what}' for kind in ('pose', 'joints', 'camera_info', 'cloud')
+                for what in ('lost', 'wrong_type'))
+    assert len(used) > 30
+    assert sorted(used - set(REASONS)) == []

@@ -721,7 +721,6 @@ def test_offline_follows_a_drifting_scale_where_online_lags(tmp_path):
 
 
 def test_offline_estimates_each_segment_of_a_reset_on_its_own(tmp_path):
-    from hac_ros.evaluation.evaluate import row_metrics
     from hac_ros.recording.tracks import read_truth
 
     source = BAGS / 'reset_short'  # the SLAM re-initialises at 6 s with a new scale

@@ -22,9 +22,10 @@ from hac_ros.core.estimator import RollingScale
 from hac_ros.core.ground import GroundModel
 from hac_ros.core.human_filter import RootFilter
 from hac_ros.core.map_book import MapBook
+from hac_ros.core.map_shape import MapShape, plane_problem
 from hac_ros.core.metric_stage import MetricStage, ScaleAt, StageConfig, finite_scale
 from hac_ros.core.numeric import NS
-from hac_ros.core.outputs import REASONS, NoticeOut, ResetOut, SampleOut, Status
+from hac_ros.core.outputs import NoticeOut, ResetOut, SampleOut, Status
 from hac_ros.core.params import HacParams
 from hac_ros.core.pending import (
     Pending,
@@ -37,15 +38,21 @@ from hac_ros.core.pending import (
 )
 from hac_ros.core.plausibility import body_unit_problem
 from hac_ros.core.pose_stream import FreezeWatch, Pose, PoseTrack
+from hac_ros.core.posture import posture_problem
+from hac_ros.core.reasons import text as reason_text
 from hac_ros.core.reference import MapIndex
 from hac_ros.core.sample import Scene, person_sample
 from hac_ros.core.services import ServiceRequests
+from hac_ros.core.stamp_reach import UNMATCHED, StampReach
 from hac_ros.core.timeline import Timeline
 
 GROUND_SHARE_SAMPLES = 30  # recent samples whose sources say whether the ground plane carries
 # resets that keep the map in use, and the ground model: the same SLAM map goes on
 KEEPS_MAP = ('map_overlap', 'service', 'time_jump_ahead')
 KEEPS_GROUND = ('service', 'time_jump_ahead')
+# rejections that correct runs meet: their first notice is INFO (a sample the outlier gate kept
+# out, a person sitting down)
+ROUTINE_REJECTIONS = ('gated', 'not_standing')
 
 
 @dataclass
@@ -69,6 +76,8 @@ class FrameLoop:
         self.rejected: Counter[str] = Counter()
         self.events: Counter[str] = Counter()  # time jumps (hac_ros.core.timeline)
         self._noticed: set[str] = set()
+        self._map_seen = False  # a map was in use for a frame (before: no_map is waiting for it)
+        self.reach = StampReach()  # joints and poses stamped apart (hac_ros.core.stamp_reach)
         self.frames = self.people = self.map_hits = self.ground_fallbacks = self.resets = 0
         self._K: np.ndarray | None = None
         self._image_size = (0, 0)
@@ -158,15 +167,13 @@ class FrameLoop:
         """What holds now and makes /diagnostics WARN (hac_ros.core.health): reason -> text."""
         out = {}
         if self.freeze.holds:
-            out['slam_frozen'] = ('the SLAM pose repeats bit for bit while the people move: '
-                                  'tracking lost? (frames not sampled)')
+            out['slam_frozen'] = reason_text('slam_frozen')
+        if self.maps.degenerate:
+            out['map_degenerate'] = self.maps.degenerate
         if self.estimator.relocking:
-            out['relocking'] = ('gated samples in a row disagree with the estimate (a SLAM that '
-                                're-initialised at another scale without a pose jump?): '
-                                're-locking on them once they hold')
+            out['relocking'] = reason_text('relocking')
         if self.ground.floor_missing:
-            out['floor_unknown'] = ('no floor found in the map: the contacts\' map hits are not '
-                                    'checked against it (a table top or a step could pass for it)')
+            out['floor_unknown'] = reason_text('floor_unknown')
         return out
 
     @property
@@ -182,12 +189,31 @@ class FrameLoop:
         """Count a rejection; the first of each reason is announced with ``detail`` (else the
         reason's text)."""
         self.rejected[reason] += 1
+        out: list[Record] = []
+        if reason in UNMATCHED:  # a frame without its pose: two clocks? (said once)
+            track = self.track
+            first = (track.poses[0] if track.poses else
+                     track.candidates[0] if track.candidates else None)
+            out += self.reach.judge(int(stamp_ns), None if first is None else first.stamp_ns,
+                                    track.newest_stamp_ns, self.frames)
         if reason in self._noticed:
-            return []
+            return out
         self._noticed.add(reason)
-        text = detail or REASONS.get(reason, reason)
-        return [NoticeOut(int(stamp_ns), reason, f'rejected input ({reason}): {text}; '
-                          'further ones are counted in /diagnostics')]
+        if reason == 'no_map' and not self._map_seen:
+            return [*out, NoticeOut(int(stamp_ns), reason, 'waiting for the first map: joints '
+                                    'frames give no scale sample until it comes (counted as '
+                                    'rejected.no_map in /diagnostics)', 'info')]
+        text = detail or reason_text(reason)
+        return [*out, NoticeOut(int(stamp_ns), reason, f'rejected input ({reason}): {text}; '
+                                'further ones are counted in /diagnostics',
+                                self._notice_level(reason))]
+
+    def _notice_level(self, reason: str) -> str:
+        """The level of a reason's first notice: ``info`` for what correct runs meet (the
+        outlier gate at work, people sitting, a ray that meets nothing while the ground plane is
+        still being found; waiting for the first map is said above), ``warn`` otherwise."""
+        waiting = reason == 'no_reference' and self.ground.normal() is None
+        return 'info' if reason in ROUTINE_REJECTIONS or waiting else 'warn'
 
     # ================================================================== poses
     def _accept_pose(self, pose: Pose, move: tuple[float, float] | None = None,
@@ -200,7 +226,6 @@ class FrameLoop:
             self._segment_starts = None
         self.track.append(pose, (self.track.step(pose) if move is None else move)
                           if measured else None)
-        self.ground.add_camera(pose.R_wc)
         # frames before this stamp first, then this pose's map and odometry, then the frame of
         # this stamp (a map is in use from its stamp on: its odometry and status see it too)
         while self._pending and self._pending[0].stamp_ns < pose.stamp_ns:
@@ -244,13 +269,13 @@ class FrameLoop:
         out: list[Record] = self._new_segment(first_pose, cause)
         self.track.clear()
         if cause not in KEEPS_MAP:
-            self.maps.drop()
+            self.maps.drop(first_pose.stamp_ns)
         # frames before the reset belong to the old map: their poses are gone
         stale = [f for f in self._pending if f.stamp_ns < first_pose.stamp_ns]
         self._pending = [f for f in self._pending if f.stamp_ns >= first_pose.stamp_ns]
         out += [ResetOut(first_pose.stamp_ns, cause),
                 NoticeOut(first_pose.stamp_ns, 'reset', f'estimator reset ({cause}): {text}',
-                          'warn')]
+                          'info')]  # what a SLAM does; /diagnostics counts it
         for frame in stale:
             out += self._reject('no_pose', frame.stamp_ns)
         return out
@@ -258,10 +283,26 @@ class FrameLoop:
     # ================================================================== frames
     def _activate_map(self, stamp_ns: int, c_map: np.ndarray) -> list[Record]:
         """Make the latest map not after ``stamp_ns`` the current one (the processing order); a
-        map that does not overlap the previous one is a SLAM re-initialisation. A new map that
-        overlaps is checked against the old one (:meth:`_map_rescaled`); c_map: (3,) the frame's
-        camera centre, SLAM units."""
-        chosen, lost = self.maps.activate(stamp_ns)
+        map that does not overlap the previous one is a SLAM re-initialisation; a plane map that
+        cannot be the floor is refused (hac_ros.core.map_shape; the camera at ``c_map`` (3,),
+        SLAM units), and a plane map in use is judged once the bodies give their axis. A new map
+        that overlaps is checked against the old one (:meth:`_map_rescaled`)."""
+        axis = self.ground.body_axis()
+
+        def problem(index: MapIndex, shape: MapShape) -> str:
+            return plane_problem(shape, index.sample, c_map, axis)
+        chosen, lost, refused = self.maps.activate(stamp_ns, problem)
+        if refused:
+            return self._reject('map_degenerate', stamp_ns, refused)
+        if self.maps.plane_unjudged and self.map is not None and self.maps.shape is not None:
+            why = plane_problem(self.maps.shape, self.map.sample, c_map, axis)
+            if why:  # its samples measured a wall or the camera's own plane: dropped too
+                self.maps.refuse_in_use(why)
+                self.estimator.reset()
+                return self._reject('map_degenerate', stamp_ns, self.maps.degenerate +
+                                    ' (refused)')
+            if axis is not None:
+                self.maps.plane_judged()
         pose = self.track.last
         if chosen is not None and not lost:
             self.estimator.map_changed(self._map_rescaled(c_map))
@@ -307,6 +348,7 @@ class FrameLoop:
             return self._reject('no_pose', stamp)
         out += self._activate_map(stamp, pose[1])
         out += self._hand_map(stamp)
+        self._map_seen = self._map_seen or self.map is not None
         R_wc, c_map = pose
         self._last_frame_ns = stamp
         self.frames += 1
@@ -339,13 +381,21 @@ class FrameLoop:
         if not (joints[:, 2] > 0.0).any():
             return self._rejected_sample(stamp, person, 'behind_camera')
         up_cam = self.layout.up_axis(joints)
+        notes = self._vote_down(stamp, R_wc, c_map, joints, up_cam)
+        down = self.ground.rough_down()
+        self.check.add_person(self.layout, R_wc, joints, up_cam, down, self._K, self._image_size)
+        if posture_problem(self.layout, joints, up_cam, None if down is None else R_wc.T @ down):
+            # only standing people measure (hac_ros.core.posture)
+            return notes + self._rejected_sample(stamp, person, 'not_standing')
         self.ground.add_body(R_wc, up_cam)
-        self.check.add_person(self.layout, R_wc, joints, up_cam, self._K, self._image_size)
+        up_norm = float(np.linalg.norm(up_cam))
+        if down is None and math.isfinite(up_norm) and up_norm > 0.0:
+            down = -(R_wc @ up_cam) / up_norm  # until the scene says: the body's own down
         scale_now = self.online_scale()
-        scene = Scene(self.map, self.ground.plane(self.map), self.ground.normal(),
-                      self.ground.trusted, self._K, self._image_size, scale_now, self._cos_min)
+        scene = Scene(self.map, self.ground.plane(self.map), down, self.ground.trusted, self._K,
+                      self._image_size, scale_now, self._cos_min)
         sample = person_sample(self.params, self.layout, scene, R_wc, c_map, joints)
-        relock: list[Record] = []
+        relock: list[Record] = notes
         if self.ground.judge_window(sample.floor_scale, scale_now, self.estimator.samples,
                                     self.params.min_samples, self.params.plausibility_rel_tol):
             self.estimator.reset()  # it locked on what the floor now refuses: judged afresh
@@ -375,6 +425,22 @@ class FrameLoop:
                 contact_map = c_map + R_wc @ sample.contact_cam / scale_now
                 self.ground.add_contact(contact_map, scale_now)
         return out
+
+    def _vote_down(self, stamp: int, R_wc: np.ndarray, c_map: np.ndarray, joints: np.ndarray,
+                   up_cam: np.ndarray) -> list[Record]:
+        """Every person (standing or not) tells which way is down while the scene has not said
+        (hac_ros.core.down_vote); when it says that down is along the bodies' up (people on their
+        hands), the samples taken with the bodies' own down are dropped."""
+        up_norm = float(np.linalg.norm(up_cam))
+        if not (self.ground.down.wanted and self.map is not None and math.isfinite(up_norm)
+                and up_norm > 0.0):
+            return []
+        self.ground.down.add(self.layout, joints, R_wc, c_map, self.map, R_wc @ up_cam / up_norm)
+        if not (self.ground.down.along_up and self.estimator.samples):
+            return []
+        self.estimator.reset()
+        return [NoticeOut(stamp, 'down_found', 'down is along the bodies\' up axis (people on '
+                          'their hands): the estimate restarted', 'info')]
 
     def _rejected_sample(self, stamp: int, person: int, reason: str, detail: str = ''
                          ) -> list[Record]:

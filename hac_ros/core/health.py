@@ -16,32 +16,26 @@ output stream, :class:`hac_ros.bridge.messages.OutputMessages`), so both write t
 ``/diagnostics``. The node adds findings only it can make (its latency and backlog, no input on
 its wall-clock timer) through ``extra``.
 
-To add a reason: set ``conditions[reason] = text`` in the status while the condition holds (a
-state), or add a counted reason to :data:`WARN_WHEN_COUNTED` (an event); give it a line in
-``docs/node.md``'s fault table.
+Every reason is an entry of :data:`hac_ros.core.reasons.REASONS` (its kind, text, whether it
+warns, its remedy): a condition is set as ``conditions[reason]`` while it holds; a counted reason
+with ``warns`` makes the status WARN when it grew.
 """
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable
 from dataclasses import dataclass
 
 from hac_ros.core.outputs import Status
+from hac_ros.core.reasons import warn_when_counted
 
 # diagnostic_msgs/DiagnosticStatus levels
 OK, WARN, ERROR, STALE = 0, 1, 2, 3
 LEVEL_NAMES = {OK: 'OK', WARN: 'WARN', ERROR: 'ERROR', STALE: 'STALE'}
 
-# Counted reasons (Status.rejected) that make the status WARN when they grew since the previous
-# status: reason -> what it means for the outputs.
-WARN_WHEN_COUNTED = {
-    'frames_dropped': 'joints frames dropped: input faster than processing',
-    'time_jump_back': 'time jumped back: a new stream started',
-    'time_jump_ahead': 'time jumped ahead: a new segment started',
-    'pose_stamp_outlier': 'a SLAM pose stamped far from the others was refused',
-    'cloud_implausible': 'a map cloud of implausible values was refused',
-    'joints_not_metres': 'people refused: joints not in metres',
-    'output_implausible': 'outputs with non-finite or absurd values were suppressed',
-}
+# Counted reasons (Status.rejected, Status.events) that make the status WARN when they grew since
+# the previous status: reason -> what it means (hac_ros.core.reasons)
+WARN_WHEN_COUNTED = warn_when_counted()
 
 
 @dataclass(frozen=True)
@@ -73,6 +67,8 @@ def headline(status: Status) -> str:
         text = f'converged: scale {status.scale:.6g} +- {status.spread:.2g}'
     else:
         text = f'not converged: {status.samples} samples'
+        if status.scale > 0.0 and math.isfinite(status.spread):  # its uncertainty, relative
+            text += f', scale {status.scale:.6g} +- {100.0 * status.spread / status.scale:.2g} %'
     return text + (' (frozen)' if status.frozen else '')
 
 

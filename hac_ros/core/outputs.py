@@ -143,58 +143,6 @@ class ResetOut:
     cause: str
 
 
-# Human-readable text of each rejection cause (the first occurrence is logged).
-REASONS = {
-    'pose_nonfinite': 'SLAM pose with NaN/inf, an invalid rotation or an invalid stamp',
-    'pose_out_of_order': 'SLAM pose stamp not after the previous one (out of order or repeated)',
-    'pose_outlier': 'isolated SLAM pose jump (jump and back, or a glitch among the first poses): '
-                    'pose ignored',
-    'pose_stamp_outlier': 'SLAM pose stamped far ahead of the others (a clock glitch): ignored',
-    'slam_frozen': 'frame not sampled: the SLAM pose is frozen while the people move',
-    'frames_dropped': ('joints frame dropped by hac_node, the oldest waiting: input faster than '
-                       'processing (joints_backlog_max)'),
-    'late_frame': 'joints frame older than the last processed frame: dropped',
-    'joints_malformed': 'joints message is not P blocks of the layout\'s joints',
-    'joints_wrong_layout': ('the number of joints is not a multiple of the joint layout\'s joints '
-                            'per person: set joint_layout (smpl24: 24, coco17 and h36m17: 17, '
-                            'custom: joints_per_person)'),
-    'joints_wrong_frame': 'joints in a frame other than the camera frame',
-    'nonfinite_joints': 'a person with NaN/inf joints',
-    'joints_not_metres': ('a person whose joints spread over more than 4 m or less than 0.3 m: '
-                          'HMR joints must be metres'),
-    'cloud_implausible': 'map cloud of values no SLAM produces (a wrong byte order?): refused',
-    'output_implausible': 'an output with a non-finite or absurd value: suppressed',
-    'behind_camera': 'a person entirely behind the camera',
-    'no_pose': 'no SLAM pose at (or around) the joints stamp',
-    'no_map': 'no map yet (or none since the last reset) and no ground plane',
-    'no_reference': 'no map hit and no usable ground plane for the contact joint',
-    'gated': 'scale sample far from the current estimate (outlier gate)',
-    'pending_overflow': 'joints waited too long for a SLAM pose: dropped',
-    'cloud_empty': 'map cloud with no valid point: previous map kept',
-    'cloud_malformed': 'map cloud that could not be decoded',
-    'cloud_wrong_frame': 'map cloud in a frame other than the SLAM pose frame',
-    'map_late': 'map cloud older than the map in use',
-    'camera_info_invalid': 'CameraInfo with invalid intrinsics',
-    # pose_source tf (hac_ros.core.tf_tree)
-    'tf_invalid': 'a TF transform that is not finite, not a rotation or has an invalid stamp',
-    'tf_unconnected': ('a transform of slam_pose_frame\'s branch while slam_map_frame cannot be '
-                       'reached in TF (a static transform missing, or a frame misnamed)'),
-    'tf_chain_dynamic': ('the TF chain from slam_map_frame to slam_pose_frame passes through a '
-                         'second dynamic transform: no pose taken'),
-    # counted by hac_node from the middleware's message-lost events (never reached the node)
-    'pose_lost': 'SLAM pose lost in transport (best-effort input_qos)',
-    'joints_lost': 'joints message lost in transport (best-effort input_qos)',
-    'camera_info_lost': 'CameraInfo lost in transport (best-effort input_qos)',
-    'cloud_lost': 'map cloud lost in transport',
-    # counted by hac_node from the middleware's incompatible-type events (a publisher of another
-    # type)
-    'pose_wrong_type': 'a publisher on the pose topic has another type than pose_type',
-    'joints_wrong_type': 'a publisher on the joints topic is not PoseArray',
-    'camera_info_wrong_type': 'a publisher on the CameraInfo topic is not CameraInfo',
-    'cloud_wrong_type': 'a publisher on the map topic is not PointCloud2',
-}
-
-
 @dataclass(slots=True)
 class NoticeOut:
     """Something a human should read once: the first rejection of each cause, a reset, a relock.

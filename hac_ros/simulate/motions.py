@@ -9,12 +9,15 @@ the walking surface only in mid-stance, as in real gait (the CMU walks: :data:`F
 """
 from __future__ import annotations
 
+import zipfile
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from hac_ros.core.errors import InputError
+from hac_ros.core.printable import printable
 from hac_ros.simulate.world import World
 
 THIGH_M, SHANK_M = 0.41, 0.39
@@ -196,12 +199,70 @@ def handstand(t: np.ndarray, path: Path2D, world: World) -> np.ndarray:
     return out
 
 
+def seated(t: np.ndarray, xy: tuple[float, float], heading: float, seat_m: float,
+           rng: np.random.Generator) -> np.ndarray:
+    """A person seated on a seat ``seat_m`` high (the seat itself is not in the world, as a stool
+    a SLAM did not map): thighs level, shins hanging, the feet wherever the leg puts them (above
+    the floor on a high seat); the upper body as it stands, swaying a few centimetres."""
+    hip_m = seat_m + 0.08  # the hip joints above the seat
+    body = STANDING.copy()
+    body[:, 2] += hip_m - STANDING[1, 2]  # the upper body as it stands, hips at hip_m
+    for hip, knee, ankle, foot in ((1, 4, 7, 10), (2, 5, 8, 11)):
+        side = STANDING[hip, 1]
+        body[hip] = (0.0, side, hip_m)
+        body[knee] = (THIGH_M, side * 1.1, hip_m)
+        body[ankle] = (THIGH_M - 0.02, side * 1.2, hip_m - SHANK_M)
+        body[foot] = body[ankle] + (0.11, 0.0, -0.06)
+    return _placed(t, body, xy, heading, rng)
+
+
+def lying(t: np.ndarray, xy: tuple[float, float], heading: float, bed_m: float,
+          rng: np.random.Generator) -> np.ndarray:
+    """A person lying on the back on a bed ``bed_m`` high (not in the world), head towards
+    ``heading``, breathing and shifting a few centimetres."""
+    body = STANDING.copy()
+    flat = np.c_[body[:, 2] - STANDING[0, 2], body[:, 1], bed_m + 0.10 + body[:, 0]]
+    return _placed(t, flat, xy, heading, rng)
+
+
+def _placed(t: np.ndarray, body: np.ndarray, xy: tuple[float, float], heading: float,
+            rng: np.random.Generator) -> np.ndarray:
+    """``body`` (24, 3) (forward, left, up) at ``xy`` facing ``heading``, for every stamp of t,
+    swaying slowly by a few centimetres (a still person is never quite still)."""
+    t = np.asarray(t, dtype=float)
+    phase = rng.uniform(0.0, 2 * np.pi, 3)
+    sway = 0.02 * np.sin(np.outer(t, [0.3, 0.37, 0.23]) + phase)
+    placed = np.r_[xy, 0.0] + body @ _frame(heading).T
+    return placed[None] + sway[:, None, :]
+
+
+def _read_motion(path: Path) -> tuple[np.ndarray, float]:
+    """The joints (T, 24, 3) metres and fps of a motion ``.npz``; InputError naming the file when
+    it is not one (no pickles are loaded)."""
+    where = f'motion file {printable(path)}'
+    try:
+        data = np.load(path, allow_pickle=False)
+        if not isinstance(data, np.lib.npyio.NpzFile):
+            raise ValueError('a single array, not an archive of named arrays')
+        with data:
+            joints = np.asarray(data['joints'], dtype=float)
+            fps = float(data['fps'])
+    except KeyError as exc:
+        raise InputError(f'{where}: no {exc} array (expected joints (T, 24, 3) metres and '
+                         'fps)') from exc
+    except (OSError, ValueError, TypeError, EOFError, zipfile.BadZipFile) as exc:
+        raise InputError(f'{where}: not a readable motion .npz ({printable(exc)})') from exc
+    if joints.ndim != 3 or joints.shape[1:] != (24, 3) or len(joints) < 2 \
+            or not np.isfinite(joints).all() or not 0.0 < fps < float('inf'):
+        raise InputError(f'{where}: expected joints (T >= 2, 24, 3) finite metres and fps > 0, '
+                         f'got joints {joints.shape} and fps {fps:g}')
+    return joints, fps
+
+
 def load_motion(path: str | Path, t: np.ndarray) -> np.ndarray:
     """Real motion (a ``cmu_mocap`` npz: joints (T, 24, 3) y-up, floor y = 0, metres) at stamps t,
     z-up, played forwards then backwards to fill ``t``, its mean root over the origin."""
-    data = np.load(path)
-    joints = np.asarray(data['joints'], dtype=float)
-    fps = float(data['fps'])
+    joints, fps = _read_motion(Path(path))
     joints = np.stack([joints[..., 0], -joints[..., 2], joints[..., 1]], axis=-1)
     n = len(joints)
     frame = np.asarray(t, dtype=float) * fps
