@@ -251,7 +251,7 @@ def _online(scene: Scene, params: HacParams, offline_humans: World,
     true = scene.true_scale_at(np.array([st.stamp_ns for st in statuses], dtype=np.int64))
     log_err = np.array([abs(math.log(st.scale / t)) if st.scale > 0 else math.inf
                         for st, t in zip(statuses, true)])
-    off = [abs(st.scale / t - 1.0) > CONVERGED_REL and st.converged
+    off = [bool(abs(st.scale / t - 1.0) > CONVERGED_REL) and st.converged
            for st, t in zip(statuses, true)]
     # the level /diagnostics gives each status, in order (hac_ros.core.health, as the node)
     monitor = HealthMonitor(params.metric_frame_alignment == 'gravity')
@@ -259,12 +259,12 @@ def _online(scene: Scene, params: HacParams, offline_humans: World,
     # the ± (the estimate's own uncertainty) against the truth of the moment, where it exists
     rel_sigma = np.array([st.spread / st.scale if st.scale > 0 else math.nan for st in statuses])
     has = np.isfinite(rel_sigma)
-    out.update(statuses=len(statuses), converged_wrong=sum(off),
-               ok_wrong=sum(w and k for w, k in zip(off, ok)), ok_statuses=sum(ok),
+    out.update(statuses=len(statuses), converged_wrong=int(sum(off)),
+               ok_wrong=int(sum(w and k for w, k in zip(off, ok))), ok_statuses=int(sum(ok)),
                sigma_statuses=int(has.sum()),
                cover1=int(np.sum(log_err[has] <= rel_sigma[has])),
                cover2=int(np.sum(log_err[has] <= 2.0 * rel_sigma[has])),
-               relocking=sum('relocking' in st.conditions for st in statuses),
+               relocking=int(sum('relocking' in st.conditions for st in statuses)),
                window_samples=float(np.median([st.samples for st in statuses]))
                if statuses else math.nan)
     return out

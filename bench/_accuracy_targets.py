@@ -2,24 +2,24 @@
 its scenes.
 
 The summary is ``scene -> condition -> method -> statistics`` where a scene is a scenario at a
-rate, ``NAME@30hz`` or ``NAME@kf`` (bench/accuracy.py). The paired comparison takes each seed's
-figures against the same seed's in the baseline (bench/results/ measured at 6d1bc8c, the
-scenarios at their native rate: simulated at 30 Hz, composites at the ORB-SLAM keyframes).
+rate, ``NAME@30hz`` or ``NAME@kf`` (bench/accuracy.py). The paired comparison (bench/paired.py)
+takes each seed's figures against the same seed's in the baseline (the bench as measured at
+6d1bc8c, its scenarios at their native rate: simulated at 30 Hz, composites at the ORB-SLAM
+keyframes).
 Each target is a row ``[scene, target, measured, holds]``.
 """
 from __future__ import annotations
 
 import json
 import math
-from pathlib import Path
 from typing import Any
 
-import numpy as np
+from paired import FIGURES, WORSE_MIN, compare, load, native
 
 WRONG_SHARE_MAX = 1.0  # % of the statuses OK and converged while the scale is > 5 % off
 CAMERA_HEIGHT_MAX = 3.0  # % : the gravity frame's camera height
 FLOOR_MAX_M = 0.05  # m: the gravity frame's floor
-PAIRED_MIN_POINTS = 0.1  # no median worse by more than max(this, 2 x its paired standard error)
+PAIRED_MIN_POINTS = WORSE_MIN  # no median worse by more than max(this, 2 x its paired SE)
 KEYFRAME_MIN_POINTS = 0.2  # keyframe rate: <= 30 Hz + max(this, 1.25 sigma / sqrt(n))
 COVER_1 = (60.0, 80.0)  # % of statuses whose 1 sigma covers the truth of the moment
 COVER_2_MIN = 90.0  # ... and 2 sigma at least
@@ -29,45 +29,23 @@ DRIFT_LIMITS = {'30hz': (1.5, 1.5), 'kf': (3.0, 2.0)}
 Row = list[Any]
 
 
-def native(scenario: str) -> str:
-    """The rate a scenario was benched at before issue 37: composites at the keyframes."""
-    return 'kf' if scenario.startswith(('composite_', 'steep_')) else '30hz'
-
-
-def baseline(path: Path) -> dict[tuple[str, int, str], dict[str, float]]:
-    """(scene, seed, condition) -> the default configuration's figures in a results file."""
+def pairs(results: list[dict[str, Any]], baseline_text: str
+          ) -> dict[tuple[str, str, str], tuple[float, float, float, int]]:
+    """(scene, condition, figure) -> (median now, median then, paired standard error, seeds),
+    for the offline and online scale errors on the seeds both have (bench/paired.py)."""
+    new = '\n'.join(json.dumps(r) for r in results)
     out = {}
-    for line in path.read_text().splitlines():
-        if line.strip():
-            r = json.loads(line)
-            rate = r.get('rate', native(r['scenario']))
-            out[(f"{r['scenario']}@{rate}", r['seed'], r['condition'])] = r['rows']['default']
+    for condition in ('clean', 'biased'):
+        for line in compare(load(new, 'default', condition), load(baseline_text, 'default',
+                                                                  condition)):
+            figure = {label: key for key, label in FIGURES.items()}.get(line['figure'])
+            if figure is not None:
+                out[(line['scenario'], condition, figure)] = (line['new'], line['old'],
+                                                              line['se'], line['n'])
     return out
 
 
-def paired(results: list[dict[str, Any]], base: dict[tuple[str, int, str], dict[str, float]]
-           ) -> dict[tuple[str, str, str], tuple[float, float, float, int]]:
-    """(scene, condition, figure) -> (median now, median then, paired standard error, seeds) over
-    the seeds both have, for the offline and online scale errors."""
-    now: dict[tuple[str, str, str], list[tuple[float, float]]] = {}
-    for r in results:
-        scene = f"{r['scenario']}@{r.get('rate', native(r['scenario']))}"
-        then = base.get((scene, r['seed'], r['condition']))
-        if then is None:
-            continue
-        for figure in ('scale_err', 'online_err'):
-            a, b = r['rows']['default'].get(figure), then.get(figure)
-            if a is not None and b is not None and math.isfinite(a) and math.isfinite(b):
-                now.setdefault((scene, r['condition'], figure), []).append((a, b))
-    out = {}
-    for key, pairs in now.items():
-        a, b = np.array(pairs).T
-        se = float(np.std(a - b, ddof=1) / math.sqrt(len(a))) if len(a) > 1 else math.inf
-        out[key] = (float(np.median(a)), float(np.median(b)), se, len(a))
-    return out
-
-
-def targets_37(summary: dict[str, Any], pairs: dict[tuple[str, str, str], tuple]) -> list[Row]:
+def targets_37(summary: dict[str, Any], paired: dict[tuple[str, str, str], tuple]) -> list[Row]:
     """Issue 37's targets (clean unless said)."""
     rows: list[Row] = []
 
@@ -116,8 +94,8 @@ def targets_37(summary: dict[str, Any], pairs: dict[tuple[str, str, str], tuple]
                 gap = c['bias_median'] - level['bias_median']
                 rows.append([scene, f'bias within {STEEP_BIAS_MAX:g} of composite_0N',
                              f'{gap:+.2f} points', abs(gap) <= STEEP_BIAS_MAX])
-    for (scene, condition, figure), (now, then, se, seeds) in sorted(pairs.items()):
-        allowed = max(PAIRED_MIN_POINTS, 2.0 * se)
+    for (scene, condition, figure), (now, then, se, seeds) in sorted(paired.items()):
+        allowed = max(PAIRED_MIN_POINTS, 2.0 * se) if math.isfinite(se) else PAIRED_MIN_POINTS
         rows.append([scene, f'{condition} {figure}: paired vs 6d1bc8c, worse by <= '
                      'max(0.1, 2 SE)', f'{now:.2f} vs {then:.2f} (+-{allowed:.2f}, {seeds} seeds)',
                      now - then <= allowed])

@@ -39,8 +39,9 @@ from typing import Any
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _accuracy_targets import baseline, native, paired, targets_30, targets_37
+from _accuracy_targets import pairs, targets_30, targets_37
 from _report import RESULTS, command_line, machine, machine_line, table, write_json, write_section
+from paired import native
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = REPO.parent / 'shared' / 'data'
@@ -171,7 +172,7 @@ def _stats(lists: dict[str, list[float]]) -> dict[str, float]:
     return stats
 
 
-def render(summary: dict[str, Any], meta: dict[str, Any], pairs: dict[Any, Any]) -> str:
+def render(summary: dict[str, Any], meta: dict[str, Any], paired: dict[Any, Any]) -> str:
     """The docs section: one row per scene (scenario at a rate), the default configuration beside
     the literal method (clean) and under a biased HMR; the estimator's figures; then the targets
     that do not hold (every figure: bench/results/accuracy.json; how each is taken:
@@ -238,7 +239,7 @@ def render(summary: dict[str, Any], meta: dict[str, Any], pairs: dict[Any, Any])
               'the share of statuses whose `±` (1 sigma, 2 sigma) covers the truth of the moment.',
               '', table(['scene', 'window n', 'sample sigma %', 'OK %', 'within 5 % after s',
                          'relocking %', 'covered 1/2 sigma %'], estimator_rows), '']
-    for title, checks in (('issue 37', targets_37(summary, pairs)),
+    for title, checks in (('issue 37', targets_37(summary, paired)),
                           ('issue 30, those that still apply', targets_30(summary))):
         if not checks:
             continue
@@ -285,7 +286,7 @@ def _load_done(path: Path | None, tasks: list[Task]) -> list[dict[str, Any]]:
 
 def _pairs(results: list[dict[str, Any]]) -> dict[Any, Any]:
     """The paired comparison with the baseline, when its results are there."""
-    return paired(results, baseline(BASELINE)) if BASELINE.exists() else {}
+    return pairs(results, BASELINE.read_text()) if BASELINE.exists() else {}
 
 
 def report(path: Path, computed_by: str, argv: list[str] | None, write: bool) -> int:
