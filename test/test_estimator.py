@@ -50,7 +50,7 @@ def stream(kind: str, rate: float, seed: int) -> tuple[np.ndarray, np.ndarray, n
     rng = np.random.default_rng([seed, int(rate), len(kind)])
     t = np.arange(0.0, DURATION_S, 1.0 / rate)
     truth = np.full(len(t), 2.0)
-    if kind == 'step':
+    if kind.startswith('step'):
         truth = np.where(t >= STEP_AT_S, 2.0 * STEP, 2.0)
     elif kind == 'ramp':
         truth = 2.0 * np.exp(RAMP_RATE * t)
@@ -68,15 +68,16 @@ def stream(kind: str, rate: float, seed: int) -> tuple[np.ndarray, np.ndarray, n
 def statuses(kind: str, rate: float, seed: int, estimator: RollingScale | None = None,
              warned: list[float] | None = None) -> list[Status]:
     """Feed a built scene; a status once per second of stamp time. On the step scene the new
-    map comes into use at the step, as the calibrator says when it activates it. ``warned``
-    gets the time of every sample after which the estimator says it is re-locking."""
+    map comes into use at the step, its floor saying it has another scale, as the calibrator
+    says when it activates it ('step_unannounced': no word from the map). ``warned`` gets the
+    time of every sample after which the estimator says it is re-locking."""
     est = estimator or RollingScale(window_s=30.0, window_max_samples=2000, min_samples=10)
     t, truth, samples = stream(kind, rate, seed)
     out: list[Status] = []
     for i, (t_s, sample) in enumerate(zip(t, samples)):
         stamp = int(round(t_s * NS))
         if kind == 'step' and i and t[i - 1] < STEP_AT_S <= t_s:
-            est.map_changed()
+            est.map_changed(rescaled=True)
         est.add(stamp, float(sample))
         if warned is not None and est.relocking:
             warned.append(t_s)
@@ -106,6 +107,20 @@ def test_a_quiet_reinitialisation_warns_at_once_and_relocks(rate):
         relocked = next(s.t_s for s in after if abs(s.error) <= OFF)
         assert relocked - STEP_AT_S <= limit_s, seed
         assert all(abs(s.error) <= OFF for s in after if s.t_s >= relocked), seed
+        assert ok_while_off(found) == [], seed
+
+
+@pytest.mark.parametrize('rate', RATES)
+def test_a_step_without_a_new_maps_word_relocks_after_a_third_of_the_window(rate):
+    """The same step with no map saying it has another scale: a run of gated samples could be a
+    passing disturbance (a walker on a flight of stairs), so the window re-locks once the run has
+    lasted a third of the window (10 s); WARN meanwhile, never OK while 5 % off."""
+    for seed in SEEDS:
+        found = statuses('step_unannounced', rate, seed)
+        after = [s for s in found if s.t_s >= STEP_AT_S]
+        relocked = next(s.t_s for s in after if abs(s.error) <= OFF)
+        assert 10.0 <= relocked - STEP_AT_S <= 12.0, seed
+        assert all(not s.ok for s in after if s.t_s < relocked), seed
         assert ok_while_off(found) == [], seed
 
 

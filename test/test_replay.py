@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from scenes import NS, Scene, walking_scene
+from scenes import NS, QUICK_CONVERGENCE, Scene, walking_scene
 
 from hac_ros.core.errors import ArgumentError, HacError
 from hac_ros.core.offline import offline_scale
@@ -245,8 +245,8 @@ def test_online_replay_logs_each_output_at_its_header_stamp(walk_bag, tmp_path):
     from rosbags.highlevel import AnyReader
 
     out = tmp_path / 'out'
-    summary = replay(walk_bag, out, mode='online')
-    params = HacParams()
+    params = HacParams(converged_max_rel_sigma=QUICK_CONVERGENCE)  # converged at min_samples
+    summary = replay(walk_bag, out, params, mode='online')
     seen = {t: 0 for t in OUTPUT_TOPICS}
     with AnyReader([out]) as reader:
         for conn, log_ns, raw in reader.messages():

@@ -26,9 +26,10 @@ a new map says its scale changed (:meth:`RollingScale.map_changed`),
 :attr:`RollingScale.relocking` holds and the status WARNs until a sample is accepted. The window
 re-locks on the run (it is dropped and refilled with the run's samples, the filter restarted on
 them) when the run holds ``min_samples`` samples consistent among themselves (robust spread within
-half the gate's relative floor) and either began after a new map came into use
-(:meth:`RollingScale.map_changed`: a SLAM that re-initialised quietly, same frame, no pose jump,
-at another scale) or has lasted a third of the window (a window that locked on a bad start).
+half the gate's relative floor) and either began after a new map whose floor says it has
+another scale came into use (:meth:`RollingScale.map_changed`: a SLAM that re-initialised
+quietly, same frame, no pose jump) or has lasted a third of the window (a window that locked on
+a bad start; a passing disturbance, a walker on a flight of stairs, does not last that long).
 """
 from __future__ import annotations
 
@@ -73,7 +74,6 @@ class RollingScale:
         self.max_rel_sigma = float(converged_max_rel_sigma)
         self._fifo: deque[tuple[int, float]] = deque()  # (stamp_ns, scale) in arrival order
         self._gated_run: list[tuple[int, float]] = []
-        self._run_after_map = False  # the run holds only samples since a new map came into use
         self._accepted_ns = -1  # the stamp of the last accepted sample
         self._map_rescaled = False  # a new map says it has another scale (map_changed)
         self.relocks = 0
@@ -99,7 +99,7 @@ class RollingScale:
                 self._relock()
             return False
         self._gated_run.clear()
-        self._run_after_map = self._map_rescaled = False
+        self._map_rescaled = False
         self._accepted_ns = int(stamp_ns)
         self._fifo.append((int(stamp_ns), scale))
         self._stats = None
@@ -118,21 +118,20 @@ class RollingScale:
         self._evict(stamp_ns)
 
     def map_changed(self, rescaled: bool = False) -> None:
-        """A new map came into use (same segment, the calibrator's stamp time): gated samples
-        from now on may say it has another scale (module docstring, re-lock). A run in progress
-        belongs to the old map and is dropped, once per run. ``rescaled``: the map itself says
-        its scale changed (the camera's height above its floor): :attr:`relocking` holds from
-        now until a sample is accepted."""
-        if not self._run_after_map:
+        """A new map came into use (same segment, the calibrator's stamp time). ``rescaled``: the
+        map itself says its scale changed (the camera's height above its floor): a run of gated
+        samples in progress belongs to the old map and is dropped, :attr:`relocking` holds from
+        now until a sample is accepted, and the window re-locks on the samples that follow once
+        they hold ``min_samples`` (module docstring, re-lock)."""
+        if rescaled and not self._map_rescaled:
             self._gated_run.clear()
-            self._run_after_map = True
-        self._map_rescaled = self._map_rescaled or rescaled
+            self._map_rescaled = True
 
     def reset(self) -> None:
         """Forget everything (SLAM re-initialisation: the new map has a new scale)."""
         self._fifo.clear()
         self._gated_run.clear()
-        self._run_after_map = self._map_rescaled = False
+        self._map_rescaled = False
         self._stats = None
         self.filter = LogScaleFilter(self.window_ns, self.max_samples)
         self._version += 1
@@ -236,8 +235,8 @@ class RollingScale:
         run = self._gated_run
         if len(run) < self.min_samples:
             return False
-        if not self._run_after_map and (run[-1][0] - run[0][0]
-                                        < RELOCK_FALLBACK_WINDOW_SHARE * self.window_ns):
+        if not self._map_rescaled and (run[-1][0] - run[0][0]
+                                       < RELOCK_FALLBACK_WINDOW_SHARE * self.window_ns):
             return False
         values = np.array([v for _, v in run])
         med = float(np.median(values))
