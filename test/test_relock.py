@@ -25,8 +25,8 @@ from hac_ros.simulate import make_scenario
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / 'bench'))
-from _accuracy_runs import Scene, feed, scene_from_scenario  # noqa: E402
-from _keyframes import at_keyframes  # noqa: E402
+from _accuracy_runs import Scene, feed, scene_from_scenario
+from _keyframes import at_keyframes
 
 SHRINK = 1.6  # the new map is this much smaller in SLAM units: the scale 1.6x larger
 STEP_AFTER_S = 20.0  # the re-initialisation comes with the first map after this
