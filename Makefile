@@ -38,6 +38,7 @@ docs: $(STAMP)
 bench: $(STAMP)
 	$(PY) bench/accuracy.py
 	$(PY) bench/variants.py
+	$(PY) bench/steep_views.py
 	$(PY) bench/core_speed.py
 	$(PY) bench/replay_throughput.py
 	$(PY) bench/batch_throughput.py

@@ -36,6 +36,7 @@ from hac_ros.core.estimator import sequence_scale
 from hac_ros.core.health import OK, HealthMonitor
 from hac_ros.core.human_filter import smooth_outputs
 from hac_ros.core.literal import max_ratio, world_joints
+from hac_ros.core.numeric import MAD_TO_SIGMA
 from hac_ros.core.offline import resolve_offline
 from hac_ros.core.outputs import (
     DiagnosticsOut,
@@ -160,6 +161,9 @@ def figures(scene: Scene, params: HacParams, cal: Calibrator, literal: World,
     smooth_outputs(humans, cal.layout)  # the replay's offline human_filter: smooth
     common = _common(humans, literal)
     poses = [o for o in resolved if isinstance(o, PoseOut)]
+    accepted = np.log([o.scale for o in samples])
+    out['sample_sigma'] = 100.0 * MAD_TO_SIGMA * float(np.median(np.abs(accepted - np.median(
+        accepted))))  # a sample's own spread, %
     out.update(scale_bias=float(np.median(signed)), scale_err=float(np.median(np.abs(signed))),
                w_mpjpe=raw, w_mpjpe_filtered=w_mpjpe(scene, *common),
                w_mpjpe_literal=w_mpjpe(scene, common[0], [literal[t] for t in common[0]]),
@@ -244,13 +248,25 @@ def _online(scene: Scene, params: HacParams, offline_humans: World,
         out['ate_s_offline'] = metrics.ate_s(np.array([offline_positions[o.stamp_ns]
                                                        for o in poses]), true)
     statuses = [o.status for o in outputs if isinstance(o, DiagnosticsOut)]
-    off = [abs(st.scale / float(scene.true_scale_at(np.array([st.stamp_ns]))[0]) - 1.0)
-           > CONVERGED_REL if st.converged else False for st in statuses]
+    true = scene.true_scale_at(np.array([st.stamp_ns for st in statuses], dtype=np.int64))
+    log_err = np.array([abs(math.log(st.scale / t)) if st.scale > 0 else math.inf
+                        for st, t in zip(statuses, true)])
+    off = [bool(abs(st.scale / t - 1.0) > CONVERGED_REL) and st.converged
+           for st, t in zip(statuses, true)]
     # the level /diagnostics gives each status, in order (hac_ros.core.health, as the node)
     monitor = HealthMonitor(params.metric_frame_alignment == 'gravity')
     ok = [monitor.assess(st).level == OK for st in statuses]
-    out.update(statuses=len(statuses), converged_wrong=sum(off),
-               ok_wrong=sum(w and k for w, k in zip(off, ok)))
+    # the ± (the estimate's own uncertainty) against the truth of the moment, where it exists
+    rel_sigma = np.array([st.spread / st.scale if st.scale > 0 else math.nan for st in statuses])
+    has = np.isfinite(rel_sigma)
+    out.update(statuses=len(statuses), converged_wrong=int(sum(off)),
+               ok_wrong=int(sum(w and k for w, k in zip(off, ok))), ok_statuses=int(sum(ok)),
+               sigma_statuses=int(has.sum()),
+               cover1=int(np.sum(log_err[has] <= rel_sigma[has])),
+               cover2=int(np.sum(log_err[has] <= 2.0 * rel_sigma[has])),
+               relocking=int(sum('relocking' in st.conditions for st in statuses)),
+               window_samples=float(np.median([st.samples for st in statuses]))
+               if statuses else math.nan)
     return out
 
 

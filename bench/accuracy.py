@@ -1,20 +1,27 @@
 #!/usr/bin/env python3
-"""Accuracy over many seeds: our configurations beside the literal authors' method, per scenario.
+"""Accuracy over many seeds: our configurations beside the literal authors' method, per scenario,
+at 30 Hz and at keyframe rate.
 
     python bench/accuracy.py [--seeds 20] [--scenarios walk crowd ...] [--configs ...]
-                             [--workers 2] [--quick] [--resume runs.jsonl]
+                             [--rates 30hz kf] [--workers 2] [--quick] [--resume runs.jsonl]
     python bench/accuracy.py --report runs.jsonl   # the docs from the scenes of earlier runs
 
 Every scene (a simulated scenario of ``hac_ros.simulate`` at its own duration, or a real-data
 composite of bench/composite.py) is generated once per seed and run through every configuration
 and through the literal authors' method (bench/_accuracy_runs.py says exactly what each figure
-is). Per scenario and method, over the seeds: the median and p90 of the absolute scale error (%),
-the median signed error (the bias, %) and the median W-MPJPE (mm); online (the default only):
-the median error over the run, the error at the end, the time to converge within 5 %.
+is), at two rates: ``30hz`` (a pose and a joints frame per video frame) and ``kf`` (keyframe rate:
+the poses and joints frames of the keyframes a SLAM chooses by camera motion, bench/_keyframes.py;
+the composites' real ORB-SLAM keyframes, their 30 Hz version the same scene seen at every
+frame). Per scenario, rate and method, over the seeds: the median and p90 of the absolute scale
+error (%), the median signed error (the bias, %) and the median W-MPJPE (mm); online (the default
+only): the median error over the run, the error at the end, the time to converge within 5 %, the
+statuses OK while > 5 % off, the ``±``'s coverage of the truth. ``drift_planted`` is ``drift``
+with its walkers' feet planted (the drift target's scene).
 
 Two HMR conditions: ``clean`` (no HMR depth bias; per-frame depth noise remains) and ``biased``
 (the simulator's default: a mean bias drawn up to +-4 % per recording, wandering; the composite
-5 %). Prints the tables, writes bench/results/accuracy.json and the ``accuracy`` section of
+5 %). Prints the tables and the targets (bench/_accuracy_targets.py), writes
+bench/results/accuracy.json, accuracy_runs.jsonl and the ``accuracy`` section of
 docs/benchmarks.md.
 """
 from __future__ import annotations
@@ -32,7 +39,9 @@ from typing import Any
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _accuracy_targets import pairs, targets_30, targets_37
 from _report import RESULTS, command_line, machine, machine_line, table, write_json, write_section
+from paired import native
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = REPO.parent / 'shared' / 'data'
@@ -42,11 +51,12 @@ SIMULATED = ('walk', 'crowd', 'stairs', 'ego', 'handstand', 'skate', 'static', '
 # freiburg1_xyz as a steep view (camera 1.6 m high pitched ~48 deg down, the person 1-2 m away)
 COMPOSITES = {f'{view}_{motion + 1:02d}': (sequence, motion) for motion in range(3)
               for view, sequence in (('composite', 'fr2_desk'), ('steep', 'freiburg1_xyz'))}
-SCENARIOS = SIMULATED + tuple(COMPOSITES)
+PLANTED = ('drift_planted',)  # drift with the walkers' feet planted: clean only
+SCENARIOS = SIMULATED + PLANTED + tuple(COMPOSITES)
+RATES = ('30hz', 'kf')
 COMPOSITE_BIAS = 0.05
-WRONG_SHARE_MAX = 1.0  # % of the statuses OK and converged while the scale is > 5 % off
-CAMERA_HEIGHT_MAX = 3.0  # % : the gravity frame's camera height
-FLOOR_MAX_M = 0.05  # m: the gravity frame's floor
+# the results the paired targets compare with: the bench at 6d1bc8c (issue 37)
+BASELINE = RESULTS / 'accuracy_runs_6d1bc8c.jsonl'
 # name -> parameter overrides; 'default' is HacParams' own defaults
 CONFIGS: dict[str, dict[str, Any]] = {
     'default': {},
@@ -71,38 +81,57 @@ CONFIGS: dict[str, dict[str, Any]] = {
 ONLINE_CONFIGS = ('default', 'lowest_gravity cone_median (previous default)')
 
 
-def run_task(task: tuple[str, int, str, list[str], bool]) -> dict[str, Any]:
-    """One scene (scenario, seed, condition) through every configuration and the literal method."""
+Task = tuple[str, int, str, list[str], tuple[str, ...], bool]
+
+
+def run_task(task: Task) -> list[dict[str, Any]]:
+    """One scene (scenario, seed, condition) at each rate through every configuration and the
+    literal method: one result per rate."""
     from _accuracy_runs import run_literal, run_ours, scene_from_composite, scene_from_scenario
+    from _keyframes import at_keyframes
 
     from hac_ros.core.params import HacParams
     from hac_ros.simulate import make_scenario
 
-    name, seed, condition, configs, planted = task
+    name, seed, condition, configs, rates, planted = task
+    scenes = {}
     if name in COMPOSITES:
         from composite import build
 
         bias = 0.0 if condition == 'clean' else COMPOSITE_BIAS
         sequence, motion = COMPOSITES[name]
-        scene = scene_from_composite(build(SHARED, seed, bias, sequence, motion), seed, bias)
+        for rate in rates:
+            data = build(SHARED, seed, bias, sequence, motion, rate=30.0 if rate == '30hz' else None)
+            scenes[rate] = scene_from_composite(data, seed, bias)
     else:
-        sc = make_scenario(name, seed=seed, hmr_bias=0.0 if condition == 'clean' else None,
-                           foot_roll=not planted)
+        sc = make_scenario(name.removesuffix('_planted'), seed=seed,
+                           hmr_bias=0.0 if condition == 'clean' else None,
+                           foot_roll=not (planted or name in PLANTED))
         scene = scene_from_scenario(sc)
-    literal, literal_world = run_literal(scene)
-    rows = {'literal': literal}
-    for config in configs:
-        params = HacParams().replace(**CONFIGS[config])
-        rows[config] = run_ours(scene, params, literal_world, online=config in ONLINE_CONFIGS)
-    return {'scenario': name, 'seed': seed, 'condition': condition, 'rows': rows}
+        scenes = {rate: scene if rate == '30hz' else at_keyframes(scene) for rate in rates}
+    out = []
+    for rate, scene in scenes.items():
+        literal, literal_world = run_literal(scene)
+        rows = {'literal': literal}
+        for config in configs:
+            params = HacParams().replace(**CONFIGS[config])
+            rows[config] = run_ours(scene, params, literal_world, online=config in ONLINE_CONFIGS)
+        out.append({'scenario': name, 'seed': seed, 'condition': condition, 'rate': rate,
+                    'rows': rows})
+    return out
+
+
+def scene_of(result: dict[str, Any]) -> str:
+    """A result's scene: its scenario at its rate (earlier results without one: the native)."""
+    return f"{result['scenario']}@{result.get('rate', native(result['scenario']))}"
 
 
 def summarise(results: list[dict[str, Any]]) -> dict[str, Any]:
-    """scenario -> condition -> method -> statistics over the seeds."""
+    """scene (scenario@rate) -> condition -> method -> statistics over the seeds."""
     out: dict[str, Any] = {}
     for r in results:
         for method, row in r['rows'].items():
-            cell = out.setdefault(r['scenario'], {}).setdefault(r['condition'], {}).setdefault(
+            cell = out.setdefault(scene_of(r), {}).setdefault(r['condition'], {}).setdefault(
                 method, {})
             for key, value in row.items():
                 cell.setdefault(key, []).append(value)
@@ -127,11 +156,13 @@ def _stats(lists: dict[str, list[float]]) -> dict[str, float]:
     stats['bias_median'] = float(np.median(bias)) if bias.size else math.nan
     stats['w_mpjpe_median'] = float(np.median(w)) if w.size else math.nan
     stats['w_mpjpe_filtered_median'] = float(np.median(wf)) if wf.size else math.nan
-    for key in ('statuses', 'ok_wrong', 'converged_wrong'):  # pooled over the seeds
+    for key in ('statuses', 'ok_wrong', 'converged_wrong', 'ok_statuses', 'sigma_statuses',
+                'cover1', 'cover2', 'relocking'):  # pooled over the seeds
         stats[key] = int(np.sum(finite(key)))
     for key in ('w_mpjpe_literal', 'w_mpjpe_vs_literal', 'online_err', 'online_final_err',
                 'converged_s', 'fallback_pct', 'hmr_excess', 'camera_height_err', 'floor_err',
-                'w_mpjpe_online', 'w_mpjpe_offline', 'ate_s_online', 'ate_s_offline'):
+                'w_mpjpe_online', 'w_mpjpe_offline', 'ate_s_online', 'ate_s_offline',
+                'sample_sigma', 'window_samples'):
         values = finite(key)
         if values.size:
             stats[f'{key}_median'] = float(np.median(values))
@@ -141,69 +172,11 @@ def _stats(lists: dict[str, list[float]]) -> dict[str, float]:
     return stats
 
 
-def targets(summary: dict[str, Any]) -> list[list[Any]]:
-    """Issue 30's targets for the default configuration: [scenario, target, measured, holds]. A specific
-    target overrides the general one: ``occluded`` <= 2 %, ``ego`` |bias| <= 0.5 %, ``drift``
-    online median <= 1.5 %."""
-    rows: list[list[Any]] = []
-
-    def cell(scenario: str, condition: str, method: str = 'default') -> dict[str, float] | None:
-        return summary.get(scenario, {}).get(condition, {}).get(method)
-
-    for name in summary:
-        ours, literal = cell(name, 'clean'), cell(name, 'clean', 'literal')
-        if ours and literal:
-            if name == 'occluded':
-                rows.append([name, 'median <= 2 %', f"{ours['err_median']:.2f} %",
-                             ours['err_median'] <= 2.0])
-            elif name == 'ego':
-                rows.append([name, '|bias| <= 0.5 %', f"{ours['bias_median']:+.2f} %",
-                             abs(ours['bias_median']) <= 0.5])
-            elif name == 'drift':
-                online = ours.get('online_err_median', math.nan)
-                rows.append([name, 'online median <= 1.5 %', f'{online:.2f} %',
-                             online <= 1.5])
-            else:
-                rows.append([name, '|bias| <= 0.5, median <= 1 %, <= literal',
-                             f"{ours['bias_median']:+.2f}; {ours['err_median']:.2f} vs "
-                             f"{literal['err_median']:.2f} %",
-                             abs(ours['bias_median']) <= 0.5 and ours['err_median'] <= 1.0
-                             and ours['err_median'] <= literal['err_median']])
-            if ours.get('statuses'):
-                share = 100.0 * ours['ok_wrong'] / ours['statuses']
-                rows.append([name, f'OK>5% <= {WRONG_SHARE_MAX:g} %',
-                             f"{share:.2f} % of {ours['statuses']}",
-                             share <= WRONG_SHARE_MAX])
-            if 'camera_height_err_median' in ours:
-                rows.append([name, f'camera height <= {CAMERA_HEIGHT_MAX:g} %, floor <= '
-                             f'{100 * FLOOR_MAX_M:g} cm',
-                             f"{ours['camera_height_err_median']:.2f} %, "
-                             f"{100 * ours['floor_err_median']:.1f} cm",
-                             ours['camera_height_err_median'] <= CAMERA_HEIGHT_MAX
-                             and ours['floor_err_median'] <= FLOOR_MAX_M])
-        for condition in ('clean', 'biased'):
-            c = cell(name, condition)
-            if not c or name in ('drift', 'reset') or 'online_err_median' not in c:
-                continue
-            rows.append([name, f'{condition}: online <= 1.5x offline',
-                         f"{c['online_err_median']:.2f} vs {c['err_median']:.2f} %",
-                         c['online_err_median'] <= 1.5 * max(c['err_median'], 1e-9)])
-            if 'w_mpjpe_online_median' in c:
-                rows.append([name, f'{condition}: online W-MPJPE <= 1.5x offline',
-                             f"{c['w_mpjpe_online_median']:.0f} vs "
-                             f"{c['w_mpjpe_offline_median']:.0f} mm",
-                             c['w_mpjpe_online_median'] <= 1.5 * c['w_mpjpe_offline_median']])
-        c = cell(name, 'biased')
-        if c and 'hmr_excess_median' in c and name not in ('drift', 'reset', 'occluded'):
-            rows.append([name, 'biased: |err| <= |HMR bias| + 0.5',
-                         f"{c['hmr_excess_median']:+.2f} points", c['hmr_excess_median'] <= 0.5])
-    return rows
-
-
-def render(summary: dict[str, Any], meta: dict[str, Any]) -> str:
-    """The docs section: one row per scenario, the default configuration beside the literal
-    method (clean) and under a biased HMR, then the targets that do not hold (every figure:
-    bench/results/accuracy.json; how each is taken: bench/_accuracy_runs.py)."""
+def render(summary: dict[str, Any], meta: dict[str, Any], paired: dict[Any, Any]) -> str:
+    """The docs section: one row per scene (scenario at a rate), the default configuration beside
+    the literal method (clean) and under a biased HMR; the estimator's figures; then the targets
+    that do not hold (every figure: bench/results/accuracy.json; how each is taken:
+    bench/_accuracy_runs.py; the targets: bench/_accuracy_targets.py)."""
     if 'report' in meta:
         head = (f"Command: `{meta['command']}`, its {meta['scenes']} scenes computed by "
                 f"{meta['computed_by']}.")
@@ -213,19 +186,20 @@ def render(summary: dict[str, Any], meta: dict[str, Any]) -> str:
                 (f" ({resumed} of {meta['scenes']} scenes from earlier invocations, --resume)"
                  if resumed else '') + '.')
     parts = [head + ' ' + machine_line(meta['machine']), '',
-             'Default configuration, medians over seeds (clean/biased): offline |scale error| % '
-             '(p90) against each frame\'s truth, its sign (bias); `literal`: the authors\' '
-             'method; `online`: what the node publishes; W-MPJPE online/offline after '
-             'convergence; `OK>5%`: % of statuses OK and converged while > 5 % off; the gravity '
-             'frame\'s camera height and floor errors; `over HMR`: |err| minus the HMR\'s |bias| '
-             '(+-4 %, composites 5 %). `composite_0N`/`steep_0N`: CMU 131_0N over '
-             'fr2_desk/freiburg1_xyz. Definitions: bench/_accuracy_runs.py.', '']
-    rows = []
-    for scenario, by_condition in summary.items():
+             'Default configuration, medians over seeds (clean/biased), each scenario at 30 Hz '
+             '(`@30hz`) and at keyframe rate (`@kf`): offline |scale error| % (p90) against each '
+             'frame\'s truth, its sign (bias); `literal`: the authors\' method; `online`: what '
+             'the node publishes; W-MPJPE online/offline after convergence; `OK>5%`: % of '
+             'statuses OK and converged while > 5 % off; the gravity frame\'s camera height and '
+             'floor errors; `over HMR`: |err| minus the HMR\'s |bias| (+-4 %, composites 5 %). '
+             '`composite_0N`/`steep_0N`: CMU 131_0N over fr2_desk/freiburg1_xyz. Definitions: '
+             'bench/_accuracy_runs.py.', '']
+    rows, estimator_rows = [], []
+    for scene, by_condition in summary.items():
         ours, literal = by_condition.get('clean', {}).get('default'), by_condition.get(
             'clean', {}).get('literal')
         biased = by_condition.get('biased', {}).get('default')
-        row: list[Any] = [scenario, f"{ours['seeds'] if ours else 0}/"
+        row: list[Any] = [scene, f"{ours['seeds'] if ours else 0}/"
                           f"{biased['seeds'] if biased else 0}"]
         if ours and literal:
             share = (100.0 * ours['ok_wrong'] / ours['statuses'] if ours.get('statuses')
@@ -238,6 +212,15 @@ def render(summary: dict[str, Any], meta: dict[str, Any]) -> str:
                     f"{ours.get('w_mpjpe_offline_median', math.nan):.0f}", f'{share:.2g}',
                     f"{ours.get('camera_height_err_median', math.nan):.1f}, "
                     f"{100.0 * ours.get('floor_err_median', math.nan):.1f}"]
+            covered = max(ours.get('sigma_statuses', 0), 1)
+            estimator_rows.append([
+                scene, f"{ours.get('window_samples_median', math.nan):.0f}",
+                f"{ours.get('sample_sigma_median', math.nan):.2f}",
+                f"{100.0 * ours.get('ok_statuses', 0) / max(ours.get('statuses', 0), 1):.0f}",
+                f"{ours.get('converged_s_median', math.nan):.1f}",
+                f"{100.0 * ours.get('relocking', 0) / max(ours.get('statuses', 0), 1):.2g}",
+                f"{100.0 * ours.get('cover1', 0) / covered:.0f}/"
+                f"{100.0 * ours.get('cover2', 0) / covered:.0f}"])
         else:
             row += [''] * 8
         if biased:
@@ -247,20 +230,29 @@ def render(summary: dict[str, Any], meta: dict[str, Any]) -> str:
         else:
             row += [''] * 3
         rows.append(row)
-    parts += [table(['scenario', 'seeds', 'clean % (p90)', 'bias', 'literal', 'online',
-                     'W-MPJPE on/off mm', 'OK>5%', 'camera %, floor cm', 'biased % (p90)', 'over HMR',
-                     'online'], rows), '']
-    checks = targets(summary)
-    if checks:
+    parts += [table(['scene', 'seeds', 'clean % (p90)', 'bias', 'literal', 'online',
+                     'W-MPJPE on/off mm', 'OK>5%', 'camera %, floor cm', 'biased % (p90)',
+                     'over HMR', 'online'], rows), '',
+              'The estimator online (clean): the samples in its window (median), a sample\'s '
+              'own spread (robust, %), the share of statuses OK, the time after which every '
+              'published scale is within 5 % (s, median), the share of statuses `relocking`, and '
+              'the share of statuses whose `±` (1 sigma, 2 sigma) covers the truth of the moment.',
+              '', table(['scene', 'window n', 'sample sigma %', 'OK %', 'within 5 % after s',
+                         'relocking %', 'covered 1/2 sigma %'], estimator_rows), '']
+    for title, checks in (('issue 37', targets_37(summary, paired)),
+                          ('issue 30, those that still apply', targets_30(summary))):
+        if not checks:
+            continue
         failing: dict[str, list[str]] = {}
         for name, target, measured, ok in checks:
             if not ok:
                 failing.setdefault(target, []).append(f'`{name}` ({measured})')
-        parts += ['### Targets (issue 30, default configuration; clean unless said)', '',
+        parts += [f'### Targets ({title}; default configuration, clean unless said)', '',
                   f"{sum(ok for *_, ok in checks)} of {len(checks)} hold" +
                   ('; not met:' if failing else '.'), '']
         parts += [f'- {target}: ' + ', '.join(where) for target, where in failing.items()]
-    return '\n'.join(parts)
+        parts += ['']
+    return '\n'.join(parts).rstrip()
 
 
 def _rounded(value: Any) -> Any:
@@ -274,22 +266,27 @@ def _rounded(value: Any) -> Any:
     return value
 
 
-def _load_done(path: Path | None, tasks: list[tuple[str, int, str, list[str], bool]]
-               ) -> list[dict[str, Any]]:
-    """Results of an interrupted run (one JSON per line) that belong to this run's tasks."""
+def _load_done(path: Path | None, tasks: list[Task]) -> list[dict[str, Any]]:
+    """Results of an interrupted run (one JSON per line) that belong to this run's tasks: a
+    (scenario, seed, condition) at each of its rates."""
     if path is None or not path.exists():
         return []
-    wanted = {t[:3]: set(t[3]) for t in tasks}
+    wanted = {(*t[:3], rate): set(t[3]) for t in tasks for rate in t[4]}
     out = []
     for line in path.read_text().splitlines():
         try:
             r = json.loads(line)
         except ValueError:
             continue  # a line cut short by the interruption
-        key = (r['scenario'], r['seed'], r['condition'])
+        key = (r['scenario'], r['seed'], r['condition'], r.get('rate', native(r['scenario'])))
         if key in wanted and wanted[key] <= set(r['rows']):
             out.append(r)
     return out
+
+
+def _pairs(results: list[dict[str, Any]]) -> dict[Any, Any]:
+    """The paired comparison with the baseline, when its results are there."""
+    return pairs(results, BASELINE.read_text()) if BASELINE.exists() else {}
 
 
 def report(path: Path, computed_by: str, argv: list[str] | None, write: bool) -> int:
@@ -304,7 +301,7 @@ def report(path: Path, computed_by: str, argv: list[str] | None, write: bool) ->
             'computed_by': computed_by or '?', 'scenes': len(results),
             'seeds': max((r['seed'] for r in results), default=-1) + 1}
     summary = summarise(results)
-    text = render(summary, meta)
+    text = render(summary, meta, _pairs(results))
     print(text)
     if write:
         _write(meta, summary, results, text)
@@ -329,6 +326,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--configs', nargs='+', default=list(CONFIGS), choices=list(CONFIGS))
     parser.add_argument('--conditions', nargs='+', default=['clean', 'biased'],
                         choices=['clean', 'biased'])
+    parser.add_argument('--rates', nargs='+', default=list(RATES), choices=RATES,
+                        help='30hz: every frame; kf: the keyframes (bench/_keyframes.py)')
     parser.add_argument('--workers', type=int, default=len(os.sched_getaffinity(0)))
     parser.add_argument('--quick', action='store_true', help='3 seeds (a smoke run)')
     parser.add_argument('--planted', action='store_true',
@@ -347,26 +346,34 @@ def main(argv: list[str] | None = None) -> int:
         return report(args.report, args.computed_by, argv, not args.no_write)
     seeds = 3 if args.quick else args.seeds
     scenarios = [s for s in args.scenarios if s not in COMPOSITES or SHARED.is_dir()]
-    tasks = [(name, seed, condition, args.configs, args.planted) for condition in args.conditions
-             for name in scenarios for seed in range(seeds)]
+    rates = tuple(args.rates)
+    tasks: list[Task] = [(name, seed, condition, args.configs, rates, args.planted)
+                         for condition in args.conditions for name in scenarios
+                         for seed in range(seeds)
+                         if not (name in PLANTED and condition != 'clean')]
     start = time.perf_counter()
     results = _load_done(args.resume, tasks)
     resumed = len(results)
-    done = {(r['scenario'], r['seed'], r['condition']) for r in results}
-    todo = [t for t in tasks if t[:3] not in done]
+    done = {(r['scenario'], r['seed'], r['condition'], r.get('rate', native(r['scenario'])))
+            for r in results}
+    todo = [(*t[:4], tuple(rate for rate in t[4] if (*t[:3], rate) not in done), t[5])
+            for t in tasks]
+    todo = [t for t in todo if t[4]]
+    count = sum(len(t[4]) for t in tasks)
     with ProcessPoolExecutor(max_workers=args.workers) as pool:
-        for k, result in enumerate(pool.map(run_task, todo), len(results) + 1):
-            results.append(result)
-            if args.resume:
-                with args.resume.open('a') as f:
-                    f.write(json.dumps(result) + '\n')
-            print(f'[{k}/{len(tasks)}] {result["scenario"]} seed {result["seed"]} '
-                  f'{result["condition"]}', file=sys.stderr, flush=True)
+        for k, found in enumerate(pool.map(run_task, todo), 1):
+            for result in found:
+                results.append(result)
+                if args.resume:
+                    with args.resume.open('a') as f:
+                        f.write(json.dumps(result) + '\n')
+            print(f'[{len(results)}/{count}] {todo[k - 1][0]} seed {todo[k - 1][1]} '
+                  f'{todo[k - 1][2]}', file=sys.stderr, flush=True)
     summary = summarise(results)
     meta = {'command': command_line(__file__, argv),
             'machine': machine(), 'wall_s': time.perf_counter() - start, 'seeds': seeds,
-            'scenes': len(tasks), 'resumed_scenes': resumed}
-    text = render(summary, meta)
+            'scenes': count, 'resumed_scenes': resumed}
+    text = render(summary, meta, _pairs(results))
     print(text)
     if not (args.no_write or args.planted):
         _write(meta, summary, results, text)

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from scipy.spatial.transform import Rotation
+from scipy.spatial.transform import Rotation, Slerp
 
 from hac_ros.core.layouts import SMPL24
 from hac_ros.evaluation import metrics
@@ -83,11 +83,23 @@ def hand_eye(R_gt: np.ndarray, R_slam_world: np.ndarray) -> np.ndarray:
 
 
 def build(shared: Path, seed: int = 0, hmr_bias: float = 0.0, sequence: str | None = None,
-          motion: int | None = None) -> Composite:
+          motion: int | None = None, rate: float | None = None,
+          poses: str = 'orb') -> Composite:
     """The composite of ``seed``: sequence (fr2_desk for even seeds, freiburg1_xyz for every
     fourth odd one, unless given), motion (an index into MOTIONS, unless given), placement and
     noise drawn from the seed; ``hmr_bias``: the mean relative HMR depth bias (0: clean, no bias
-    and no wander)."""
+    and no wander).
+
+    ``rate`` None: the SLAM poses and the joints are at the real ORB-SLAM keyframes. A rate (Hz):
+    the same scene (walker, placement, map: the same draws) seen by a camera at that frame rate
+    between the first and the last keyframe, as a SLAM that publishes every frame: the true camera
+    from the motion capture (interpolated), the SLAM pose the Sim(3) fit's image of it plus the
+    SLAM's own error at the keyframes, interpolated between them (:func:`dense_poses`); its HMR
+    noise drawn from a generator of its own.
+
+    ``poses`` 'orb': the SLAM poses are ORB-SLAM's; 'fit': the Sim(3) fit's image of the true
+    cameras, a SLAM without error (the map, the true floor brought into the SLAM frame by that
+    fit, is then exactly consistent with its poses: bench/steep_views.py)."""
     rng = np.random.default_rng([seed, 7])
     if sequence is None:
         sequence = 'freiburg1_xyz' if seed % 4 == 3 else 'fr2_desk'
@@ -100,6 +112,8 @@ def build(shared: Path, seed: int = 0, hmr_bias: float = 0.0, sequence: str | No
     c_gt, R_gt = gt_pos[ib], Rotation.from_quat(gt_q[ib]).as_matrix()
     s_fit, R_fit, t_fit = metrics.umeyama(c_slam, c_gt, with_scale=True)
     R_gt = R_gt @ hand_eye(R_gt, R_fit @ R_slam)
+    if poses == 'fit':
+        c_slam, R_slam = (c_gt - t_fit) @ R_fit / s_fit, np.einsum('ij,njk->nik', R_fit.T, R_gt)
     K = INTRINSICS[sequence]
 
     # the walker: real motion at its real heights, on the floor (z = 0) in front of the cameras
@@ -125,17 +139,11 @@ def build(shared: Path, seed: int = 0, hmr_bias: float = 0.0, sequence: str | No
     for i, t in enumerate(stamps):
         k = int(round((t_s[i] + offset_s) * fps)) % (2 * period - 2)
         k = k if k < period else 2 * period - 2 - k  # forwards, then backwards
-        Jw = walk[k]
-        Jc = (Jw - c_gt[i]) @ R_gt[i]
-        z = Jc[:, 2]
-        if np.all(z > 0.1):
-            u = K[0, 0] * Jc[:, 0] / z + K[0, 2]
-            v = K[1, 1] * Jc[:, 1] / z + K[1, 2]
-            if np.count_nonzero((u >= 0) & (u < WIDTH) & (v >= 0) & (v < HEIGHT)) >= 4:
-                prediction, _ = predict(Jw, R_gt[i], c_gt[i], bias[i], rng, SMPL24)
-                joints_cam.append(prediction)
-                joints_world.append(Jw)
-                frame_stamps.append(int(t))
+        if _in_view(walk[k], R_gt[i], c_gt[i], K):
+            prediction, _ = predict(walk[k], R_gt[i], c_gt[i], bias[i], rng, SMPL24)
+            joints_cam.append(prediction)
+            joints_world.append(walk[k])
+            frame_stamps.append(int(t))
 
     # textured floor points seen by at least one true camera (30 % of a 4 cm grid)
     lo = np.minimum(c_gt.min(0), walk[:, 0].min(0)) - 4.0
@@ -153,9 +161,71 @@ def build(shared: Path, seed: int = 0, hmr_bias: float = 0.0, sequence: str | No
         seen |= (u >= 0) & (u < WIDTH) & (v >= 0) & (v < HEIGHT) & np.isfinite(z)
     floor = floor[seen] + rng.normal(0.0, MAP_NOISE_M, (int(seen.sum()), 3))
     points_slam = (floor - t_fit) @ R_fit / s_fit
+    if rate is not None:  # the same scene seen at a frame rate (the docstring)
+        stamps, R_slam, c_slam, R_gt, c_gt = dense_poses(
+            stamps, R_slam, c_slam, R_gt, gt_ns, gt_pos, gt_q, (s_fit, R_fit, t_fit), rate)
+        rng = np.random.default_rng([seed, 7, int(round(rate))])
+        t_s = (stamps - stamps[0]) / 1e9
+        bias = DepthBias(hmr_bias, t_s, rng, wander=hmr_bias != 0.0)
+        joints_cam, joints_world, frame_stamps = [], [], []
+    for i, t in enumerate(stamps if rate is not None else []):
+        k = int(round((t_s[i] + offset_s) * fps)) % (2 * period - 2)
+        k = k if k < period else 2 * period - 2 - k
+        if _in_view(walk[k], R_gt[i], c_gt[i], K):
+            prediction, _ = predict(walk[k], R_gt[i], c_gt[i], bias[i], rng, SMPL24)
+            joints_cam.append(prediction)
+            joints_world.append(walk[k])
+            frame_stamps.append(int(t))
     return Composite(sequence, K, stamps, R_slam, c_slam, R_gt, c_gt, float(s_fit),
                      np.array(frame_stamps, dtype=np.int64), np.array(joints_cam),
                      np.array(joints_world), points_slam)
+
+
+def _in_view(joints_world: np.ndarray, R_gt: np.ndarray, c_gt: np.ndarray, K: np.ndarray) -> bool:
+    """Whether the walker is seen (every joint in front, at least 4 in the image)."""
+    Jc = (joints_world - c_gt) @ R_gt
+    z = Jc[:, 2]
+    if not np.all(z > 0.1):
+        return False
+    u = K[0, 0] * Jc[:, 0] / z + K[0, 2]
+    v = K[1, 1] * Jc[:, 1] / z + K[1, 2]
+    return bool(np.count_nonzero((u >= 0) & (u < WIDTH) & (v >= 0) & (v < HEIGHT)) >= 4)
+
+
+def dense_poses(key_ns: np.ndarray, R_slam: np.ndarray, c_slam: np.ndarray, R_gt: np.ndarray,
+                gt_ns: np.ndarray, gt_pos: np.ndarray, gt_q: np.ndarray,
+                fit: tuple[float, np.ndarray, np.ndarray], rate: float
+                ) -> tuple[np.ndarray, ...]:
+    """Poses at ``rate`` Hz between the first and the last keyframe: (stamps ns, SLAM R_wc,
+    SLAM c (SLAM units), true R (optical, hand-eye applied), true c (metres)).
+
+    The true camera: the motion capture (gt_*, 100 Hz, camera-to-world) interpolated (slerp,
+    linear), turned by the keyframes' constant hand-eye rotation (``R_gt`` (K, 3, 3) of the
+    keyframes, already turned; :func:`hand_eye`). The SLAM pose: the inverse of the Sim(3) fit
+    ``fit`` = (s, R, t) (metres = s R slam + t) applied to the true camera, plus the SLAM's own
+    error at the keyframes (position in SLAM units, rotation) interpolated between keyframes, so
+    that at a keyframe's stamp it is the keyframe itself.
+    """
+    s_fit, R_fit, t_fit = fit
+    stamps = np.arange(int(key_ns[0]), int(key_ns[-1]) + 1, int(round(1e9 / rate)), dtype=np.int64)
+    def seconds(ns: np.ndarray) -> np.ndarray:  # float seconds from the first keyframe
+        return (ns - key_ns[0]) / 1e9
+
+    keep = np.r_[True, np.diff(gt_ns) > 0]  # fr2_desk's ground truth repeats one stamp
+    gt_ns, gt_pos, gt_q = gt_ns[keep], gt_pos[keep], gt_q[keep]
+    t, t_key, t_gt = seconds(stamps), seconds(key_ns), seconds(gt_ns)
+    gt_rot = Slerp(t_gt, Rotation.from_quat(gt_q))
+    turn = np.einsum('nji,njk->nik', gt_rot(t_key).as_matrix(), R_gt)  # the hand-eye rotation
+    R_true = gt_rot(t).as_matrix() @ Rotation.from_matrix(turn).mean().as_matrix()
+    c_true = np.stack([np.interp(t, t_gt, gt_pos[:, k]) for k in range(3)], axis=1)
+    c_key_true = np.stack([np.interp(t_key, t_gt, gt_pos[:, k]) for k in range(3)], axis=1)
+    slam_of = (c_key_true - t_fit) @ R_fit / s_fit  # the fit's image of the true keyframes
+    dc = c_slam - slam_of  # the SLAM's position error at the keyframes, SLAM units
+    dR = Rotation.from_matrix(R_slam @ np.einsum('ij,njk->nik', R_fit.T, R_gt).transpose(0, 2, 1))
+    c_out = (c_true - t_fit) @ R_fit / s_fit + np.stack(
+        [np.interp(t, t_key, dc[:, k]) for k in range(3)], axis=1)
+    R_out = Slerp(t_key, dR)(t).as_matrix() @ np.einsum('ij,njk->nik', R_fit.T, R_true)
+    return stamps, R_out, c_out, R_true, c_true
 
 
 def events(data: Composite) -> list[tuple[int, str, tuple]]:

@@ -30,8 +30,15 @@ WORSE_MIN = 0.1  # points: a median may move this much whatever its standard err
 OK_WRONG_MAX = 1.0  # % of statuses OK while the scale is more than 5 % off
 
 
+def native(scenario: str) -> str:
+    """The rate a scenario was benched at before it ran at two (issue 37): the real-data
+    composites at their ORB-SLAM keyframes, the simulated scenes at 30 Hz."""
+    return 'kf' if scenario.startswith(('composite', 'steep_')) else '30hz'
+
+
 def load(text: str, row: str, condition: str) -> dict[tuple[str, int], dict[str, Any]]:
-    """(scenario, seed) -> the row's figures, for one condition."""
+    """(scene, seed) -> the row's figures, for one condition; a scene is its scenario at its rate,
+    ``walk@30hz`` (a line without a rate: the scenario's native one)."""
     out = {}
     for line in text.splitlines():
         if not line.strip():
@@ -41,7 +48,8 @@ def load(text: str, row: str, condition: str) -> dict[tuple[str, int], dict[str,
         except ValueError:
             continue  # a line cut short
         if scene['condition'] == condition and row in scene['rows']:
-            out[(scene['scenario'], int(scene['seed']))] = scene['rows'][row]
+            rate = scene.get('rate', native(scene['scenario']))
+            out[(f"{scene['scenario']}@{rate}", int(scene['seed']))] = scene['rows'][row]
     return out
 
 
@@ -95,9 +103,9 @@ def main(argv: list[str] | None = None) -> int:
         base = (REPO / args.baseline).read_text()
     lines = compare(load(args.new.read_text(), args.row, args.condition),
                     load(base, args.row, args.condition))
-    print(f'{"scene":<14} {"figure":<12} {"n":>3} {"new":>8} {"old":>8} {"moved":>7} {"2se":>6}')
+    print(f'{"scene":<20} {"figure":<12} {"n":>3} {"new":>8} {"old":>8} {"moved":>7} {"2se":>6}')
     for line in lines:
-        print(f'{line["scenario"]:<14} {line["figure"]:<12} {line["n"]:>3} {line["new"]:>8.3f} '
+        print(f'{line["scenario"]:<20} {line["figure"]:<12} {line["n"]:>3} {line["new"]:>8.3f} '
               f'{line["old"]:>8.3f} {line["moved"]:>+7.3f} {2 * line["se"]:>6.3f}'
               f'{"  WORSE" if line["worse"] else ""}')
     return 1 if any(line['worse'] for line in lines) else 0

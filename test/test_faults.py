@@ -106,12 +106,13 @@ def test_a_recording_played_twice_calibrates_its_second_loop(walk, tmp_path):
     assert len(restart) == 1
     second = [o.scale for o in looped.outputs[looped.outputs.index(restart[0]):]
               if isinstance(o, ScaleOut)]
-    assert len(second) > 800
+    assert len(second) > 500  # once its own uncertainty is under 1 %: some 10 s into it
     assert abs(second[-1] / truth - 1) < 0.03
     assert np.all(np.abs(np.array(second[len(second) // 10:]) / truth - 1) < 0.03)
     assert len(looped.statuses) == 2 * 31  # one a second of stamp time, in both loops
     # the odometry goes on across the jump (a zero step there): its first message in the new
-    # stream has moved by the camera's true travel since the new stream's first pose
+    # stream, once that stream has converged, has moved by the camera's true travel since the
+    # new stream's first pose (the steps of the gap summed with the new stream's scale)
     odometry = looped.of(OdometryOut)
     stamps = [o.stamp_ns for o in odometry]
     back = next(k for k in range(1, len(stamps)) if stamps[k] < stamps[k - 1])
@@ -121,7 +122,7 @@ def test_a_recording_played_twice_calibrates_its_second_loop(walk, tmp_path):
                    np.array([m.pose.position.x, m.pose.position.y, m.pose.position.z])
                    for _, m in recording.read('/gt/camera_pose')}
     travel = np.linalg.norm(truth_c[stamps[back]] - truth_c[restart[0].stamp_ns])
-    assert abs(step - travel) < 0.05
+    assert abs(step - travel) < 0.03 * travel  # the gap's steps at the new stream's scale
     assert looped.largest_value_m() < SANE_M
 
 
@@ -259,13 +260,14 @@ def _positions(path: Path, after_s: float) -> dict[int, np.ndarray]:
 
 
 def test_a_clean_run_says_ok_once_converged(walk, tmp_path):
-    """The reference: no fault, every status OK once the estimate has converged."""
+    """The reference: no fault, every status OK once the estimate has converged, which it does
+    once its own uncertainty is under converged_max_rel_sigma (1 %: some 10 s of this walk)."""
     out = tmp_path / 'out'
     replay(walk, out, mode='online')
     diagnostics = written_diagnostics(out)
-    converged = [d for d in diagnostics if d[3]['converged'] == 'true']
-    assert len(converged) >= len(diagnostics) - 2
-    assert all(d[1] == OK and d[3]['reasons'] == '' for d in converged)
+    first = next(k for k, d in enumerate(diagnostics) if d[3]['converged'] == 'true')
+    assert (diagnostics[first][0] - diagnostics[0][0]) / NS < 15.0
+    assert all(d[1] == OK and d[3]['reasons'] == '' for d in diagnostics[first:])
 
 
 # ============================================================================ plausibility

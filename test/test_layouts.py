@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from scenes import QUICK_CONVERGENCE
 from scipy.spatial.transform import Rotation
 
 from hac_ros.bridge.messages import OutputMessages
@@ -128,7 +129,8 @@ def test_each_layout_calibrates_like_smpl24_on_the_same_scene(layout):
 
 def test_a_custom_layout_equals_the_built_in_one_it_describes():
     sc = make_scenario('walk', seed=4, duration=8.0, hmr_bias=0.0, joint_layout='coco17')
-    coco = HacParams().replace(joint_layout='coco17', sole_correction=False)
+    coco = HacParams().replace(joint_layout='coco17', sole_correction=False,
+                               converged_max_rel_sigma=QUICK_CONVERGENCE)
     custom = coco.replace(joint_layout='custom', joints_per_person=17, root_joints=[11, 12],
                           body_axis_lower_joints=[11, 12], body_axis_upper_joints=[5, 6],
                           skeleton_edges=[5, 7, 7, 9])
@@ -201,7 +203,8 @@ def test_body_frame_poses_are_caught_and_pose_to_optical_fixes_them(walk):
     notice = next(o for o in wrong if isinstance(o, NoticeOut)
                   and o.cause == 'convention_pose_convention')
     assert 'pose_to_optical' in notice.text and notice.level == 'warn'
-    assert scale_error(walk, wrong) > 0.3  # what the warning is about: a confidently wrong scale
+    # what the warning is about: a wrong scale (its samples scatter: it is not even published)
+    assert not [o for o in wrong if isinstance(o, ScaleOut)] or scale_error(walk, wrong) > 0.3
     fixed = run(walk, HacParams().replace(pose_to_optical=BODY_FRAME_Q), body_poses)
     assert not warnings(fixed)
     assert scale_error(walk, fixed) < 0.02

@@ -7,6 +7,7 @@ import itertools
 
 import numpy as np
 import pytest
+from scenes import QUICK_CONVERGENCE
 
 from hac_ros.core.calibrator import Calibrator
 from hac_ros.core.outputs import CloudOut, HumanJointsOut, NoticeOut, OdometryOut, PoseOut, ScaleOut
@@ -96,8 +97,10 @@ def test_covariances_grow_with_distance_and_are_inflated_after_a_reset():
 
 
 def simulated_run(name: str, seed: int, **params: object) -> tuple[object, list]:
+    """A scenario through the calibrator; these tests are about the metric frame, so by default
+    the estimate converges as quickly as scenes.py's QUICK_CONVERGENCE lets it."""
     sc = make_scenario(name, seed=seed, hmr_bias=0.0)
-    cal = Calibrator(HacParams(**params))
+    cal = Calibrator(HacParams(**{'converged_max_rel_sigma': QUICK_CONVERGENCE, **params}))
     cal.add_camera_info(sc.K, sc.width, sc.height)
     out: list = []
     for t, kind, payload in scenario_events(sc):
@@ -170,7 +173,7 @@ def test_the_cloud_is_the_map_in_metres_sent_on_a_new_map_and_on_a_scale_change_
 
 def test_freeze_holds_the_scale_and_reset_starts_a_segment_without_an_odometry_jump():
     sc = make_scenario('walk', seed=2, hmr_bias=0.0)
-    cal = Calibrator(HacParams())
+    cal = Calibrator(HacParams(converged_max_rel_sigma=QUICK_CONVERGENCE))
     cal.add_camera_info(sc.K, sc.width, sc.height)
     events = list(scenario_events(sc))
     third = len(events) // 3
@@ -257,14 +260,16 @@ def test_body_frame_poses_with_pose_to_optical_calibrate_like_optical_ones():
 
     sc = make_scenario('walk', seed=4, hmr_bias=0.0, duration=15.0)
     R_child_optical = Rotation.from_quat(BODY_TO_OPTICAL).as_matrix()
-    optical = _run(sc, HacParams())
-    body = _run(sc, HacParams(pose_to_optical=BODY_TO_OPTICAL), pose_rotation=R_child_optical.T)
+    quick = HacParams(converged_max_rel_sigma=QUICK_CONVERGENCE)
+    optical = _run(sc, quick)
+    body = _run(sc, quick.replace(pose_to_optical=BODY_TO_OPTICAL),
+                pose_rotation=R_child_optical.T)
     a = [o.scale for o in optical if isinstance(o, ScaleOut)]
     b = [o.scale for o in body if isinstance(o, ScaleOut)]
     assert len(a) == len(b) > 100
     np.testing.assert_allclose(b, a, rtol=1e-9)
     # the same body-frame poses read as optical: the rays miss, the scale is far off or absent
-    wrong = [o.scale for o in _run(sc, HacParams(), pose_rotation=R_child_optical.T)
+    wrong = [o.scale for o in _run(sc, quick, pose_rotation=R_child_optical.T)
              if isinstance(o, ScaleOut)]
     assert not wrong or abs(np.median(wrong) / sc.true_scale[0] - 1) > 0.1
 

@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 import pytest
 import yaml
+from scenes import QUICK_CONVERGENCE
 
 rclpy = pytest.importorskip('rclpy')
 
@@ -72,7 +73,9 @@ SCALE_TOL = 0.02  # the issue: /hac/scale within 2 % of the true scale
 # the played recordings' pose/joints publishers are reliable; the node must match them; they play
 # faster than real time, and these tests compare every frame with the core's: no frame dropped
 # for being late (the overload tests in test_faults.py drop them)
-TEST_PARAMS = {'input_qos': 'reliable', 'joints_backlog_max': 100_000}
+# the walk clips converge as quickly as QUICK_CONVERGENCE lets them (scenes.py)
+TEST_PARAMS = {'input_qos': 'reliable', 'joints_backlog_max': 100_000,
+               'converged_max_rel_sigma': QUICK_CONVERGENCE}
 
 
 # ================================================================================ recordings

@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 import pytest
 from rosbags.typesys import Stores, get_typestore
+from scenes import QUICK_CONVERGENCE
 from scipy.spatial.transform import Rotation
 
 from hac_ros.bridge.messages import (
@@ -189,7 +190,7 @@ def test_every_output_message_of_a_scenario(name):
     """The node's and the replay's messages for a whole simulated run (markers with the path and
     the ground plane, diagnostics with rejections, odometry across a SLAM reset)."""
     sc = make_scenario(name, seed=1, duration=12.0)
-    params = HacParams()
+    params = HacParams(converged_max_rel_sigma=QUICK_CONVERGENCE)  # publishing from early on
     cal = Calibrator(params)
     messages = OutputMessages(params)
     seen: dict[str, int] = {}

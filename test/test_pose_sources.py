@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
+from scenes import QUICK_CONVERGENCE
 
 from hac_ros.core.errors import ParameterError
 from hac_ros.core.params import HacParams
@@ -22,6 +23,8 @@ from hac_ros.simulate import make_scenario, write_recording
 from hac_ros.simulate.writer import BASE_FRAME, BASE_TO_OPTICAL
 
 TOLERANCE = 0.002  # the issue: within 0.2 % of the optical-frame PoseStamped recording
+# the pose sources' runs compared, published from early on (scenes.py)
+QUICK = {'converged_max_rel_sigma': QUICK_CONVERGENCE}
 
 
 @pytest.fixture(scope='module')
@@ -34,7 +37,7 @@ def optical(scene: Any, tmp_path_factory: pytest.TempPathFactory) -> dict[str, A
     """The optical-frame PoseStamped recording and its replays (offline and online)."""
     d = tmp_path_factory.mktemp('optical')
     source = write_recording(scene, d / 'in')
-    return {mode: outputs(replay(source, d / mode, mode=mode).output_path)
+    return {mode: outputs(replay(source, d / mode, HacParams(**QUICK), mode=mode).output_path)
             for mode in ('offline', 'online')}
 
 
@@ -69,11 +72,11 @@ def test_a_base_frame_recording_undone_by_pose_to_optical_is_the_optical_one(
     """The camera 1.2 above and 0.3 ahead of the base: its 7 numbers give the optical recording's
     scale and camera; the 4-number rotation alone (the position unchanged) does not."""
     source = write_recording(scene, tmp_path / 'base', pose_frame='base')
-    params = HacParams(pose_to_optical=BASE_TO_OPTICAL)
+    params = HacParams(**QUICK, pose_to_optical=BASE_TO_OPTICAL)
     got = outputs(replay(source, tmp_path / 'out', params, mode=mode).output_path)
     assert_same_run(got, optical[mode])
     if mode == 'offline':
-        rotation_only = HacParams(pose_to_optical=BASE_TO_OPTICAL[3:])
+        rotation_only = HacParams(**QUICK, pose_to_optical=BASE_TO_OPTICAL[3:])
         wrong = outputs(replay(source, tmp_path / 'rot', rotation_only).output_path)
         assert not abs(wrong['scale'] / optical[mode]['scale'] - 1.0) < 0.02  # or no scale
 
@@ -109,7 +112,7 @@ def test_a_tf_only_recording_replays_as_the_posestamped_one(scene, optical, tmp_
     """Poses only on /tf (map -> camera_optical): pose_source tf gives the same run; each frame
     found its pose at a TF message's stamp (exact), none extrapolated."""
     source = write_recording(scene, tmp_path / 'tf', pose_source='tf')
-    summary = replay(source, tmp_path / 'out', HacParams(**TF_OPTICAL), mode=mode)
+    summary = replay(source, tmp_path / 'out', HacParams(**QUICK, **TF_OPTICAL), mode=mode)
     assert_same_run(outputs(summary.output_path), optical[mode])
     assert summary.status.pose_matches == {'exact': summary.status.frames}
     assert 'frames matched to a SLAM pose: exact' in summary.text()
@@ -121,7 +124,7 @@ def test_a_tf_only_recording_replays_as_the_posestamped_one(scene, optical, tmp_
 ], ids=['static-from-tf', 'seven-numbers'])
 def test_tf_of_a_base_frame_with_its_static_camera_transform(scene, optical, tmp_path, params):
     source = write_recording(scene, tmp_path / 'tf', pose_source='tf', pose_frame='base')
-    got = outputs(replay(source, tmp_path / 'out', HacParams(**params)).output_path)
+    got = outputs(replay(source, tmp_path / 'out', HacParams(**QUICK, **params)).output_path)
     assert_same_run(got, optical['offline'])
 
 

@@ -24,9 +24,10 @@ from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message, serialize_message
 from rosbags.typesys import Stores, get_typestore
-from scenes import walking_scene
+from scenes import QUICK_CONVERGENCE, walking_scene
 from test_replay import write_recording
 
+from hac_ros.core.params import HacParams
 from hac_ros.replay.feeder import tie_ordered
 from hac_ros.replay.replayer import replay
 from hac_ros.ros.node import HacNode
@@ -74,13 +75,16 @@ class CountingCalibrator:
         return attr
 
 
-def play_to_node(recording: Path) -> dict[str, list[Any]]:
-    """Publish every input message of ``recording`` to a fresh hac_node; its outputs by topic."""
+def play_to_node(recording: Path, max_rel_sigma: float) -> dict[str, list[Any]]:
+    """Publish every input message of ``recording`` to a fresh hac_node (its
+    converged_max_rel_sigma ``max_rel_sigma``); its outputs by topic."""
     from rosbags.highlevel import AnyReader
 
     context = Context()
     rclpy.init(context=context)
-    node = HacNode(context=context, parameter_overrides=[Parameter('input_qos', value='reliable')])
+    node = HacNode(context=context, parameter_overrides=[
+        Parameter('input_qos', value='reliable'),
+        Parameter('converged_max_rel_sigma', value=max_rel_sigma)])
     counting = CountingCalibrator(node.calibrator)
     node.calibrator = counting
     io = rclpy.create_node('hac_replay_vs_node', context=context)
@@ -178,9 +182,13 @@ def test_online_replay_equals_the_node_stamp_by_stamp(tmp_path, kind):
         source = rewrite(simulated('walk', 6.0, tmp_path / 'once'), tmp_path / 'in', played(2))
     else:
         source = simulated(kind, 6.0, tmp_path / 'in')
-    replay(source, tmp_path / 'out', mode='online')
+    # the simulated 6 s clips converge as quickly as QUICK_CONVERGENCE lets them (scenes.py);
+    # the exact scene under the default
+    max_rel_sigma = HacParams().converged_max_rel_sigma if kind == 'scene' else QUICK_CONVERGENCE
+    replay(source, tmp_path / 'out', HacParams(converged_max_rel_sigma=max_rel_sigma),
+           mode='online')
     ours = replay_outputs(tmp_path / 'out')
-    node = play_to_node(source)
+    node = play_to_node(source, max_rel_sigma)
 
     # every output topic, message by message: the same stamps, every field bit for bit (the CDR
     # bytes, re-serialised by rosbags: Fast CDR leaves its alignment padding unset)

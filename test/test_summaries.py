@@ -104,22 +104,21 @@ def _segment_lines(stdout: str) -> list[str]:
     return [line for line in stdout.splitlines() if line.startswith('  segment ')]
 
 
-def test_the_drift_line_only_where_the_drift_test_ran(tmp_path):
-    """bags/demo_walk is 20 s, shorter than one window (window_s 30 s): the summary says the
-    drift test did not run and why, not a 'max z 0.0' it never measured; with window_s 6 the
-    test runs and its statistic is printed."""
-    result = hac('replay', 'bags/demo_walk', '-o', str(tmp_path / 'default'))
-    assert result.returncode == 0, result.stderr
-    line, = _segment_lines(result.stdout)
-    assert re.search(r'no drift test: its samples span 1\d\.\d s, less than one window '
-                     r'\(window_s 30 s\)\)$', line), line
-    assert 'max z' not in result.stdout
-    params = tmp_path / 'short_window.yaml'
-    params.write_text('hac_node:\n  ros__parameters:\n    window_s: 6.0\n', encoding='utf-8')
-    result = hac('replay', 'bags/demo_walk', '-o', str(tmp_path / 'short'), '--params', str(params))
-    assert result.returncode == 0, result.stderr
-    line, = _segment_lines(result.stdout)
-    assert re.search(r'\(drift test: max z \d+\.\d, max departure \d+\.\d %\)$', line), line
+def test_the_segment_line_gives_the_drift_tests_probability(tmp_path):
+    """bags/demo_walk is a constant scale: its segment keeps its median, with the median's
+    standard error and the drift test's probability (docs/replay.md, "The two modes"), whatever
+    the window."""
+    for name, window in (('default', ''), ('short', 'window_s: 6.0')):
+        args = []
+        if window:
+            params = tmp_path / 'short_window.yaml'
+            params.write_text(f'hac_node:\n  ros__parameters:\n    {window}\n', encoding='utf-8')
+            args = ['--params', str(params)]
+        result = hac('replay', 'bags/demo_walk', '-o', str(tmp_path / name), *args)
+        assert result.returncode == 0, result.stderr
+        line, = _segment_lines(result.stdout)
+        assert re.search(r'median \d\.\d+ \+- \d\.\d+(e-\d+)?, constant: median \(drift test: '
+                         r'drift probability 0\.\d\d\)$', line), line
 
 
 # ============================================================================ exit 3: why

@@ -1,64 +1,87 @@
-"""The scale estimator: a rolling window in stamp time with a streaming median (docs/method.md,
-step 5).
+"""The scale estimator: a rolling window of per-frame samples with a streaming median, and a
+robust state-space filter on the log scale that says whether, and how fast, the scale drifts
+(docs/method.md, "The estimator").
 
-The paper takes one median over a whole video. Online we keep the per-frame scales of the last
-``window_s`` stamp seconds (at most ``window_max_samples``) in arrival order; the estimate is their
-median and the robust spread their median absolute deviation (MAD), both computed when the window
-has changed and kept until it changes again.
+**The window.** The per-frame scales of the last ``window_s`` stamp seconds (at most
+``window_max_samples``) in arrival order; their median and median absolute deviation (MAD) are
+computed when the window has changed and kept until it changes again. The median is the robust
+level while the scale holds still, and the gate's reference: once the window holds
+``min_samples``, a sample further than ``gate_k`` robust sigmas from the median (and than
+``gate_min_rel`` of it) is gated out.
 
-Once converged (``min_samples``), a sample further than ``gate_k`` robust sigmas from the median
-(and than ``gate_min_rel`` of it) is gated out. If gated samples keep coming in a row for a third
-of the window (and at least ``min_samples``), consistent among themselves, the window was wrong
-(it locked on a bad start) and the estimator re-locks on them.
+**The filter** (:class:`hac_ros.core.scale_filter.LogScaleFilter`) is fed every accepted sample
+itself, never a window statistic: its level and rate, its noise measured on the samples, the
+probability ``p`` that the scale drifts. The estimate now is the two models weighed by that
+probability, in log scale: ``m = (1 - p) m0 + p m1`` with ``m0`` the window's median and ``m1``
+the filter's level; its variance ``(1 - p) V0 + p V1 + p (1 - p) (m1 - m0)²``, ``V0`` that of the
+median (1.2533² × the mean's variance under the measured noise), ``V1`` the filter's. The ``±``
+(:meth:`RollingScale.spread`) is that standard deviation times the scale: the estimator's own
+uncertainty, not the unobservable HMR or contact-height bias (docs/method.md, identifiability).
+**Converged** = at least ``min_samples`` samples and a relative uncertainty under
+``converged_max_rel_sigma``. **Drifting** = ``p`` above DRIFT_EVIDENCE.
 
-**Drift.** The window's median lags a drifting scale by half the window (6 % for a SLAM scale
-drifting 40 % in 90 s under a 30 s window). :meth:`RollingScale.current` is therefore the median
-only while the scale looks constant; when the window's samples drift it is their robust linear
-trend in log-scale evaluated at the newest stamp (:func:`log_trend`: Theil–Sen over the medians
-of TREND_BINS time bins; only once the samples span a third of the window, so not right after a
-reset). The window drifts when the trend's slope is DRIFT_Z standard errors
-from zero (the error from the bin medians' scatter about the trend) and moves the scale by more
-than DRIFT_MIN_REL over the window: a trend is twice as noisy as a median at the window's end, so it
-is used only when the drift is real. The trend is re-fitted every TREND_REFRESH_NS of stamp time.
+**Re-lock.** Gated samples in a row say the window may be wrong: from RELOCK_WARN_SAMPLES of
+them, or one RELOCK_WARN_S after the last accepted sample (one sample at 1 Hz), or from the moment
+a new map says its scale changed (:meth:`RollingScale.map_changed`),
+:attr:`RollingScale.relocking` holds and the status WARNs until a sample is accepted. The window
+re-locks on the run (it is dropped and refilled with the run's samples, the filter restarted on
+them) when the run holds ``min_samples`` samples consistent among themselves (robust spread within
+half the gate's relative floor) and either began after a new map whose floor says it has
+another scale came into use (:meth:`RollingScale.map_changed`: a SLAM that re-initialised
+quietly, same frame, no pose jump) or has lasted a third of the window (a window that locked on
+a bad start; a passing disturbance, a walker on a flight of stairs, does not last that long).
 """
 from __future__ import annotations
 
 import math
 from collections import deque
+from dataclasses import dataclass
 
 import numpy as np
 
-from hac_ros.core.numeric import MAD_TO_SIGMA, NS
+from hac_ros.core.numeric import MAD_TO_SIGMA, MEDIAN_STD_ERROR, NS
+from hac_ros.core.scale_filter import LogScaleFilter
 
-TREND_BINS = 8  # time bins of the window whose medians the trend is fitted to
-# samples a bin needs to count: the median of fewer is too noisy to fit a slope to (at keyframe
-# rate, 1-2 Hz, bins of 3 samples made a spurious 'drift' that read a constant scale 9 % off)
-TREND_MIN_PER_BIN = 10
-TREND_REFRESH_NS = 500_000_000  # the trend is re-fitted this often (stamp time)
-DRIFT_Z = 4.0  # the slope's distance from zero, in standard errors, that says "drifting"
-DRIFT_MIN_REL = 0.04  # ... and the smallest relative change over the window worth following
-TREND_MIN_SPAN_REL = 1.0 / 3.0  # a trend needs samples over this fraction of the window
+DRIFT_EVIDENCE = 0.999  # the drift probability above which the scale is said to drift
+RELOCK_WARN_SAMPLES = 2  # gated samples in a row that WARN (one could be an outlier) ...
+RELOCK_WARN_S = 0.5  # ... or one whose stamp is this long after the last accepted sample
+RELOCK_FALLBACK_WINDOW_SHARE = 1.0 / 3.0  # a run this long re-locks without a new map
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """The estimate at one stamp: ``scale`` metres per SLAM unit, ``rel_sigma`` its relative
+    uncertainty (standard deviation of the log scale; inf before the filter starts),
+    ``drift`` the probability that the scale drifts."""
+
+    scale: float
+    rel_sigma: float
+    drift: float
 
 
 class RollingScale:
-    """Per-frame scale samples in, a causal robust scale estimate out."""
+    """Per-frame scale samples in, a causal estimate and its uncertainty out (module
+    docstring)."""
 
     def __init__(self, window_s: float, window_max_samples: int, min_samples: int,
-                 gate_k: float = 5.0, gate_min_rel: float = 0.15) -> None:
+                 gate_k: float = 5.0, gate_min_rel: float = 0.15,
+                 converged_max_rel_sigma: float = 0.01) -> None:
         self.window_ns = int(round(window_s * NS))
         self.max_samples = int(window_max_samples)
         self.min_samples = int(min_samples)
         self.gate_k = float(gate_k)
         self.gate_min_rel = float(gate_min_rel)
+        self.max_rel_sigma = float(converged_max_rel_sigma)
         self._fifo: deque[tuple[int, float]] = deque()  # (stamp_ns, scale) in arrival order
         self._gated_run: list[tuple[int, float]] = []
+        self._accepted_ns = -1  # the stamp of the last accepted sample
+        self._map_rescaled = False  # a new map says it has another scale (map_changed)
         self.relocks = 0
         self._stats: tuple[float, float] | None = None  # (median, MAD), until the window changes
         self._now_ns = -1  # the newest stamp seen (a sample or advance)
-        # the drift trend: (log scale at the reference stamp, slope per ns, reference stamp) or
-        # None while the window looks constant; and the stamp it was fitted at
-        self._trend: tuple[float, float, int] | None = None
-        self._trend_ns: int | None = None
+        self.filter = LogScaleFilter(self.window_ns, self.max_samples)
+        self._estimate: tuple[tuple[int, int], Estimate] | None = None
+        self._version = 0  # counts changes of the window and the filter
 
     # ------------------------------------------------------------------ updates
     def add(self, stamp_ns: int, scale: float) -> bool:
@@ -70,16 +93,23 @@ class RollingScale:
             return False
         self._now_ns = max(self._now_ns, int(stamp_ns))
         self._evict(stamp_ns)
-        if self.converged and not self._within_gate(scale):
-            self._gated_run.append((stamp_ns, scale))
+        if len(self._fifo) >= self.min_samples and not self._within_gate(scale):
+            self._gated_run.append((int(stamp_ns), scale))
             if self._run_says_window_is_wrong():
                 self._relock()
             return False
         self._gated_run.clear()
-        self._fifo.append((stamp_ns, scale))
+        self._map_rescaled = False
+        self._accepted_ns = int(stamp_ns)
+        self._fifo.append((int(stamp_ns), scale))
         self._stats = None
+        self._version += 1
         if len(self._fifo) > self.max_samples:
             self._drop_oldest()
+        if self.filter.started:
+            self.filter.update(int(stamp_ns), math.log(scale), math.log(self.median()))
+        elif len(self._fifo) >= self.min_samples:
+            self.filter.start([s for s, _ in self._fifo], [math.log(v) for _, v in self._fifo])
         return True
 
     def advance(self, stamp_ns: int) -> None:
@@ -87,12 +117,24 @@ class RollingScale:
         self._now_ns = max(self._now_ns, int(stamp_ns))
         self._evict(stamp_ns)
 
+    def map_changed(self, rescaled: bool = False) -> None:
+        """A new map came into use (same segment, the calibrator's stamp time). ``rescaled``: the
+        map itself says its scale changed (the camera's height above its floor): a run of gated
+        samples in progress belongs to the old map and is dropped, :attr:`relocking` holds from
+        now until a sample is accepted, and the window re-locks on the samples that follow once
+        they hold ``min_samples`` (module docstring, re-lock)."""
+        if rescaled and not self._map_rescaled:
+            self._gated_run.clear()
+            self._map_rescaled = True
+
     def reset(self) -> None:
         """Forget everything (SLAM re-initialisation: the new map has a new scale)."""
         self._fifo.clear()
         self._gated_run.clear()
+        self._map_rescaled = False
         self._stats = None
-        self._trend, self._trend_ns = None, None
+        self.filter = LogScaleFilter(self.window_ns, self.max_samples)
+        self._version += 1
 
     # ------------------------------------------------------------------ queries
     @property
@@ -101,37 +143,75 @@ class RollingScale:
 
     @property
     def converged(self) -> bool:
-        return len(self._fifo) >= self.min_samples
+        """At least ``min_samples`` samples and a relative uncertainty under
+        ``converged_max_rel_sigma``."""
+        return (len(self._fifo) >= self.min_samples
+                and self.estimate().rel_sigma < self.max_rel_sigma)
+
+    @property
+    def relocking(self) -> bool:
+        """Gated samples in a row say the window may be wrong (module docstring)."""
+        run = self._gated_run
+        if len(self._fifo) < self.min_samples:
+            return False
+        return self._map_rescaled or (bool(run) and (
+            len(run) >= RELOCK_WARN_SAMPLES
+            or run[-1][0] - self._accepted_ns >= RELOCK_WARN_S * NS))
+
+    @property
+    def drifting(self) -> bool:
+        """The evidence says the scale drifts (its probability above DRIFT_EVIDENCE)."""
+        return self.estimate().drift > DRIFT_EVIDENCE
 
     def median(self) -> float:
         """The window's median, metres per SLAM unit (NaN when empty)."""
         return self._median_and_mad()[0]
 
     def current(self) -> float:
-        """The scale now (metres per SLAM unit, NaN when empty): the window's median, or its drift
-        trend at the newest stamp while the window drifts (module docstring)."""
-        if not self.converged:
-            return self.median()
-        if self._trend_ns is None or self._now_ns - self._trend_ns >= TREND_REFRESH_NS:
-            self._trend_ns = self._now_ns
-            stamps = np.fromiter((s for s, _ in self._fifo), np.int64, len(self._fifo))
-            values = np.fromiter((v for _, v in self._fifo), float, len(self._fifo))
-            long_enough = (len(stamps)
-                           and stamps[-1] - stamps[0] >= TREND_MIN_SPAN_REL * self.window_ns)
-            self._trend = log_trend(stamps, values) if long_enough else None
-        if self._trend is None:
-            return self.median()
-        level, slope, ref_ns = self._trend
-        return math.exp(level + slope * (self._now_ns - ref_ns))
+        """The scale now, metres per SLAM unit (NaN when empty; module docstring)."""
+        return self.estimate().scale
 
-    @property
-    def drifting(self) -> bool:
-        """Whether :meth:`current` follows a drift trend (as of its last fit)."""
-        return self._trend is not None
+    def spread(self) -> float:
+        """The estimate's standard deviation, metres per SLAM unit (inf before the filter has
+        started, NaN when empty): its own uncertainty, without the unobservable biases."""
+        estimate = self.estimate()
+        return estimate.scale * estimate.rel_sigma
+
+    def estimate(self) -> Estimate:
+        """The estimate at the newest stamp (module docstring), kept until a sample or stamp time
+        changes it."""
+        key = (self._now_ns, self._version)
+        if self._estimate is None or self._estimate[0] != key:
+            self._estimate = (key, self._compute())
+        return self._estimate[1]
 
     def mad(self) -> float:
         """Median absolute deviation from the median, metres per SLAM unit (NaN when empty)."""
         return self._median_and_mad()[1]
+
+    def sample_spread(self) -> float:
+        """Robust sigma of the window's samples (1.4826 MAD), metres per SLAM unit."""
+        return MAD_TO_SIGMA * self.mad()
+
+    def values(self) -> np.ndarray:
+        """The window's samples in arrival order (for tests and plots)."""
+        return np.array([v for _, v in self._fifo], dtype=float)
+
+    # ------------------------------------------------------------------ internals
+    def _compute(self) -> Estimate:
+        median = self.median()
+        if not self.filter.started or not math.isfinite(median):
+            return Estimate(median, math.inf, 0.0)
+        n = len(self._fifo)
+        span_s = (self._fifo[-1][0] - self._fifo[0][0]) / NS
+        now_ns = max(self._now_ns, self.filter.stamp_ns or 0)
+        m0 = math.log(median)
+        v0 = MEDIAN_STD_ERROR ** 2 * self.filter.mean_variance(n, span_s)
+        m1, v1 = self.filter.level_at(now_ns)
+        p = self.filter.drift()
+        mean = (1.0 - p) * m0 + p * m1
+        variance = (1.0 - p) * v0 + p * v1 + p * (1.0 - p) * (m1 - m0) ** 2
+        return Estimate(math.exp(mean), math.sqrt(max(variance, 0.0)), p)
 
     def _median_and_mad(self) -> tuple[float, float]:
         if self._stats is None:
@@ -142,27 +222,21 @@ class RollingScale:
             self._stats = median, float(np.median(np.abs(values - median)))
         return self._stats
 
-    def spread(self) -> float:
-        """Robust sigma of the samples (1.4826 MAD), metres per SLAM unit."""
-        return MAD_TO_SIGMA * self.mad()
-
-    def values(self) -> np.ndarray:
-        """The window's samples in arrival order (for tests and plots)."""
-        return np.array([v for _, v in self._fifo], dtype=float)
-
-    # ------------------------------------------------------------------ internals
     def _within_gate(self, scale: float) -> bool:
         med = self.median()
-        band = max(self.gate_k * self.spread(), self.gate_min_rel * med)
+        band = max(self.gate_k * self.sample_spread(), self.gate_min_rel * med)
         return abs(scale - med) <= band
 
     def _run_says_window_is_wrong(self) -> bool:
-        """A run of gated samples long enough (``min_samples`` and a third of the window in stamp
-        time) and consistent enough (robust spread within half the gate's relative floor) to say
-        the window locked on a bad start, not that a passing disturbance (an occluder, a step) is
-        gated as it should be."""
+        """A run of gated samples long enough (``min_samples``, and begun after a new map came
+        into use or a third of the window long in stamp time) and consistent enough (robust
+        spread within half the gate's relative floor) to say the window is wrong, not that a
+        passing disturbance (an occluder, a step) is gated as it should be."""
         run = self._gated_run
-        if len(run) < self.min_samples or run[-1][0] - run[0][0] < self.window_ns // 3:
+        if len(run) < self.min_samples:
+            return False
+        if not self._map_rescaled and (run[-1][0] - run[0][0]
+                                       < RELOCK_FALLBACK_WINDOW_SHARE * self.window_ns):
             return False
         values = np.array([v for _, v in run])
         med = float(np.median(values))
@@ -179,49 +253,15 @@ class RollingScale:
     def _drop_oldest(self) -> None:
         self._fifo.popleft()
         self._stats = None
+        self._version += 1
 
     def _relock(self) -> None:
         run = list(self._gated_run)
         self.reset()
         self.relocks += 1
         self._fifo.extend(run)
-
-
-def log_trend(stamps_ns: np.ndarray, scales: np.ndarray) -> tuple[float, float, int] | None:
-    """The drift of a window's samples, or None when it looks constant (module docstring).
-
-    stamps_ns: (n,) int, increasing; scales: (n,) metres per SLAM unit, positive. Returns (log scale
-    at the newest stamp, slope in log scale per ns, the newest stamp).
-    """
-    n = len(stamps_ns)
-    if n < TREND_BINS * TREND_MIN_PER_BIN:
-        return None
-    ref = int(stamps_ns[-1])
-    t = (stamps_ns - ref).astype(np.float64)  # <= 0, ns
-    y = np.log(scales)
-    span = -t[0]
-    if span <= 0.0:
-        return None
-    edges = np.searchsorted(t, np.linspace(t[0], 0.0, TREND_BINS + 1)[1:-1])
-    centres, levels = [], []
-    for a, b in zip([0, *edges.tolist()], [*edges.tolist(), n]):
-        if b - a >= TREND_MIN_PER_BIN:
-            centres.append(float(np.median(t[a:b])))
-            levels.append(float(np.median(y[a:b])))
-    if len(centres) < 3:
-        return None
-    tc, yc = np.array(centres), np.array(levels)
-    i, j = np.triu_indices(len(tc), 1)
-    slope = float(np.median((yc[j] - yc[i]) / (tc[j] - tc[i])))  # Theil-Sen over the bin medians
-    level = float(np.median(yc - slope * tc))
-    # the slope's standard error from the bin medians' scatter about the line: consecutive
-    # samples are correlated (the same geometry, a slowly wandering HMR bias), bins much less so
-    residual = yc - (level + slope * tc)
-    sigma = MAD_TO_SIGMA * float(np.median(np.abs(residual - np.median(residual))))
-    error = sigma / max(math.sqrt(float(np.sum((tc - tc.mean()) ** 2))), 1e-300)
-    if abs(slope) <= DRIFT_Z * error or abs(slope) * span <= DRIFT_MIN_REL:
-        return None
-    return level, slope, ref
+        if len(run) >= self.min_samples:
+            self.filter.start([s for s, _ in run], [math.log(v) for _, v in run])
 
 
 def sequence_scale(samples: np.ndarray) -> float:

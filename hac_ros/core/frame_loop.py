@@ -24,7 +24,7 @@ from hac_ros.core.human_filter import RootFilter
 from hac_ros.core.map_book import MapBook
 from hac_ros.core.map_shape import MapShape, plane_problem
 from hac_ros.core.metric_stage import MetricStage, ScaleAt, StageConfig, finite_scale
-from hac_ros.core.numeric import MEDIAN_STD_ERROR, NS
+from hac_ros.core.numeric import NS
 from hac_ros.core.outputs import NoticeOut, ResetOut, SampleOut, Status
 from hac_ros.core.params import HacParams
 from hac_ros.core.pending import (
@@ -99,7 +99,7 @@ class FrameLoop:
         a new one: hac_ros.core.timeline); the counters, the camera and the conventions stay."""
         p = self.params
         self.estimator = RollingScale(p.window_s, p.window_max_samples, p.min_samples,
-                                      p.gate_k, p.gate_min_rel)
+                                      p.gate_k, p.gate_min_rel, p.converged_max_rel_sigma)
         self.ground = GroundModel(p.ground_mode, p.ground_inlier_m, p.ground_ransac_iters, p.seed)
         self._map_frame: str | None = None
         self.track = PoseTrack(p.pose_buffer, p.reset_jump_factor, p.reset_jump_min_rel,
@@ -110,6 +110,7 @@ class FrameLoop:
         self._pending: list[Frame] = []  # sorted by stamp
         self.maps = MapBook(p)  # waiting, in use (hac_ros.core.map_book)
         self._last_frame_ns = -1
+        self._camera_height: float | None = None  # above the floor of the map in use, SLAM units
         self._diag_second: int | None = None
         self._segment_starts: str | None = ''  # the cause of a segment starting at the next pose
         self._sources: deque[bool] = deque(maxlen=GROUND_SHARE_SAMPLES)  # True: a ground sample
@@ -122,8 +123,8 @@ class FrameLoop:
 
     @property
     def scale(self) -> float:
-        """The current estimate, metres per SLAM unit (RollingScale.current: the window's median,
-        or its drift trend while the scale drifts)."""
+        """The current estimate, metres per SLAM unit (RollingScale.current: the window's median
+        and the drift filter's level, weighed by the evidence of drift)."""
         return self.estimator.current()
 
     def published_scale(self, stamp_ns: int) -> float | None:
@@ -169,6 +170,8 @@ class FrameLoop:
             out['slam_frozen'] = reason_text('slam_frozen')
         if self.maps.degenerate:
             out['map_degenerate'] = self.maps.degenerate
+        if self.estimator.relocking:
+            out['relocking'] = reason_text('relocking')
         if self.ground.floor_missing:
             out['floor_unknown'] = reason_text('floor_unknown')
         return out
@@ -223,9 +226,11 @@ class FrameLoop:
             self._segment_starts = None
         self.track.append(pose, (self.track.step(pose) if move is None else move)
                           if measured else None)
-        # frames before this stamp first, then this pose's odometry, then the frame of this stamp
+        # frames before this stamp first, then this pose's map and odometry, then the frame of
+        # this stamp (a map is in use from its stamp on: its odometry and status see it too)
         while self._pending and self._pending[0].stamp_ns < pose.stamp_ns:
             out += self._process(self._pending.pop(0))
+        out += self._activate_map(pose.stamp_ns, pose.c_map)
         out += self._odometry(pose)
         while self._pending and self._pending[0].stamp_ns <= pose.stamp_ns:
             out += self._process(self._pending.pop(0))
@@ -280,7 +285,8 @@ class FrameLoop:
         """Make the latest map not after ``stamp_ns`` the current one (the processing order); a
         map that does not overlap the previous one is a SLAM re-initialisation; a plane map that
         cannot be the floor is refused (hac_ros.core.map_shape; the camera at ``c_map`` (3,),
-        SLAM units), and a plane map in use is judged once the bodies give their axis."""
+        SLAM units), and a plane map in use is judged once the bodies give their axis. A new map
+        that overlaps is checked against the old one (:meth:`_map_rescaled`)."""
         axis = self.ground.body_axis()
 
         def problem(index: MapIndex, shape: MapShape) -> str:
@@ -298,12 +304,34 @@ class FrameLoop:
             if axis is not None:
                 self.maps.plane_judged()
         pose = self.track.last
+        if chosen is not None and not lost:
+            self.estimator.map_changed(self._map_rescaled(c_map))
         if chosen is None or not lost or pose is None:
             return []
         out = self._reset(pose, 'map_overlap', 'the new map does not overlap the previous one: '
                           'SLAM re-initialised')
         self.track.append(pose, None)  # the new segment starts at the last pose
         return out
+
+    def _map_rescaled(self, c_map: np.ndarray) -> bool:
+        """Whether the map just come into use has another scale than the one before it: the
+        camera's height above the map's floor (SLAM units) against its height above the old
+        map's floor at the last frame, off by more than the gate's relative floor (a SLAM that
+        re-initialised quietly: same frame, no pose jump). False without a floor in both."""
+        before, self._camera_height = self._camera_height, self._height_above_floor(c_map)
+        after = self._camera_height
+        if before is None or after is None:
+            return False
+        return abs(math.log(after / before)) > math.log1p(self.params.gate_min_rel)
+
+    def _height_above_floor(self, c_map: np.ndarray) -> float | None:
+        """The camera's height above the floor of the map in use, SLAM units (None: no floor, or
+        not below the camera)."""
+        plane = self.ground.plane(self.map) if self.ground.trusted else None
+        if plane is None:
+            return None
+        height = float(plane.offset - plane.normal @ c_map)
+        return height if height > 0.0 else None
 
     def _hand_map(self, stamp_ns: int) -> list[Record]:
         """The map in use to the metric stage (for /hac/cloud), at most once per
@@ -327,6 +355,7 @@ class FrameLoop:
         if not self.services.holding:  # frozen: nothing expires
             self.estimator.advance(stamp)
         self.check.view_map(stamp, self.map, R_wc, c_map, self._K, self._image_size)
+        self._camera_height = self._height_above_floor(c_map)
         if self.freeze.frame(self.track.frozen(stamp), frame.joints_cam):
             out += self._reject('slam_frozen', stamp)  # its pose is not the camera's
         else:
@@ -422,9 +451,8 @@ class FrameLoop:
     def _odometry(self, pose: Pose) -> list[Record]:
         """Every accepted pose (the odometry integrates them all, also while a segment
         converges)."""
-        # the position's uncertainty comes from the scale's standard error (MetricStage)
-        n = max(self.estimator.samples, 1)
-        sigma_scale = MEDIAN_STD_ERROR * self.estimator.spread() / math.sqrt(n)
+        # the position's uncertainty comes from the estimate's own (MetricStage)
+        sigma_scale = self.estimator.spread()
         share = sum(self._sources) / len(self._sources) if self._sources else 0.0
         plane = self.ground.plane(self.map)
         return self._metric(PendingOdometry(pose.stamp_ns, self.child_frame_id, self.segment,

@@ -22,6 +22,7 @@ with ``warns`` makes the status WARN when it grew.
 """
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable
 from dataclasses import dataclass
 
@@ -66,6 +67,8 @@ def headline(status: Status) -> str:
         text = f'converged: scale {status.scale:.6g} +- {status.spread:.2g}'
     else:
         text = f'not converged: {status.samples} samples'
+        if status.scale > 0.0 and math.isfinite(status.spread):  # its uncertainty, relative
+            text += f', scale {status.scale:.6g} +- {100.0 * status.spread / status.scale:.2g} %'
     return text + (' (frozen)' if status.frozen else '')
 
 

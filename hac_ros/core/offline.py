@@ -6,27 +6,18 @@ of its stated limitations change that picture, and the offline mode handles both
 - **SLAM re-initialisation.** A new map has a new scale, so the recording is cut into segments at
   the estimator's resets and each segment gets its own estimate from its own samples only.
 - **Scale drift.** Within a segment the median is the right answer only if the scale is constant.
-  The drift test below asks whether the samples say otherwise; if they do, the segment's scale at a
-  stamp is the **centred** rolling median around it (it uses the samples after the stamp too, which
-  an online estimator cannot), interpolated linearly between knots.
+  The evidence of drift is the trend of all the segment's samples at once (:func:`segment_drift`:
+  their least-squares slope against the online estimator's prior, with the noise measured about
+  it); the segment drifts when its probability is above DRIFT_EVIDENCE. Then the samples go
+  through the online estimator's filter forwards and a
+  Rauch–Tung–Striebel smoother backwards (hac_ros.core.scale_filter.smooth), with the noise
+  measured on the samples about their centred rolling median (so that the drift is not taken
+  for noise), and the segment's scale at a stamp is the smoothed level there, lifted by the
+  median of the samples' residuals about it (so that its level is a median's, as in the constant
+  case). Otherwise the segment keeps its median (docs/replay.md's contract).
 
-The drift test (documented in docs/replay.md). Inside a segment of samples ``s_i`` at stamps
-``t_i``, with ``m`` the segment median:
-
-1. Lay centred windows of ``window_s`` stamp seconds (the online window's length) every half
-   window, each entirely inside the segment, and take each window's median ``m_w`` over its
-   ``n_w`` samples (windows with fewer than ``min_samples`` samples are skipped).
-2. The noise of the samples is their robust sigma **about the local trend** (1.4826 × the median
-   absolute residual from the centred rolling median), so that a drift does not pass for noise.
-3. Under a constant scale ``m_w`` differs from ``m`` only by the error of a median of ``n_w``
-   samples, ``1.2533 σ / √n_w``. The segment drifts when some window's ``z_w = |m_w − m| /
-   (1.2533 σ / √n_w)`` exceeds :data:`DRIFT_Z` **and** its relative departure ``|m_w / m − 1|``
-   exceeds :data:`DRIFT_MIN_REL` (per-frame samples are correlated in real data, so the z-score
-   alone would fire on slow HMR bias changes that are not a scale change worth following).
-
-A segment shorter than one window cannot show drift and keeps its median. A segment with fewer
-than ``min_samples`` accepted samples has no estimate (NaN: nothing metric is published there, as
-online before convergence).
+A segment with fewer than ``min_samples`` accepted samples has no estimate (NaN: nothing metric is
+published there, as online before convergence).
 
 Pure numpy: no ROS. Stamps are int nanoseconds; scales are metres per SLAM unit.
 """
@@ -41,22 +32,18 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from hac_ros.core.errors import InputError
+from hac_ros.core.estimator import DRIFT_EVIDENCE
 from hac_ros.core.human_filter import smooth_outputs
 from hac_ros.core.metric_stage import MetricStage, ScaleAt, finite_scale
-from hac_ros.core.numeric import MAD_TO_SIGMA, MEDIAN_STD_ERROR, NS
+from hac_ros.core.numeric import MEDIAN_STD_ERROR, NS
 from hac_ros.core.outputs import Output, ResetOut, SampleOut, Status
 from hac_ros.core.pending import PendingFrame, PendingOdometry, Record
+from hac_ros.core.scale_filter import drift_probability, noise_density, smooth
 
 if TYPE_CHECKING:
     from hac_ros.core.calibrator import Calibrator
     from hac_ros.core.plane import Plane
 
-# A window median this many standard errors from the segment median is not noise. With one window
-# per half window over a long recording (hundreds of windows), 5 sigma keeps false alarms rare.
-DRIFT_Z = 5.0
-# ... and it must also depart from the segment median by this fraction: smaller drifts are below
-# what per-frame HMR noise and its slow biases let us follow, and the median is then the better bet.
-DRIFT_MIN_REL = 0.02
 KNOTS_PER_WINDOW = 10  # knots of the drifting schedule per window length (linear in between)
 # Near a segment's ends the centred window shrinks symmetrically (so it stays centred and unbiased
 # on a linear drift) but never below this fraction of the full half window (so it is not too noisy).
@@ -69,11 +56,12 @@ class SegmentScale:
 
     start_ns: first stamp of the segment (the reset's stamp; the first segment starts at the
     recording's beginning); samples: accepted samples in it; median: their median, metres per SLAM
-    unit (NaN if fewer than min_samples); sigma: robust sigma of the samples about the local trend;
-    drift: whether the drift test fired; drift_z / drift_rel: the largest window z-score and
-    relative departure seen; knots_ns / knots_scale: the schedule (one knot = constant median);
-    error: the standard error of the published scale (of the median, or of one window's median when
-    drifting), metres per SLAM unit (the odometry's covariance uses it).
+    unit (NaN if fewer than min_samples); sigma: robust sigma of the samples about the local trend,
+    metres per SLAM unit; drift: whether the smoother found evidence of drift; drift_probability:
+    the largest probability of drift over the segment; knots_ns / knots_scale: the schedule (one
+    knot = constant median); error: the standard error of the published scale (the median's, or
+    the smoothed level's median one when drifting), metres per SLAM unit (the odometry's
+    covariance uses it).
     """
 
     start_ns: int
@@ -81,8 +69,7 @@ class SegmentScale:
     median: float
     sigma: float
     drift: bool
-    drift_z: float
-    drift_rel: float
+    drift_probability: float
     knots_ns: np.ndarray = field(repr=False)
     knots_scale: np.ndarray = field(repr=False)
     first_sample_ns: int = 0
@@ -99,13 +86,12 @@ class SegmentScale:
     def describe(self) -> str:
         if not math.isfinite(self.median):
             return f'{self.samples} samples: too few, no estimate'
-        kind = 'drifting: centred rolling median' if self.drift else 'constant: median'
+        kind = 'drifting: smoothed' if self.drift else 'constant: median'
         if self.drift:
             lo, hi = float(np.min(self.knots_scale)), float(np.max(self.knots_scale))
             kind += f' {lo:.6g} .. {hi:.6g}'
-        return (f'{self.samples} samples, median {self.median:.6g} +- {self.sigma:.2g}, {kind} '
-                f'(drift test: max z {self.drift_z:.1f}, max departure '
-                f'{100 * self.drift_rel:.1f} %)')
+        return (f'{self.samples} samples, median {self.median:.6g} +- {self.error:.2g}, {kind} '
+                f'(drift probability {self.drift_probability:.2f})')
 
 
 class OfflineScale:
@@ -156,14 +142,15 @@ class OfflineScale:
 
 
 def offline_scale(sample_stamps_ns: np.ndarray, sample_scales: np.ndarray,
-                  reset_stamps_ns: np.ndarray | list[int], window_s: float, min_samples: int,
-                  drift_z: float = DRIFT_Z, drift_min_rel: float = DRIFT_MIN_REL) -> OfflineScale:
+                  reset_stamps_ns: np.ndarray | list[int], window_s: float,
+                  min_samples: int) -> OfflineScale:
     """The offline schedule from the accepted per-frame samples of a whole recording.
 
     sample_stamps_ns: (N,) int frame stamps; sample_scales: (N,) metres per SLAM unit (non-finite
     and non-positive values are ignored); reset_stamps_ns: stamps of the estimator's resets (each
-    starts a new segment); window_s: the centred window, stamp seconds; min_samples: samples a
-    segment needs for an estimate.
+    starts a new segment); window_s: the online window, stamp seconds (the rolling median that
+    measures the noise is centred and as long); min_samples: samples a segment needs for an
+    estimate.
     """
     stamps = np.asarray(sample_stamps_ns, dtype=np.int64).reshape(-1)
     scales = np.asarray(sample_scales, dtype=np.float64).reshape(-1)
@@ -177,10 +164,8 @@ def offline_scale(sample_stamps_ns: np.ndarray, sample_scales: np.ndarray,
     bounds = np.searchsorted(stamps, np.asarray(resets, dtype=np.int64), side='left')
     edges = [0, *bounds.tolist(), len(stamps)]
     starts = [int(stamps[0]) if len(stamps) else 0, *resets]
-    segments = [
-        segment_scale(stamps[a:b], scales[a:b], start, window_s, min_samples, drift_z,
-                      drift_min_rel)
-        for start, a, b in zip(starts, edges[:-1], edges[1:])]
+    segments = [segment_scale(stamps[a:b], scales[a:b], start, window_s, min_samples)
+                for start, a, b in zip(starts, edges[:-1], edges[1:])]
     return OfflineScale(segments)
 
 
@@ -239,62 +224,63 @@ def final_planes(records: Sequence[Record]) -> dict[int, Plane | None]:
 
 
 def segment_scale(stamps_ns: np.ndarray, scales: np.ndarray, start_ns: int, window_s: float,
-                  min_samples: int, drift_z: float = DRIFT_Z,
-                  drift_min_rel: float = DRIFT_MIN_REL) -> SegmentScale:
-    """One segment's estimate: median, or the centred rolling median when the drift test fires.
+                  min_samples: int) -> SegmentScale:
+    """One segment's estimate: its median, or its smoothed level where the smoother finds
+    evidence of drift (module docstring).
 
     stamps_ns: (n,) int, sorted; scales: (n,) metres per SLAM unit, finite and positive.
     """
     n = len(scales)
     if n < max(int(min_samples), 1):
-        return SegmentScale(int(start_ns), n, math.nan, math.nan, False, 0.0, 0.0,
+        return SegmentScale(int(start_ns), n, math.nan, math.nan, False, 0.0,
                             np.array([start_ns], dtype=np.int64), np.array([math.nan]),
                             int(stamps_ns[0]) if n else 0, int(stamps_ns[-1]) if n else 0)
     median = float(np.median(scales))
     half_ns = int(round(window_s * 0.5 * NS))
     trend = centred_medians(stamps_ns, scales, stamps_ns, half_ns, min_samples)
-    sigma = MAD_TO_SIGMA * float(np.median(np.abs(scales - trend)))
-    z_max, rel_max = drift_statistic(stamps_ns, scales, median, sigma, half_ns, min_samples)
-    drift = z_max > drift_z and rel_max > drift_min_rel
-    if drift:
+    log_scales = np.log(scales)
+    noise = noise_density(stamps_ns, log_scales - np.log(trend))
+    sigma = median * math.sqrt(noise.sigma2) if noise is not None else 0.0
+    span_s = float(stamps_ns[-1] - stamps_ns[0]) / NS
+    drift_p = segment_drift(stamps_ns, log_scales)
+    smoothed = None
+    if noise is not None and drift_p > DRIFT_EVIDENCE:
+        smoothed = smooth(stamps_ns, log_scales, noise)
+    if smoothed is not None:
         step = max(1, int(2 * half_ns / KNOTS_PER_WINDOW))
-        knots = np.arange(int(stamps_ns[0]), int(stamps_ns[-1]) + step, step, dtype=np.int64)
-        knots[-1] = min(knots[-1], int(stamps_ns[-1]))
-        knots = np.unique(knots)
-        values = centred_medians(stamps_ns, scales, knots, half_ns, min_samples)
-        span = max(int(stamps_ns[-1]) - int(stamps_ns[0]), 1)
-        n_used = max(1.0, n * min(1.0, 2 * half_ns / span))  # the samples of one window
+        knots = np.unique(np.r_[np.arange(int(stamps_ns[0]), int(stamps_ns[-1]), step,
+                                          dtype=np.int64), int(stamps_ns[-1])])
+        offset = float(np.median(log_scales - smoothed.level))
+        t = stamps_ns.astype(np.float64)
+        values = np.exp(np.interp(knots.astype(np.float64), t, smoothed.level) + offset)
+        error = median * math.sqrt(float(np.median(smoothed.level_var)))
     else:
         knots, values = np.array([stamps_ns[0]], dtype=np.int64), np.array([median])
-        n_used = float(n)
-    return SegmentScale(int(start_ns), n, median, sigma, bool(drift), z_max, rel_max, knots, values,
-                        int(stamps_ns[0]), int(stamps_ns[-1]),
-                        MEDIAN_STD_ERROR * sigma / math.sqrt(n_used))
+        variance = 0.0
+        if noise is not None:
+            variance = noise.sigma2 / n
+            if span_s > 0.0:
+                variance = max(variance, noise.density / span_s)
+        error = MEDIAN_STD_ERROR * median * math.sqrt(variance)
+    return SegmentScale(int(start_ns), n, median, sigma, bool(drift_p > DRIFT_EVIDENCE), drift_p,
+                        knots, values, int(stamps_ns[0]), int(stamps_ns[-1]), error)
 
 
-def drift_statistic(stamps_ns: np.ndarray, scales: np.ndarray, median: float, sigma: float,
-                    half_ns: int, min_samples: int) -> tuple[float, float]:
-    """The largest window z-score and relative departure from ``median`` (see the module docstring).
-
-    Windows of ±half_ns centred every half_ns, entirely within the samples' span.
-    """
-    t0, t1 = int(stamps_ns[0]), int(stamps_ns[-1])
-    if t1 - t0 < 2 * half_ns or half_ns <= 0:
-        return 0.0, 0.0
-    centres = np.arange(t0 + half_ns, t1 - half_ns + 1, half_ns, dtype=np.int64)
-    lo = np.searchsorted(stamps_ns, centres - half_ns, side='left')
-    hi = np.searchsorted(stamps_ns, centres + half_ns, side='right')
-    z_max = rel_max = 0.0
-    noise = max(sigma, 1e-12 * abs(median))  # identical samples: any departure is significant
-    for a, b in zip(lo, hi):
-        count = int(b - a)
-        if count < max(min_samples, 1):
-            continue
-        window_median = float(np.median(scales[a:b]))
-        z = abs(window_median - median) / (MEDIAN_STD_ERROR * noise / math.sqrt(count))
-        z_max = max(z_max, z)
-        rel_max = max(rel_max, abs(window_median / median - 1.0))
-    return float(z_max), float(rel_max)
+def segment_drift(stamps_ns: np.ndarray, log_scales: np.ndarray) -> float:
+    """The probability that a segment's scale drifts, from all its samples at once: the
+    least-squares slope of the log scale over the segment, its variance 12 N² / T³ (T the span,
+    N² the noise density of the residuals about the line: hac_ros.core.scale_filter), weighed by
+    the online estimator's prior (scale_filter.drift_probability). stamps_ns (n,) sorted int;
+    log_scales (n,) natural log of metres per SLAM unit."""
+    t = (stamps_ns - stamps_ns[0]) / NS
+    span = float(t[-1]) if len(t) else 0.0
+    if span <= 0.0:
+        return 0.0
+    slope, intercept = np.polyfit(t, log_scales, 1)
+    noise = noise_density(stamps_ns, log_scales - (slope * t + intercept))
+    if noise is None:
+        return 0.0
+    return drift_probability(float(slope), 12.0 * noise.density / span ** 3)
 
 
 def centred_medians(stamps_ns: np.ndarray, scales: np.ndarray, query_ns: np.ndarray, half_ns: int,

@@ -71,7 +71,7 @@ class ScaleOut:
 
     stamp_ns: int
     scale: float
-    spread: float  # robust sigma of the window's samples (1.4826 MAD), metres per SLAM unit
+    spread: float  # the estimate's own standard deviation, metres per SLAM unit (its ±)
 
 
 @dataclass(slots=True)
@@ -95,7 +95,7 @@ class Status:
     stamp_ns: int
     converged: bool
     scale: float  # NaN before any sample
-    spread: float
+    spread: float  # the estimate's own standard deviation (its ±), metres per SLAM unit; inf early
     samples: int
     frames: int
     people: int
@@ -109,7 +109,7 @@ class Status:
     ground_normal_metric: np.ndarray | None = None  # (3,) unit, metric frame, points down
     # (3,) metres, metric frame: the plane below the camera
     ground_point_metric: np.ndarray | None = None
-    drifting: bool = False  # the estimate follows a drift trend (hac_ros.core.estimator)
+    drifting: bool = False  # the evidence says the scale drifts (hac_ros.core.estimator)
     frozen: bool = False  # the scale is held (~/freeze)
     alignment: str = ''  # the metric frame of the current segment: 'gravity' or 'slam'
     services: dict[str, int] = field(default_factory=dict)  # service requests taken, by name

@@ -105,6 +105,10 @@ class HacParams:
     window_max_samples: int = _p(2000, 'cap of samples in the window', low=1, high=10_000_000)
     min_samples: int = _p(10, 'samples in the window before anything metric is published',
                           low=1, high=100_000)
+    converged_max_rel_sigma: float = _p(0.01, 'converged once the estimate\'s own relative '
+                                        'uncertainty (1 sigma, the unobservable HMR and '
+                                        'contact-height biases excluded) is under this, with '
+                                        'min_samples samples', low=1e-6, high=10.0)
 
     # --- synchronisation
     sync_slop_s: float = _p(0.005, 'joints/pose stamp match tolerance, seconds', low=0.0, high=10.0)

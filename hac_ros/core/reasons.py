@@ -137,8 +137,14 @@ REASONS: dict[str, Reason] = {
     'floor_unknown': Reason(
         CONDITION, 'no floor found in the map: the contacts\' map hits are not checked against '
         'it (a table top or a step could pass for it)'),
+    'relocking': Reason(
+        CONDITION, 'gated samples in a row disagree with the estimate, or a new map\'s floor says '
+        'it has another scale (a SLAM that re-initialised without a pose jump?): re-locking on '
+        'the samples once they hold', remedy='none: it re-locks by itself (docs/method.md, '
+        '"The estimator")'),
     # ------------------------------------------------------------ the core's findings
-    'not_converged': Reason(STATUS, 'not converged: too few samples yet'),
+    'not_converged': Reason(STATUS, 'not converged: fewer than min_samples samples, or the '
+                            'estimate\'s own uncertainty above converged_max_rel_sigma'),
     'inputs_suspect': Reason(
         STATUS, 'an input convention is suspect (suspect.<check>: pose_convention, '
         'joint_layout, joints_frame)'),

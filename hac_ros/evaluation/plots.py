@@ -235,7 +235,7 @@ def plot_scale(path: Path, run: Replayed, truth: Truth | None) -> None:
         if converged.any():
             ax.fill_between(d_t, np.where(converged, d_scale - d_spread, np.nan),
                             np.where(converged, d_scale + d_spread, np.nan), color=COLOURS['scale'],
-                            alpha=0.2, step='post', label='window median ± spread (online)')
+                            alpha=0.2, step='post', label='online estimate ± its uncertainty')
     if len(run.scale):
         ax.plot((run.scale.stamps_ns - t0) / NS, run.scale.values, color=COLOURS['scale'], lw=1.8,
                 label='published scale (/hac/scale)')

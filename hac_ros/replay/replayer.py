@@ -11,7 +11,8 @@ Modes (docs/replay.md):
 - ``offline`` (default): one run of the calibrator with its metric outputs deferred
   (:mod:`hac_ros.core.metric_stage`) keeps its accepted samples and its resets;
   :mod:`hac_ros.core.offline` turns them into a stamp -> scale schedule per segment (the median,
-  or a centred rolling median where the scale drifts); the deferred outputs are then resolved with
+  or the smoothed scale where the samples give evidence of drift); the deferred outputs are then
+  resolved with
   that schedule and written (what a second run with that schedule would publish, without reading
   the recording or indexing its maps again).
 
@@ -150,27 +151,17 @@ class NoticeLog:
         log.log(NOTICE_LEVELS.get(notice.level, logging.WARNING), '%s%s', when, notice.text)
 
 
-def segment_text(segment: SegmentScale, window_s: float, min_samples: int) -> str:
-    """An offline segment for the summary: its samples and scale, and the drift test's statistic
-    where the test ran, else why it did not (docs/replay.md, "The two modes")."""
+def segment_text(segment: SegmentScale, min_samples: int) -> str:
+    """An offline segment for the summary: its samples, its scale and that scale's standard error,
+    and the drift test's probability (docs/replay.md, "The two modes")."""
     if not math.isfinite(segment.median):
         return f'{segment.samples} samples: too few (min_samples {min_samples}), no estimate'
     kind = 'constant: median'
     if segment.drift:
         lo, hi = float(np.min(segment.knots_scale)), float(np.max(segment.knots_scale))
-        kind = f'drifting: centred rolling median {lo:.6g} .. {hi:.6g}'
-    span_s = (segment.last_sample_ns - segment.first_sample_ns) / NS
-    if span_s < window_s:
-        drift = (f'no drift test: its samples span {span_s:.1f} s, less than one window '
-                 f'(window_s {window_s:g} s)')
-    elif segment.drift_z == 0.0 and segment.drift_rel == 0.0 and segment.sigma > 0.0:
-        drift = (f'no drift test: no window of window_s {window_s:g} s held min_samples '
-                 f'{min_samples} samples')
-    else:
-        drift = (f'drift test: max z {segment.drift_z:.1f}, max departure '
-                 f'{100 * segment.drift_rel:.1f} %')
-    return (f'{segment.samples} samples, median {segment.median:.6g} +- {segment.sigma:.2g}, '
-            f'{kind} ({drift})')
+        kind = f'drifting: smoothed {lo:.6g} .. {hi:.6g}'
+    return (f'{segment.samples} samples, median {segment.median:.6g} +- {segment.error:.2g}, '
+            f'{kind} (drift test: drift probability {segment.drift_probability:.2f})')
 
 
 def _seconds(stamp_ns: int, start_ns: int) -> str:
@@ -256,12 +247,11 @@ class ReplaySummary:
         lines = [f'hac replay ({self.mode}): {self.input_path} -> {self.output_path}',
                  f'  frames {s.frames}, people {s.people}, input messages {self.input_messages}']
         if self.offline is not None:
-            window_s, min_samples = self.params.window_s, self.params.min_samples
             for k, segment in enumerate(self.offline.segments):
                 start = ('the start' if segment.start_ns < self.start_ns
                          else _seconds(segment.start_ns, self.start_ns))
                 lines.append(f'  segment {k} (from {start}): '
-                             f'{segment_text(segment, window_s, min_samples)}')
+                             f'{segment_text(segment, self.params.min_samples)}')
         if self.last_scale is None:
             lines.append(f'  final scale: none ({self.why_not_calibrated()})')
         else:
