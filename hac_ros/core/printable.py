@@ -1,0 +1,58 @@
+"""Strings from outside made safe for a terminal or a log.
+
+A recording's topic names, message type names and frame ids, a file's name or contents, a topic's
+frame ids: any of them can hold characters that a terminal obeys rather than shows (ESC starts a
+control sequence that can clear the screen or retitle the window, BEL rings, CR overwrites the line,
+U+202E reverses what follows) or that an encoder refuses (the lone surrogates of a file name that
+is not UTF-8). Every such string is passed through :func:`printable` before it is written to a
+terminal or a log; what a command prints or logs as a whole goes through :func:`printable_lines`
+(or :class:`PrintableFormatter` for log records) as the last step.
+
+A character that is not printable (``str.isprintable``: the control characters, format characters
+such as U+202E, separators other than the space, surrogates, unassigned code points) is written
+as Python writes it in a repr (``\\x1b``, ``\\t``, ``\\u202e``, ``\\udcff``); everything else, the
+letters of every script included, is left as it is.
+"""
+from __future__ import annotations
+
+import logging
+
+_NAMED = {'\t': '\\t', '\n': '\\n', '\r': '\\r'}
+
+
+def printable(text: object) -> str:
+    """``str(text)`` with every character that is not printable escaped (module docstring):
+    one line, whatever it held."""
+    s = str(text)
+    if s.isprintable():
+        return s
+    return ''.join(c if c.isprintable() else _escaped(c) for c in s)
+
+
+def printable_lines(text: object) -> str:
+    """As :func:`printable`, line by line: the line breaks of ``text`` are kept (a summary, a
+    message of several lines), every other character that is not printable is escaped."""
+    s = str(text)
+    return '\n'.join(printable(line) for line in s.split('\n'))
+
+
+def _escaped(char: str) -> str:
+    if char in _NAMED:
+        return _NAMED[char]
+    code = ord(char)
+    if code < 0x100:
+        return f'\\x{code:02x}'
+    return f'\\u{code:04x}' if code < 0x10000 else f'\\U{code:08x}'
+
+
+class PrintableFormatter(logging.Formatter):
+    """A :class:`logging.Formatter` that writes each record's message through
+    :func:`printable_lines` (a traceback, when a record carries one, is left as it is)."""
+
+    def formatMessage(self, record: logging.LogRecord) -> str:
+        message = record.message
+        record.message = printable_lines(message)
+        try:
+            return super().formatMessage(record)
+        finally:
+            record.message = message
