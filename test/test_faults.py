@@ -846,9 +846,10 @@ def test_the_inbox_drops_the_oldest_joints_frames_never_a_pose():
         inbox.put('joints', k)
     taken, dropped = [], []
     while True:
-        item, lost, waiting = inbox.get()
+        took = inbox.get()
+        item, waiting = took.item, took.waiting
         assert item is not None
-        dropped += [frame.data for frame in lost]
+        dropped += [frame.data for frame in took.dropped]
         taken.append((item.kind, item.data))
         assert waiting <= 2
         if (item.kind, item.data) == ('joints', 5):
@@ -863,7 +864,7 @@ def test_the_node_warns_latency_backlog_and_a_silent_input():
     latency over latency_warn_s, backlog at joints_backlog_max, no_joints while poses come;
     on its steady-clock timer WARN no_status while input comes but makes no status, STALE
     no_input when nothing comes."""
-    from hac_ros.ros.intake import Liveness
+    from hac_ros.ros.liveness import Liveness
 
     params = HacParams(latency_warn_s=0.1, joints_backlog_max=2, stale_after_s=2.0)
     quiet = Liveness()
@@ -877,7 +878,7 @@ def test_the_node_warns_latency_backlog_and_a_silent_input():
     assert {f.reason for f in found} == {'latency', 'backlog', 'no_joints'}
     assert all(f.level == WARN for f in found)
     assert dict(values)['latency_p99_ms'] == '500.0' and dict(values)['backlog'] == '2'
-    assert busy.findings(params)[1][2] == ('backlog', '0')  # counted again since the last status
+    assert dict(busy.findings(params)[1])['backlog'] == '0'  # counted again since the last status
     busy.status_sent_s = now - 60.0
     busy.first_arrival_s = now - 120.0
     late = busy.stale(params)

@@ -29,7 +29,7 @@ from hac_ros.core.errors import HacError
 from hac_ros.core.numeric import NS
 from hac_ros.core.outputs import Status
 from hac_ros.core.params import NODE_NAME
-from hac_ros.ros.intake import STEADY_CLOCK_REASONS
+from hac_ros.ros.liveness import STEADY_CLOCK_REASONS
 
 log = logging.getLogger(__name__)
 
