@@ -144,3 +144,25 @@ def test_the_readme_two_terminal_example_converges_at_1x_and_drops_nothing(tmp_p
     _, received, processed, dropped, waiting = lines[-1]
     assert (int(received), int(processed), int(dropped), int(waiting)) == (played, played, 0, 0)
     assert 'frames_dropped' not in text and 'Traceback' not in text
+
+
+# ================================================================================ same name
+def test_a_second_node_of_the_same_name_is_warned_about_by_both(harness, capfd):
+    """Two hac_node in one domain with one name: each logs one warning naming the remedy and
+    its /diagnostics says WARN duplicate_name while the other is there; when one leaves, the
+    other says so. (The check runs every 0.5 s of steady time, so both warn within 2 s of the
+    second appearing to DDS; the waits here are only upper bounds.)"""
+    first = harness(stale_after_s=0.5)
+    second = harness(stale_after_s=0.5)
+    for h in (first, second):
+        assert wait_for(lambda h=h: h.node.names.others == 1, PATIENCE_S)
+        assert wait_for(lambda h=h: any(
+            'duplicate_name' in {kv.key: kv.value for kv in m.status[0].values}['reasons']
+            for _, m in list(h.received['/diagnostics'])), PATIENCE_S)
+    log = _Log(capfd)
+    assert log.wait_for(lambda t: t.count('another node named /hac_node is in the graph') == 2,
+                        PATIENCE_S), log.text
+    assert '-r __node:=NAME' in log.text
+    second.close()
+    assert wait_for(lambda: first.node.names.others == 0, PATIENCE_S)
+    assert log.wait_for(lambda t: 'no other node named /hac_node in the graph' in t, PATIENCE_S)

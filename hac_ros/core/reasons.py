@@ -210,6 +210,11 @@ REASONS: dict[str, Reason] = {
     'no_input': Reason(NODE, 'no input at all (STALE, on the steady clock)',
         remedy='check that the inputs are published in this ROS domain (ROS_DOMAIN_ID) on the '
                'topics named'),
+    'duplicate_name': Reason(
+        NODE, 'another node with this node\'s name and namespace is in the graph: every '
+        'output comes twice',
+        remedy='give each node its own name (--ros-args -r __node:=NAME) or namespace, or stop '
+               'one of them'),
     'no_status': Reason(NODE, 'input comes but makes no status (no SLAM pose, or the '
                         'processing far behind)',
         remedy='see no_poses (joints without SLAM poses) and latency (the node far behind)'),

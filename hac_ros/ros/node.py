@@ -69,7 +69,7 @@ from hac_ros.core.reasons import REASONS
 from hac_ros.core.reference import MapIndex
 from hac_ros.ros.arguments import run
 from hac_ros.ros.control import RuntimeControl
-from hac_ros.ros.graph_watch import GRAPH_CHECK_S, GraphWatch
+from hac_ros.ros.graph_watch import GRAPH_CHECK_S, NAME_CHECK_S, GraphWatch, NameWatch
 from hac_ros.ros.intake import Inbox, Item, Processor, header_stamp_ns
 from hac_ros.ros.liveness import Liveness
 from hac_ros.ros.map_intake import MapIntake
@@ -116,6 +116,8 @@ class HacShell(RuntimeControl):
         """Declares the parameters and warns about what ROS would ignore in silence: misspelt
         names, misspelt node sections of ``params_files`` (the node's ``--params-file`` paths)."""
         declare_parameters(self)
+        self.names = NameWatch(self)  # another node of this name (hac_ros.ros.graph_watch)
+        self._name_check = self.create_timer(NAME_CHECK_S, self.names.check, clock=STEADY)
         for warning in startup_warnings(self, params_files):
             self.get_logger().warning(warning)
         self.add_on_set_parameters_callback(self._validate_parameters)
@@ -409,6 +411,8 @@ class HacShell(RuntimeControl):
         oldest = self._inbox.oldest_arrival_s()
         lag = 0.0 if oldest is None else max(time.monotonic() - oldest, 0.0)
         found, values = self.liveness.findings(self.params, lag)
+        duplicate = self.names.finding()
+        found += [duplicate] if duplicate is not None else []
         return found, [*values, ('joints_received', str(self._inbox.received.get('joints', 0)))]
 
     def _check_stale(self) -> None:
