@@ -37,7 +37,7 @@ from _report import RESULTS, command_line, machine, machine_line, table, write_j
 REPO = Path(__file__).resolve().parents[1]
 SHARED = REPO.parent / 'shared' / 'data'
 SIMULATED = ('walk', 'crowd', 'stairs', 'ego', 'handstand', 'skate', 'static', 'drift', 'reset',
-             'occluded')
+             'occluded', 'office')
 # the real-data composites, one per CMU motion (bench/composite.py): on fr2_desk, and on
 # freiburg1_xyz as a steep view (camera 1.6 m high pitched ~48 deg down, the person 1-2 m away)
 COMPOSITES = {f'{view}_{motion + 1:02d}': (sequence, motion) for motion in range(3)

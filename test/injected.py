@@ -180,3 +180,154 @@ def finite_abs_max(values: list[np.ndarray]) -> float:
         if v.size:
             top = max(top, float(np.abs(v).max()))
     return top
+
+
+def maps_stamped_back(seconds: float) -> Edit:
+    """Every map cloud stamped ``seconds`` before the log time it is written at (a SLAM that
+    stamps its map with the keyframe it came from, or a map that takes seconds to build or to
+    cross DDS)."""
+    return _nth(CLOUD, None, lambda msg: _set_stamp(msg, _stamp_ns(msg) - int(seconds * NS)))
+
+
+def camera_rolled(degrees: float) -> Edit:
+    """The camera mounted rolled by ``degrees`` about its optical axis: each SLAM pose's
+    orientation turned about its own z (R_wc' = R_wc Rz), and the joints, the same points in
+    the world, expressed in the rolled optical frame (J' = Rzᵀ J). The intrinsics stay."""
+    from scipy.spatial.transform import Rotation
+
+    turn = Rotation.from_euler('z', degrees, degrees=True)
+    back = turn.inv().as_matrix()
+
+    def pose(msg: Any) -> Any:
+        msg = copy.deepcopy(msg)
+        p = msg.pose.pose if hasattr(msg.pose, 'pose') else msg.pose
+        q = p.orientation
+        x, y, z, w = (Rotation.from_quat([q.x, q.y, q.z, q.w]) * turn).as_quat()
+        q.x, q.y, q.z, q.w = float(x), float(y), float(z), float(w)
+        return msg
+
+    def joints(msg: Any) -> Any:
+        msg = copy.deepcopy(msg)
+        for each in msg.poses:
+            v = back @ np.array([each.position.x, each.position.y, each.position.z])
+            each.position.x, each.position.y, each.position.z = (float(c) for c in v)
+        return msg
+    return chained(_nth(POSE, None, pose), _nth(JOINTS, None, joints))
+
+
+# ------------------------------------------------------------------------ maps of one shape
+def _cloud_points(msg: Any) -> np.ndarray:
+    """A PointCloud2's x, y, z as (N, 3) float64 (the simulator's float32 layout)."""
+    from msg_adapters import cloud_to_xyz
+
+    return np.asarray(cloud_to_xyz(msg), dtype=np.float64)
+
+
+def _cloud_with(msg: Any, points: np.ndarray) -> Any:
+    """``msg`` (a rosbags PointCloud2) carrying ``points`` (N, 3) instead: x, y, z float32."""
+    msg = copy.deepcopy(msg)
+    data = np.ascontiguousarray(points, dtype='<f4')
+    msg.fields = msg.fields[:3]
+    for k, field in enumerate(msg.fields):
+        field.offset, field.datatype, field.count = 4 * k, 7, 1
+    msg.is_bigendian, msg.point_step = False, 12
+    msg.height, msg.width = 1, len(data)
+    msg.row_step = 12 * len(data)
+    msg.data = np.frombuffer(data.tobytes(), dtype=np.uint8)
+    msg.is_dense = True
+    return msg
+
+
+def world_in_map(path: Path) -> tuple[np.ndarray, np.ndarray, float]:
+    """The simulator's world in its SLAM map frame (the first segment): (R (3, 3) world to map,
+    t (3,) the world origin in the map, SLAM units, s metres per SLAM unit): p_map = R p_world / s
+    + t. From the first SLAM and ground-truth camera poses and /gt/scale."""
+    from scipy.spatial.transform import Rotation
+
+    from hac_ros.recording.reader import Recording
+
+    with Recording(path) as rec:
+        slam = rec.read(POSE)[0][1]
+        truth = rec.read('/gt/camera_pose')[0][1]
+        scale = float(rec.read('/gt/scale')[0][1].data)
+
+    def pose(msg: Any) -> tuple[np.ndarray, np.ndarray]:
+        p = msg.pose.pose if hasattr(msg.pose, 'pose') else msg.pose
+        q = p.orientation
+        return (Rotation.from_quat([q.x, q.y, q.z, q.w]).as_matrix(),
+                np.array([p.position.x, p.position.y, p.position.z]))
+    R_slam, c_slam = pose(slam)
+    R_gt, c_gt = pose(truth)
+    R = R_slam @ R_gt.T
+    return R, c_slam - R @ c_gt / scale, scale
+
+
+def maps_reshaped(path: Path, shape: str) -> Edit:
+    """Every map cloud of the recording at ``path`` made degenerate, or floor-only: ``line`` (its
+    points projected onto their principal line), ``point`` (all at their centroid), ``wall``
+    (projected onto a vertical plane through their centroid: a wall-only map), ``camera_plane``
+    (projected onto the level plane through the first camera: a plane the camera moves in) or
+    ``floor`` (only the points within 5 cm of the floor: a floor-only map)."""
+    R, t, scale = world_in_map(path)
+    up = R @ np.array([0.0, 0.0, 1.0])
+    camera = None
+    if shape == 'camera_plane':
+        from hac_ros.recording.reader import Recording
+
+        with Recording(path) as rec:
+            p = rec.read(POSE)[0][1].pose
+            p = p.pose if hasattr(p, 'pose') else p
+            camera = np.array([p.position.x, p.position.y, p.position.z])
+
+    def reshape(msg: Any) -> Any:
+        points = _cloud_points(msg)
+        centre = points.mean(axis=0)
+        if shape == 'point':
+            out = np.repeat(centre[None], len(points), 0)
+        elif shape == 'line':
+            axis = np.linalg.svd(points - centre, full_matrices=False)[2][0]
+            out = centre + np.outer((points - centre) @ axis, axis)
+        elif shape in ('wall', 'camera_plane'):
+            if shape == 'wall':  # a vertical plane: its normal level, along the cloud's spread
+                level = np.linalg.svd((points - centre) - np.outer((points - centre) @ up, up),
+                                      full_matrices=False)[2][1]
+                normal, origin = level, centre
+            else:
+                normal, origin = up, camera
+            out = points - np.outer((points - origin) @ normal, normal)
+        elif shape == 'floor':
+            height = ((points - t) @ R) * scale @ np.array([0.0, 0.0, 1.0])
+            out = points[height < 0.05]
+        else:
+            raise ValueError(shape)
+        return _cloud_with(msg, out)
+    return _nth(CLOUD, None, reshape)
+
+
+def person_lifted(path: Path, start_s: float, duration_s: float, height_m: float) -> Edit:
+    """The people of the recording at ``path`` jump: from ``start_s`` into it, for
+    ``duration_s``, every joint ``height_m`` metres higher in the world (the body as it stands,
+    the feet in the air), in the camera frame of the SLAM pose of the same stamp."""
+    from scipy.spatial.transform import Rotation
+
+    R, _, _ = world_in_map(path)
+    up_map = R @ np.array([0.0, 0.0, 1.0])
+
+    def edit(messages: Iterator[Message]) -> Iterator[Message]:
+        first: int | None = None
+        R_wc = np.eye(3)
+        for topic, log_ns, msg in messages:
+            first = log_ns if first is None else first
+            if topic == POSE:
+                p = msg.pose.pose if hasattr(msg.pose, 'pose') else msg.pose
+                q = p.orientation
+                R_wc = Rotation.from_quat([q.x, q.y, q.z, q.w]).as_matrix()
+            elif topic == JOINTS and start_s <= (log_ns - first) / NS < start_s + duration_s:
+                lift = R_wc.T @ up_map * height_m
+                msg = copy.deepcopy(msg)
+                for each in msg.poses:
+                    each.position.x += float(lift[0])
+                    each.position.y += float(lift[1])
+                    each.position.z += float(lift[2])
+            yield topic, log_ns, msg
+    return edit

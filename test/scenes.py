@@ -82,6 +82,14 @@ class Scene:
         idx = np.argmin(self.joints_world[:, :, 2], axis=1)
         return self.joints_world[np.arange(len(idx)), idx] * [1.0, 1.0, 0.0]
 
+    def with_backdrop(self, points_slam: np.ndarray) -> np.ndarray:
+        """``points_slam`` (N, 3) with a room behind the camera (a box of points 26-36 m behind
+        it, floor to 3 m): a map of three dimensions whose points never fall in a ray's cone, for
+        tests whose map is a few exact points (one point alone is a degenerate map)."""
+        rng = np.random.default_rng(0)
+        box = rng.uniform([-10.0, -40.0, 0.0], [10.0, -30.0, 3.0], (400, 3))
+        return np.vstack([np.asarray(points_slam).reshape(-1, 3), self.to_slam(box)])
+
     def floor_points_slam(self, half_size: float = 6.0, step: float = 0.25) -> np.ndarray:
         g = np.arange(-half_size, half_size + 1e-9, step)
         xx, yy = np.meshgrid(g, g + 2.0)

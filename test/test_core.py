@@ -67,7 +67,7 @@ def test_exact_scene_recovers_scale_from_the_contact_points(contact_mode, refere
     contacts = scene.to_slam(scene.contact_world())
     params = HacParams(contact_mode=contact_mode, reference_mode=reference_mode,
                        cone_min_points=1, map_overlap_min=0.0)
-    cal, outs = run(scene, params, maps=lambda t: contacts[t:t + 1])
+    cal, outs = run(scene, params, maps=lambda t: scene.with_backdrop(contacts[t:t + 1]))
     got = scales(outs)
     assert len(got) == len(scene.stamps_ns) - params.min_samples + 1
     np.testing.assert_allclose(got, scene.true_scale, rtol=1e-9)
@@ -117,7 +117,7 @@ def test_metric_outputs_follow_spec_transforms():
     scene = walking_scene(true_scale=1.7)
     contacts = scene.to_slam(scene.contact_world())
     params = HacParams(cone_min_points=1, map_overlap_min=0.0, human_filter='none')
-    _, outs = run(scene, params, maps=lambda t: contacts[t:t + 1])
+    _, outs = run(scene, params, maps=lambda t: scene.with_backdrop(contacts[t:t + 1]))
     odom = [o for o in outs if isinstance(o, OdometryOut)]
     joints = [o for o in outs if isinstance(o, HumanJointsOut)]
     index = {int(s): t for t, s in enumerate(scene.stamps_ns)}
@@ -492,8 +492,9 @@ def test_the_odometry_twist_is_the_step_in_the_later_frame_and_the_turn_per_seco
 def test_the_map_in_use_follows_cloud_mode_and_its_cap():
     """replace: the new map (its newest cloud_max_points); accumulate: the previous points then
     the new ones, the oldest leaving first."""
-    old = MapIndex(np.arange(30.0).reshape(10, 3), 'map', 1)
-    new = MapIndex(100.0 + np.arange(24.0).reshape(8, 3), 'map', 2)
+    rng = np.random.default_rng(0)  # clouds of three dimensions (a line is a degenerate map)
+    old = MapIndex(rng.uniform(0.0, 10.0, (10, 3)), 'map', 1)
+    new = MapIndex(100.0 + rng.uniform(0.0, 10.0, (8, 3)), 'map', 2)
     assert new.composed(None, 8, None) is new
     np.testing.assert_array_equal(new.composed(None, 5, None).points_map, new.points_map[-5:])
     both = new.composed(old, 12, None)

@@ -15,6 +15,7 @@ from scipy.spatial.transform import Rotation
 from hac_ros.core.calibrator import Calibrator
 from hac_ros.core.ground import GroundModel, map_floor
 from hac_ros.core.health import WARN, HealthMonitor
+from hac_ros.core.layouts import SMPL24
 from hac_ros.core.outputs import HumanJointsOut, NoticeOut, SampleOut, ScaleOut
 from hac_ros.core.params import HacParams
 from hac_ros.core.reference import MapIndex
@@ -90,7 +91,9 @@ def test_the_map_floor_gives_the_normal_and_offset_a_leaning_body_cannot():
     index = MapIndex(scene.to_slam(np.vstack([room_points(0), table_row()])))
     ground = GroundModel('hmr', 0.02, 200)
     for t, joints in enumerate(leaning(scene, 4.0)):
-        ground.add_camera(scene.R_wc_slam[t])
+        up = scene.R_wc_slam[t] @ (joints[12] - joints[0])
+        ground.down.add(SMPL24, joints, scene.R_wc_slam[t], scene.c_slam[t], index,
+                        up / np.linalg.norm(up))  # which way is down: the scene says
         ground.add_body(scene.R_wc_slam[t], joints[12] - joints[0])
     body = ground._body_normal()
     assert body is not None and angle_deg(body, true_down(scene)) > 3.0
@@ -109,7 +112,9 @@ def test_a_map_without_a_floor_is_not_trusted():
     assert map_floor(index, true_down(scene)) is None
     ground = GroundModel('hmr', 0.02, 200)
     for t, joints in enumerate(scene.joints_cam):
-        ground.add_camera(scene.R_wc_slam[t])
+        up = scene.R_wc_slam[t] @ (joints[12] - joints[0])
+        ground.down.add(SMPL24, joints, scene.R_wc_slam[t], scene.c_slam[t], index,
+                        up / np.linalg.norm(up))  # which way is down: the scene says
         ground.add_body(scene.R_wc_slam[t], joints[12] - joints[0])
     ground.plane(index)
     assert not ground.trusted

@@ -92,7 +92,7 @@ def test_human_filter_none_publishes_the_joints_as_they_come():
         cal = Calibrator(HacParams(human_filter=mode, cone_min_points=1, map_overlap_min=0.0))
         outs: list = []
         for t, stamp in enumerate(scene.stamps_ns):
-            outs += cal.add_map(int(stamp), contacts[t:t + 1], 'map')
+            outs += cal.add_map(int(stamp), scene.with_backdrop(contacts[t:t + 1]), 'map')
             outs += cal.add_pose(int(stamp), scene.R_wc_slam[t], scene.c_slam[t], 'map')
             outs += cal.add_joints(int(stamp), scene.joints_cam[t][None], 'cam')
         runs[mode] = [o.joints_metric for o in outs if isinstance(o, HumanJointsOut)]

@@ -186,16 +186,20 @@ class Calibrator(FrameLoop):
         if self._map_frame is not None and index.frame_id != self._map_frame:
             self.maps.foreign = index
             return self._reject('cloud_wrong_frame', index.stamp_ns)
-        judged, why = self.maps.judge(index, None if self.track.last is None
-                                      else self.track.last.c_map)
-        if judged is None:  # values no SLAM produces (hac_ros.core.plausibility)
-            return self._reject('cloud_implausible', index.stamp_ns, why)
+        judged, reason, why = self.maps.judge(index, None if self.track.last is None
+                                              else self.track.last.c_map)
+        if judged is None:  # values no SLAM produces, or no surface (plausibility, map_shape)
+            return self._reject(reason, index.stamp_ns, why)
+        if self.maps.before_segment(judged.stamp_ns):
+            return self._reject('map_old_segment', judged.stamp_ns)
         stream_ns = max(self.map.stamp_ns if self.map is not None else -1, self._last_frame_ns,
                         self.track.newest_stamp_ns or -1)
+        out = [] if self.maps.add(judged) else self._reject('map_superseded', judged.stamp_ns)
         if self.timeline.is_before(judged.stamp_ns, stream_ns):
-            late, self.timeline.map = self.timeline.map, judged  # a new stream's, if time jumped
-            return [] if late is None else self._reject('map_late', late.stamp_ns)
-        return [] if self.maps.add(judged) else self._reject('map_late', judged.stamp_ns)
+            # a map that lags the poses (maps are slow) is used now if it is the newest; it is
+            # also held, in case the poses confirm that time jumped back (timeline)
+            self.timeline.map = judged
+        return out
 
     @_public
     def add_joints(self, stamp_ns: int, joints_cam: np.ndarray,

@@ -1,12 +1,13 @@
 """Contact joint selection (docs/method.md, step 1).
 
-The paper takes the lowest joint along the camera's y axis (y points down): ``argmax_i J_i.y``.
-That rule breaks when the camera rolls or pitches, so ``lowest_gravity`` takes the lowest joint
-along the ground normal once one is known. The authors' code instead computes a scale for every
-joint and keeps the per-frame maximum ratio (``max_ratio``): a joint can never lie behind the
-surface its ray hits, so every ratio is at most the true scale and the largest is the contact.
-``feet``, ``pelvis`` and ``head`` are the paper's fixed-joint ablations (Tab. 1). Which joint is
-which is the
+The paper takes the lowest joint along the camera's y axis (y points down): ``argmax_i J_i.y``
+(``lowest``, kept as the paper's rule). That rule breaks when the camera rolls or pitches, so
+``lowest_gravity`` takes the lowest joint along the scene's down (the ground normal, or before it
+the bodies' votes: :mod:`hac_ros.core.down_vote`); without either it has no candidate. The authors'
+code instead computes a scale for every joint and keeps the per-frame maximum ratio (``max_ratio``):
+a joint can never lie behind the surface its ray hits, so every ratio is at most the true scale and
+the largest is the contact. ``feet``, ``pelvis`` and ``head`` are the paper's fixed-joint ablations
+(Tab. 1). Which joint is which is the
 :class:`~hac_ros.core.layouts.JointLayout`'s (``joint_layout``).
 """
 from __future__ import annotations
@@ -23,7 +24,8 @@ def candidate_joints(mode: str, layout: JointLayout, joints_cam: np.ndarray, R_w
     """Indices of the joints whose rays are queried for one person.
 
     joints_cam: (K, 3) metres, camera optical frame, finite, the person in front of the camera.
-    R_wc: (3, 3) camera to map. normal_map: (3,) down-pointing ground normal in the map, or None.
+    R_wc: (3, 3) camera to map. normal_map: (3,) down, unit, map frame (the ground normal or the
+    bodies' rough down), or None (``lowest_gravity`` then has no candidate).
     Only joints in front of the camera (z > 0) among the layout's contact candidates are
     candidates. Plain Python over the joints: numpy's per-call cost dominates at this size.
     """
@@ -34,9 +36,11 @@ def candidate_joints(mode: str, layout: JointLayout, joints_cam: np.ndarray, R_w
     allowed = layout.contact or range(len(depth))
     if mode == 'max_ratio':
         return [j for j in allowed if depth[j] > 0.0]
-    if mode == 'lowest_gravity' and normal_map is not None:
+    if mode == 'lowest_gravity':
+        if normal_map is None:
+            return []
         height_down = (joints_cam @ (R_wc.T @ normal_map)).tolist()  # along gravity, camera-centred
-    else:  # 'lowest' (and lowest_gravity before a normal exists)
+    else:  # 'lowest': the paper's camera-y rule
         height_down = joints_cam[:, 1].tolist()
     best, lowest = -1, -math.inf
     for j in allowed:

@@ -100,14 +100,16 @@ class ConventionCheck:
         self._map_views.append(float(inside.mean()) if len(inside) else 0.0)
 
     def add_person(self, layout: JointLayout, R_wc: np.ndarray, joints_cam: np.ndarray,
-                   up_cam: np.ndarray, K: np.ndarray | None, image_size: tuple[int, int]) -> None:
+                   up_cam: np.ndarray, down_map: np.ndarray | None, K: np.ndarray | None,
+                   image_size: tuple[int, int]) -> None:
         """One person: joints_cam (K, 3) metres, camera optical frame, in ``layout``'s order;
-        up_cam (3,) its body's up axis in the camera; R_wc (3, 3) camera-to-map; the intrinsics
-        (None: the joints in the image are not judged)."""
+        up_cam (3,) its body's up axis in the camera; R_wc (3, 3) camera-to-map; down_map (3,)
+        the scene's down, unit, map frame (None while unknown: nobody is judged upside down); the
+        intrinsics (None: the joints in the image are not judged)."""
         self._people += 1
         up_map = R_wc @ up_cam
-        if float(up_map @ R_wc[:, 1]) > 0.5 * float(np.linalg.norm(up_map)):  # along camera-down
-            self._inverted += 1
+        if down_map is not None and float(up_map @ down_map) > 0.5 * float(np.linalg.norm(up_map)):
+            self._inverted += 1  # the body's up axis along the scene's down
         if K is not None:
             in_image = in_view(joints_cam, K, *image_size)
             self._joints += len(in_image)

@@ -22,6 +22,7 @@ from hac_ros.core.estimator import RollingScale
 from hac_ros.core.ground import GroundModel
 from hac_ros.core.human_filter import RootFilter
 from hac_ros.core.map_book import MapBook
+from hac_ros.core.map_shape import MapShape, plane_problem
 from hac_ros.core.metric_stage import MetricStage, ScaleAt, StageConfig, finite_scale
 from hac_ros.core.numeric import MEDIAN_STD_ERROR, NS
 from hac_ros.core.outputs import NoticeOut, ResetOut, SampleOut, Status
@@ -37,6 +38,7 @@ from hac_ros.core.pending import (
 )
 from hac_ros.core.plausibility import body_unit_problem
 from hac_ros.core.pose_stream import FreezeWatch, Pose, PoseTrack
+from hac_ros.core.posture import posture_problem
 from hac_ros.core.reasons import text as reason_text
 from hac_ros.core.reference import MapIndex
 from hac_ros.core.sample import Scene, person_sample
@@ -159,6 +161,8 @@ class FrameLoop:
         out = {}
         if self.freeze.holds:
             out['slam_frozen'] = reason_text('slam_frozen')
+        if self.maps.degenerate:
+            out['map_degenerate'] = self.maps.degenerate
         if self.ground.floor_missing:
             out['floor_unknown'] = reason_text('floor_unknown')
         return out
@@ -194,7 +198,6 @@ class FrameLoop:
             self._segment_starts = None
         self.track.append(pose, (self.track.step(pose) if move is None else move)
                           if measured else None)
-        self.ground.add_camera(pose.R_wc)
         # frames before this stamp first, then this pose's odometry, then the frame of this stamp
         while self._pending and self._pending[0].stamp_ns < pose.stamp_ns:
             out += self._process(self._pending.pop(0))
@@ -236,7 +239,7 @@ class FrameLoop:
         out: list[Record] = self._new_segment(first_pose, cause)
         self.track.clear()
         if cause not in KEEPS_MAP:
-            self.maps.drop()
+            self.maps.drop(first_pose.stamp_ns)
         # frames before the reset belong to the old map: their poses are gone
         stale = [f for f in self._pending if f.stamp_ns < first_pose.stamp_ns]
         self._pending = [f for f in self._pending if f.stamp_ns >= first_pose.stamp_ns]
@@ -248,10 +251,27 @@ class FrameLoop:
         return out
 
     # ================================================================== frames
-    def _activate_map(self, stamp_ns: int) -> list[Record]:
+    def _activate_map(self, stamp_ns: int, c_map: np.ndarray) -> list[Record]:
         """Make the latest map not after ``stamp_ns`` the current one (the processing order); a
-        map that does not overlap the previous one is a SLAM re-initialisation."""
-        chosen, lost = self.maps.activate(stamp_ns)
+        map that does not overlap the previous one is a SLAM re-initialisation; a plane map that
+        cannot be the floor is refused (hac_ros.core.map_shape; the camera at ``c_map`` (3,),
+        SLAM units), and a plane map in use is judged once the bodies give their axis."""
+        axis = self.ground.body_axis()
+
+        def problem(index: MapIndex, shape: MapShape) -> str:
+            return plane_problem(shape, index.sample, c_map, axis)
+        chosen, lost, refused = self.maps.activate(stamp_ns, problem)
+        if refused:
+            return self._reject('map_degenerate', stamp_ns, refused)
+        if self.maps.plane_unjudged and self.map is not None and self.maps.shape is not None:
+            why = plane_problem(self.maps.shape, self.map.sample, c_map, axis)
+            if why:  # its samples measured a wall or the camera's own plane: dropped too
+                self.maps.refuse_in_use(why)
+                self.estimator.reset()
+                return self._reject('map_degenerate', stamp_ns, self.maps.degenerate +
+                                    ' (refused)')
+            if axis is not None:
+                self.maps.plane_judged()
         pose = self.track.last
         if chosen is None or not lost or pose is None:
             return []
@@ -273,7 +293,7 @@ class FrameLoop:
         pose = self.track.at(stamp)
         if pose is None:
             return self._reject('no_pose', stamp)
-        out += self._activate_map(stamp)
+        out += self._activate_map(stamp, pose[1])
         out += self._hand_map(stamp)
         R_wc, c_map = pose
         self._last_frame_ns = stamp
@@ -306,13 +326,21 @@ class FrameLoop:
         if not (joints[:, 2] > 0.0).any():
             return self._rejected_sample(stamp, person, 'behind_camera')
         up_cam = self.layout.up_axis(joints)
+        notes = self._vote_down(stamp, R_wc, c_map, joints, up_cam)
+        down = self.ground.rough_down()
+        self.check.add_person(self.layout, R_wc, joints, up_cam, down, self._K, self._image_size)
+        if posture_problem(self.layout, joints, up_cam, None if down is None else R_wc.T @ down):
+            # only standing people measure (hac_ros.core.posture)
+            return notes + self._rejected_sample(stamp, person, 'not_standing')
         self.ground.add_body(R_wc, up_cam)
-        self.check.add_person(self.layout, R_wc, joints, up_cam, self._K, self._image_size)
+        up_norm = float(np.linalg.norm(up_cam))
+        if down is None and math.isfinite(up_norm) and up_norm > 0.0:
+            down = -(R_wc @ up_cam) / up_norm  # until the scene says: the body's own down
         scale_now = self.online_scale()
-        scene = Scene(self.map, self.ground.plane(self.map), self.ground.normal(),
-                      self.ground.trusted, self._K, self._image_size, scale_now, self._cos_min)
+        scene = Scene(self.map, self.ground.plane(self.map), down, self.ground.trusted, self._K,
+                      self._image_size, scale_now, self._cos_min)
         sample = person_sample(self.params, self.layout, scene, R_wc, c_map, joints)
-        relock: list[Record] = []
+        relock: list[Record] = notes
         if self.ground.judge_window(sample.floor_scale, scale_now, self.estimator.samples,
                                     self.params.min_samples, self.params.plausibility_rel_tol):
             self.estimator.reset()  # it locked on what the floor now refuses: judged afresh
@@ -342,6 +370,22 @@ class FrameLoop:
                 contact_map = c_map + R_wc @ sample.contact_cam / scale_now
                 self.ground.add_contact(contact_map, scale_now)
         return out
+
+    def _vote_down(self, stamp: int, R_wc: np.ndarray, c_map: np.ndarray, joints: np.ndarray,
+                   up_cam: np.ndarray) -> list[Record]:
+        """Every person (standing or not) tells which way is down while the scene has not said
+        (hac_ros.core.down_vote); when it says that down is along the bodies' up (people on their
+        hands), the samples taken with the bodies' own down are dropped."""
+        up_norm = float(np.linalg.norm(up_cam))
+        if not (self.ground.down.wanted and self.map is not None and math.isfinite(up_norm)
+                and up_norm > 0.0):
+            return []
+        self.ground.down.add(self.layout, joints, R_wc, c_map, self.map, R_wc @ up_cam / up_norm)
+        if not (self.ground.down.along_up and self.estimator.samples):
+            return []
+        self.estimator.reset()
+        return [NoticeOut(stamp, 'down_found', 'down is along the bodies\' up axis (people on '
+                          'their hands): the estimate restarted', 'info')]
 
     def _rejected_sample(self, stamp: int, person: int, reason: str, detail: str = ''
                          ) -> list[Record]:

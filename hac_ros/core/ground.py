@@ -1,20 +1,21 @@
 """The ground plane: the out-of-view fallback (docs/method.md, step 4; paper Eq. 6).
 
 A plane is ``{p : n·p = b}`` in the SLAM map frame with ``n`` a unit normal pointing *down* (along
-gravity, like the camera's y axis) and ``b`` in SLAM units; a point with ``n·p > b`` is below it.
+gravity) and ``b`` in SLAM units; a point with ``n·p > b`` is below it.
 
-``hmr`` (ours) finds ``n`` without the scale it is used to find. First the body's up axis (pelvis
-→ neck) of many frames rotated into the map (the principal axis of their scatter, so a handstand
-still gives the axis; the sign from the cameras' own down axis): a degree or so off, as people
-lean. Then **the map's floor** (:func:`map_floor`): the lowest dense surface across that axis, a
-plane fitted robustly to its points, gives the normal to about a tenth of a degree and the offset
-``b`` to about a centimetre; the floor is then *trusted* (:attr:`GroundModel.trusted`): a map hit
-far above it is not a contact before any scale exists (a table top between the camera and the
-feet, :mod:`hac_ros.core.sample`). Where the map shows no floor, the contact joints placed in the
-map with the scale refine the body's normal: RANSAC (3-point samples, a metric inlier distance),
-then a least-squares refit on the inliers; contacts along a line (a straight walk) fix the normal
-only across the line, so the body normal is kept, made perpendicular to the line; the offset is
-the lowest dense segment of the points along ``n`` (a histogram, not the single lowest point;
+``hmr`` (ours) finds ``n`` without the scale it is used to find. First the body's up axis (pelvis →
+neck) of many frames rotated into the map (the principal axis of their scatter, so a handstand still
+gives the axis; which end is down from the scene, :mod:`hac_ros.core.down_vote`: never the camera's
+axes): a degree or so off, as people lean. Then **the map's floor** (:func:`map_floor`): the lowest
+dense surface across that axis, a plane fitted robustly to its points, gives the normal to about a
+tenth of a degree and the offset ``b`` to about a centimetre; the floor is then *trusted*
+(:attr:`GroundModel.trusted`): a map hit far above it is not a contact before any scale exists (a
+table top between the camera and the feet, :mod:`hac_ros.core.sample`). Where the map shows no
+floor, the contact joints placed in the map with the scale refine the body's normal: RANSAC (3-point
+samples, a metric inlier distance), then a least-squares refit on the inliers; contacts along a line
+(a straight walk) fix the normal only across the line, so the body normal is kept, made
+perpendicular to the line; the offset is the lowest dense segment of the points along ``n`` (a
+histogram, not the single lowest point;
 :meth:`MapIndex.floor_offset`).
 
 Ablations: ``slam_y`` (the SLAM map's y axis as the normal), ``largest_plane`` (RANSAC's largest
@@ -26,6 +27,7 @@ import math
 
 import numpy as np
 
+from hac_ros.core.down_vote import DownVote
 from hac_ros.core.plane import Plane, fit_plane_lsq, ransac_plane, robust_plane
 from hac_ros.core.reference import MapIndex
 
@@ -111,8 +113,8 @@ class GroundModel:
     def reset(self) -> None:
         # sums over the frames (unit vectors, map frame)
         self._scatter = np.zeros((3, 3))  # sum of the bodies' up axes' outer products, map frame
-        self._body_up_sum = np.zeros(3)
-        self._camera_down = np.zeros(3)  # sum of the cameras' y axes, map frame
+        self._up_sum = np.zeros(3)  # sum of the bodies' up axes (a sign for the axis)
+        self.down = DownVote()  # which way along the bodies' axis is down (the scene says)
         self._body_frames = 0
         self._body_cache: tuple[int, np.ndarray | None] = (0, None)
         # ring buffer of the last CONTACT_BUFFER contact joints, SLAM units, map frame
@@ -128,10 +130,6 @@ class GroundModel:
         self._rng = np.random.default_rng(self._seed)
 
     # ------------------------------------------------------------------ evidence
-    def add_camera(self, R_wc: np.ndarray) -> None:
-        """The camera's down axis (its y axis) in the map: the sign of the normal."""
-        self._camera_down += R_wc[:, 1]
-
     def add_body(self, R_wc: np.ndarray, up_cam: np.ndarray) -> None:
         """One person's up axis (the layout's lower → upper joints), up_cam (3,) camera optical
         frame, any length."""
@@ -139,7 +137,7 @@ class GroundModel:
         if not math.isfinite(norm) or norm <= 0.0:
             return
         up_map = R_wc @ (up_cam / norm)
-        self._body_up_sum += up_map
+        self._up_sum += up_map
         self._scatter += np.outer(up_map, up_map)
         self._body_frames += 1
 
@@ -212,6 +210,24 @@ class GroundModel:
             return self._body_normal()
         return None
 
+    def body_axis(self) -> np.ndarray | None:
+        """The bodies' axis (3,), unit, map frame, once BODY_MIN_FRAMES bodies give a clear one
+        (else None); signed as most bodies' lower → upper joints point (up, unless most people
+        are on their hands: :mod:`hac_ros.core.down_vote` says which way is down)."""
+        if self._body_frames < BODY_MIN_FRAMES:
+            return None
+        eigval, eigvec = np.linalg.eigh(self._scatter)
+        if eigval[-1] < BODY_MIN_ANISOTROPY * max(eigval[-2], 1e-12):
+            return None
+        axis = eigvec[:, -1]
+        return axis if float(axis @ self._up_sum) >= 0.0 else -axis
+
+    def rough_down(self) -> np.ndarray | None:
+        """Down (3,), unit, map frame, for choosing a contact: the normal, else the bodies' votes
+        (:class:`~hac_ros.core.down_vote.DownVote`), else None."""
+        normal = self.normal()
+        return normal if normal is not None else self.down.down()
+
     def plane(self, map_index: MapIndex | None) -> Plane | None:
         """The current plane for this map, cached per (map, normal)."""
         if self.mode == 'none' or map_index is None or len(map_index) < 3:
@@ -235,13 +251,10 @@ class GroundModel:
         return plane
 
     # ------------------------------------------------------------------ internals
-    def _orient_down(self, normal: np.ndarray) -> np.ndarray:
-        """Flip ``normal`` to point down: along the cameras' mean y axis, else against the bodies'
-        up."""
-        down = self._camera_down
-        if np.linalg.norm(down) > 0 and abs(normal @ down) > 0.3 * np.linalg.norm(down):
-            return normal if normal @ down > 0 else -normal
-        return normal if normal @ self._body_up_sum <= 0 else -normal
+    def _orient_down(self, normal: np.ndarray) -> np.ndarray | None:
+        """``normal`` turned to point down as the scene says (the bodies' votes), or None while
+        that is undecided."""
+        return self.down.orient(normal)
 
     def _map_floor(self, map_index: MapIndex) -> Plane | None:
         """The map's floor (cached per map and body normal): :func:`map_floor` about the bodies'
@@ -300,9 +313,10 @@ class GroundModel:
             line = np.linalg.svd(centred, full_matrices=False)[2][0]
             normal = body - (body @ line) * line
             normal /= np.linalg.norm(normal)
-        normal = self._orient_down(normal)
-        if np.degrees(np.arccos(np.clip(normal @ body, -1, 1))) <= CONTACT_MAX_TILT_DEG:
-            self._contact_normal = normal
+        oriented = self._orient_down(normal)
+        if oriented is not None and (np.degrees(np.arccos(np.clip(oriented @ body, -1, 1)))
+                                     <= CONTACT_MAX_TILT_DEG):
+            self._contact_normal = oriented
 
     def _contact_points(self) -> np.ndarray:
         """The buffered contact joints (M, 3), oldest first, SLAM units, map frame."""
@@ -322,6 +336,8 @@ class GroundModel:
             return None
         normal, offset, _ = fit_plane_lsq(points[mask])
         oriented = self._orient_down(normal)
+        if oriented is None:
+            return None
         if oriented @ normal < 0:
             offset = -offset
         return Plane(oriented, offset)

@@ -96,6 +96,10 @@ REASONS: dict[str, Reason] = {
     'behind_camera': Reason(REJECTED, 'a person entirely behind the camera',
         remedy='none for a few; many: the joints are not in the camera optical frame (z '
                'forward, docs/inputs.md)'),
+    'not_standing': Reason(
+        REJECTED, 'a person seated, kneeling or lying: only standing people measure the floor '
+        '(the body cannot tell planted feet from hanging ones)',
+        remedy='none: the scale comes from the people who stand or walk'),
     'no_pose': Reason(REJECTED, 'no SLAM pose at (or around) the joints stamp',
         remedy='publish the SLAM pose of each image with the image\'s stamp, or poses within '
                'interp_max_gap_s around it, from the same clock as the joints'),
@@ -113,6 +117,11 @@ REASONS: dict[str, Reason] = {
     'gated': Reason(REJECTED, 'scale sample far from the current estimate (outlier gate)',
         remedy='none: an outlier sample was refused; after a known change of scale, call '
                '~/reset'),
+    'no_down': Reason(
+        REJECTED, 'a body without an up axis (its axis joints on one point) while the scene has '
+        'not said which way is down (docs/method.md, "Which way is down")',
+        remedy='none: such bodies are used once the floor or other bodies say which way is '
+               'down; many: check joint_layout'),
     # ------------------------------------------------------------ maps
     'cloud_empty': Reason(REJECTED, 'map cloud with no valid point: previous map kept',
         remedy='none: the previous map is kept; check the map publisher if it lasts'),
@@ -124,8 +133,18 @@ REASONS: dict[str, Reason] = {
         REJECTED, 'a map cloud of values no SLAM produces (a wrong byte order?) was refused',
         warns=True,
         remedy='check the map\'s byte order and fields (is_bigendian, point_step, offsets)'),
-    'map_late': Reason(REJECTED, 'map cloud older than the map in use',
-        remedy='none: a map older than the one in use is not used'),
+    'map_degenerate': Reason(
+        CONDITION, 'a map cloud whose points lie at a point, on a line, or on one plane that '
+        'cannot be the floor (tilted from the bodies\' axis, or through the camera) was '
+        'refused, and no good map serves since', counted=True,
+        remedy='publish the SLAM\'s map points themselves (not a projection, a line or a '
+               'single wall); none once a good map comes'),
+    'map_superseded': Reason(
+        REJECTED, 'a map cloud stamped at or before the map in use: the newer map is kept',
+        remedy='none: the newer map is used'),
+    'map_old_segment': Reason(
+        REJECTED, 'a map cloud stamped before the SLAM re-initialised: the old map\'s, not used',
+        remedy='none: the new segment waits for its own map'),
     'camera_info_invalid': Reason(REJECTED, 'CameraInfo with invalid intrinsics',
         remedy='publish CameraInfo with positive focal lengths in K and the image size'),
     # ------------------------------------------------------------ outputs

@@ -174,24 +174,30 @@ class MapIndex:
         The PLANE_NEIGHBOURS map points nearest that point within PLANE_RADIUS_REL of its
         distance (scene-relative: no SLAM-unit threshold) are fitted by :func:`local_plane`.
         """
-        assert self.tree is not None
         o = np.asarray(origin_map, dtype=np.float64)
         d = np.asarray(direction_map, dtype=np.float64)
-        guess = o + near_distance * d
-        if self.size < PLANE_MIN_POINTS:
-            return None
-        dist, idx = self.tree.query(guess, k=min(PLANE_NEIGHBOURS, self.size),
-                                    distance_upper_bound=PLANE_RADIUS_REL * near_distance)
-        idx = idx[np.isfinite(dist)]
-        if len(idx) < PLANE_MIN_POINTS:
-            return None
-        plane = local_plane(self.points_map[idx])
+        plane = self.surface_at(o + near_distance * d, near_distance)
         if plane is None:
             return None
         t = ray_plane_distance(o, d, *plane)
         if t is None or not abs(t - near_distance) <= PLANE_MAX_SHIFT_REL * near_distance:
             return None
         return t
+
+    def surface_at(self, point_map: np.ndarray, distance: float
+                   ) -> tuple[np.ndarray, np.ndarray] | None:
+        """The local surface around ``point_map`` (3,), SLAM units, map frame, seen from
+        ``distance`` SLAM units away: (unit normal, a point on it) of the plane fitted to the
+        PLANE_NEIGHBOURS map points nearest it within PLANE_RADIUS_REL of ``distance``, or None
+        (too few points, no plane)."""
+        if self.tree is None or self.size < PLANE_MIN_POINTS:
+            return None
+        dist, idx = self.tree.query(point_map, k=min(PLANE_NEIGHBOURS, self.size),
+                                    distance_upper_bound=PLANE_RADIUS_REL * distance)
+        idx = idx[np.isfinite(dist)]
+        if len(idx) < PLANE_MIN_POINTS:
+            return None
+        return local_plane(self.points_map[idx])
 
     def _cone(self, origin_map: np.ndarray, direction_map: np.ndarray, cos_min: float,
               window: tuple[float, float] | None) -> tuple[np.ndarray, np.ndarray]:

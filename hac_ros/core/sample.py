@@ -42,8 +42,9 @@ def no_sample(reason: str) -> Sample:
 @dataclass
 class Scene:
     """What a sample is measured against: the map (or None), the ground plane (SLAM map frame,
-    or None) and its down normal (or None), whether that floor is trusted (found in the map, or its
-    normal refined by contacts: ``GroundModel.trusted``), the intrinsics (K (3, 3) pixels or None,
+    or None), down (the plane's normal, else the bodies' rough down; None while unknown), whether
+    that floor is trusted (found in the map, or its normal refined by contacts:
+    ``GroundModel.trusted``), the intrinsics (K (3, 3) pixels or None,
     image width and height), the estimate now (None before convergence) and cos of the cone's half
     angle."""
 
@@ -61,6 +62,10 @@ def person_sample(params: HacParams, layout: JointLayout, scene: Scene, R_wc: np
                   c_map: np.ndarray, joints: np.ndarray) -> Sample:
     """The sample of one person (joints (K, 3) metres, camera optical frame, finite, some in front
     of the camera), or :func:`no_sample` with the reason there is none."""
+    if scene.map is None and scene.plane is None:
+        return no_sample('no_map')
+    if scene.normal is None and params.contact_mode == 'lowest_gravity':
+        return no_sample('no_down')  # the lowest joint needs down (hac_ros.core.down_vote)
     candidates = candidate_joints(params.contact_mode, layout, joints, R_wc, scene.normal)
     if not candidates:
         return no_sample('behind_camera')
@@ -68,9 +73,8 @@ def person_sample(params: HacParams, layout: JointLayout, scene: Scene, R_wc: np
     # the points on the surface the candidates touch (metres, camera frame): the joints
     # themselves, or moved down onto the sole (sole_correction)
     points = joints[candidates]
-    if params.sole_correction:
-        down_cam = R_wc.T @ scene.normal if scene.normal is not None else np.array([0.0, 1.0, 0.0])
-        points = sole_points(layout, joints, candidates, down_cam)
+    if params.sole_correction and scene.normal is not None:  # down unknown: the joints as they are
+        points = sole_points(layout, joints, candidates, R_wc.T @ scene.normal)
     plane = scene.plane
     ratios = [math.nan] * len(candidates)  # d_A / d_S of each candidate, metres per SLAM unit
     floor_ratios = [math.nan] * len(candidates)  # the same with the ground plane's d_S

@@ -14,9 +14,13 @@ newest stamp of the stream so far:
   it a jump forward that persists (``ahead``: a new segment); the next pose back in the old
   timeline makes it one stamp far ahead of the rest (refused, ``pose_stamp_outlier``).
 
-While a jump back is suspect, joints frames and a map older than the stream by more than the
-tolerance are *held*: they belong to the new stream if it is confirmed (so that its first frames
-are calibrated too) and are late otherwise. Stamps are int nanoseconds.
+While a jump back is suspect, joints frames older than the stream by more than the tolerance are
+*held*: they belong to the new stream if it is confirmed (so that its first frames are calibrated
+too) and are late otherwise. A map never decides a jump in time: maps are slow by nature (stamped
+with the keyframe they came from, built or carried for seconds), so a map older than the stream
+is used by the current stream when it is the newest one (hac_ros.core.map_book) and also held, in
+case the poses confirm a jump back (a looped recording's latched map arrives before its poses).
+Stamps are int nanoseconds.
 """
 from __future__ import annotations
 
@@ -67,7 +71,7 @@ class Timeline:
         self.suspects: list[Stamped] = []
         self.direction = ''  # 'back' or 'ahead' while there are suspects
         self.frames: list[Any] = []  # joints frames held for a new stream, in arrival order
-        self.map: Any = None  # the newest map held for a new stream
+        self.map: Any = None  # the newest map older than the stream, for a new stream
 
     def judge(self, item: Stamped, newest_ns: int | None) -> TimeVerdict:
         """``item``'s pose against ``newest_ns``, the newest pose stamp of the current stream
@@ -142,8 +146,6 @@ class Timeline:
             reason = 'pose_out_of_order' if self.direction == 'back' else 'pose_stamp_outlier'
             out += [(reason, item.pose.stamp_ns) for item in self.suspects]
             self.suspects = []
-        frames, held_map = self.take_held()
+        frames, _ = self.take_held()  # the map was counted (or used) when it came
         out += [('late_frame', frame.stamp_ns) for frame in frames]
-        if held_map is not None:
-            out.append(('map_late', held_map.stamp_ns))
         return out

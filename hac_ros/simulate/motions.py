@@ -196,6 +196,43 @@ def handstand(t: np.ndarray, path: Path2D, world: World) -> np.ndarray:
     return out
 
 
+def seated(t: np.ndarray, xy: tuple[float, float], heading: float, seat_m: float,
+           rng: np.random.Generator) -> np.ndarray:
+    """A person seated on a seat ``seat_m`` high (the seat itself is not in the world, as a stool
+    a SLAM did not map): thighs level, shins hanging, the feet wherever the leg puts them (above
+    the floor on a high seat); the upper body as it stands, swaying a few centimetres."""
+    hip_m = seat_m + 0.08  # the hip joints above the seat
+    body = STANDING.copy()
+    body[:, 2] += hip_m - STANDING[1, 2]  # the upper body as it stands, hips at hip_m
+    for hip, knee, ankle, foot in ((1, 4, 7, 10), (2, 5, 8, 11)):
+        side = STANDING[hip, 1]
+        body[hip] = (0.0, side, hip_m)
+        body[knee] = (THIGH_M, side * 1.1, hip_m)
+        body[ankle] = (THIGH_M - 0.02, side * 1.2, hip_m - SHANK_M)
+        body[foot] = body[ankle] + (0.11, 0.0, -0.06)
+    return _placed(t, body, xy, heading, rng)
+
+
+def lying(t: np.ndarray, xy: tuple[float, float], heading: float, bed_m: float,
+          rng: np.random.Generator) -> np.ndarray:
+    """A person lying on the back on a bed ``bed_m`` high (not in the world), head towards
+    ``heading``, breathing and shifting a few centimetres."""
+    body = STANDING.copy()
+    flat = np.c_[body[:, 2] - STANDING[0, 2], body[:, 1], bed_m + 0.10 + body[:, 0]]
+    return _placed(t, flat, xy, heading, rng)
+
+
+def _placed(t: np.ndarray, body: np.ndarray, xy: tuple[float, float], heading: float,
+            rng: np.random.Generator) -> np.ndarray:
+    """``body`` (24, 3) (forward, left, up) at ``xy`` facing ``heading``, for every stamp of t,
+    swaying slowly by a few centimetres (a still person is never quite still)."""
+    t = np.asarray(t, dtype=float)
+    phase = rng.uniform(0.0, 2 * np.pi, 3)
+    sway = 0.02 * np.sin(np.outer(t, [0.3, 0.37, 0.23]) + phase)
+    placed = np.r_[xy, 0.0] + body @ _frame(heading).T
+    return placed[None] + sway[:, None, :]
+
+
 def load_motion(path: str | Path, t: np.ndarray) -> np.ndarray:
     """Real motion (a ``cmu_mocap`` npz: joints (T, 24, 3) y-up, floor y = 0, metres) at stamps t,
     z-up, played forwards then backwards to fill ``t``, its mean root over the origin."""

@@ -93,7 +93,17 @@ SCENARIOS: dict[str, tuple[float, str]] = {
     'drift': (90.0, 'the SLAM scale drifts by 40 % over the run'),
     'reset': (40.0, 'the SLAM re-initialises mid-run: new map frame, new scale'),
     'static': (20.0, 'a camera that does not move'),
+    'seated': (20.0, 'one person seated on a high stool (not in the map), feet hanging: no sample'),
+    'lying': (20.0, 'one person lying on a bed (not in the map): no sample'),
+    'office': (30.0, 'two people seated at desks, two walking: the walkers calibrate'),
 }
+# scenes where nobody measures (only standing people do): nothing is calibrated from them
+NOBODY_STANDS = ('seated', 'lying')
+# each scenario's draws come from generators keyed by its index here: the scenarios added later
+# keep every earlier scenario's recordings as they were
+SEED_KEYS = {name: k for k, name in enumerate(
+    ['crowd', 'drift', 'ego', 'handstand', 'occluded', 'reset', 'skate', 'stairs', 'static',
+     'walk', 'seated', 'lying', 'office'])}
 
 
 def _furniture(world: World) -> None:
@@ -125,12 +135,12 @@ def make_scenario(name: str, seed: int = 0, duration: float | None = None, rate:
         raise HacError(f'unknown scenario {name!r}; one of: {", ".join(SCENARIOS)}')
     if rate <= 0 or (duration is not None and duration <= 0):
         raise HacError('rate and duration must be positive')
-    rng = np.random.default_rng([seed, sorted(SCENARIOS).index(name)])
+    rng = np.random.default_rng([seed, SEED_KEYS[name]])
     # the contact heights and the HMR depth process have a generator of their own (adding them
     # left every other draw of a seed as it was)
-    body_rng = np.random.default_rng([seed, sorted(SCENARIOS).index(name), 1])
+    body_rng = np.random.default_rng([seed, SEED_KEYS[name], 1])
     # so have the walkers' foot rolls (motions.FootRoll: a contact lifted as in real gait)
-    roll_rng = np.random.default_rng([seed, sorted(SCENARIOS).index(name), 2])
+    roll_rng = np.random.default_rng([seed, SEED_KEYS[name], 2])
 
     def walker(path: motions.Path2D, phase_s: float = 0.0) -> np.ndarray:
         roll = motions.FootRoll(roll_rng.uniform(*motions.ROLL_HEEL_STRIKE_M),
@@ -167,12 +177,25 @@ def make_scenario(name: str, seed: int = 0, duration: float | None = None, rate:
     elif name == 'ego':
         world.floor_texture = 0.08  # a plain floor: sparsely mapped
         people = [walker(motions.circle_path((0.0, 0.0), 3.2, 1.0))]
+    elif name == 'seated':
+        people = [motions.seated(t, (0.0, 0.0), rng.uniform(0, 2 * np.pi), 0.9, body_rng)]
+    elif name == 'lying':
+        people = [motions.lying(t, (0.0, 0.0), rng.uniform(0, 2 * np.pi), 0.45, body_rng)]
+    elif name == 'office':
+        for x0 in (-2.5, 1.5):  # two desks (mapped), their chairs not
+            world.boxes.append(Box(np.array([x0, 1.8, 0.0]), np.array([x0 + 1.2, 2.5, 0.75]), 1.5))
+        people = [walker(motions.shuttle_path((-4.0, -0.5), (4.0, -0.5), 1.0)),
+                  walker(motions.shuttle_path((3.5, -2.5), (-3.5, -2.0), 0.8), 0.3),
+                  motions.seated(t, (-1.9, 1.3), np.pi / 2, 0.45, body_rng),
+                  motions.seated(t, (2.1, 1.3), np.pi / 2, 0.45, body_rng)]
     else:  # walk, drift, reset, static
         people = [walker(motions.circle_path((0.0, 0.0), 3.0, 1.1))]
     heights = body_rng.uniform(*(HAND_HEIGHT_M if name == 'handstand' else SOLE_HEIGHT_M),
                                len(people))
+    if name in ('seated', 'lying', 'office'):  # nobody seated or lying stands on anything
+        heights[len(people) - (2 if name == 'office' else 1):] = math.nan
     for person, height in zip(people, heights):
-        person[:, :, 2] += height  # the contact joint stands ``height`` above its surface
+        person[:, :, 2] += 0.0 if math.isnan(height) else height  # its contact above its surface
     if motion is not None:
         people[0] = motions.load_motion(motion, t)
         heights[0] = math.nan
@@ -182,7 +205,10 @@ def make_scenario(name: str, seed: int = 0, duration: float | None = None, rate:
         R_world, c_world = rigs.head_mounted(root, t, rng)
     elif name == 'static':
         R_world, c_world = rigs.static(np.array([0.0, 0.0, 0.8]), t, np.array([0.0, -6.2, 1.6]))
-    elif name == 'occluded':
+    elif name in ('seated', 'lying'):
+        R_world, c_world = rigs.static(root[0] * [1, 1, 0] + [0, 0, 0.6], t,
+                                       root[0] * [1, 1, 0] + [0.0, -3.5, 1.6])
+    elif name in ('occluded', 'office'):
         R_world, c_world = rigs.side(root, t, offset_y=-4.8)
     elif name == 'stairs':
         R_world, c_world = rigs.side(root, t, offset_y=-4.5)

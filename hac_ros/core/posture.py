@@ -1,0 +1,64 @@
+"""Only standing people measure the floor (docs/method.md, "Who measures: standing people").
+
+A seated person's feet may rest on the floor or hang from a stool, a kneeling person touches the
+floor with the knees, a lying one with the back: the body cannot tell planted feet from hanging
+ones, so none of them gives a contact sample (``not_standing``), whatever the feet touch. The
+posture is judged on the HMR body itself, scale-free, in the body's own frame:
+
+- a *support leg* has its thigh (hip → knee) within STANDING_THIGH_MAX_DEG and its shin (knee →
+  ankle) within STANDING_SHIN_MAX_DEG of the body's down axis (upper → lower joints of the
+  layout's axis); a person stands when one leg is a support leg. Seated: the thighs are across the
+  axis (about 90 degrees); kneeling: the shins are (about 90 degrees); walking, the stance leg is
+  within 40 degrees on both. People on their hands keep their legs along the axis: they measure,
+  as before (the hands are the contact).
+- lying: the body's axis is across the scene's down (within LYING_MAX_DEG of horizontal), judged
+  once down is known (:mod:`hac_ros.core.down_vote`): a lying body's legs are along its axis.
+
+Jumps are not judged here: a jump's samples leave the estimator's gate. A layout without legs
+(``custom`` without ``legs``) is judged by its axis alone. Measured on the CMU motions: every
+frame of the walk 131_02 and of the hop 131_03 stands; 131_01 crouches for about 9 % of its
+frames (the pelvis 0.6 m up: a seated shape) and those do not (docs/method.md).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from hac_ros.core.layouts import JointLayout
+
+STANDING_THIGH_MAX_DEG = 65.0  # a support leg's thigh against the body's down axis
+STANDING_SHIN_MAX_DEG = 50.0  # ... and its shin
+LYING_MAX_DEG = 45.0  # a body axis within this of horizontal (scene's down known) is lying
+
+_THIGH_COS = math.cos(math.radians(STANDING_THIGH_MAX_DEG))
+_SHIN_COS = math.cos(math.radians(STANDING_SHIN_MAX_DEG))
+_LYING_COS = math.sin(math.radians(LYING_MAX_DEG))  # |cos| of axis vs down below this: lying
+
+
+def posture_problem(layout: JointLayout, joints: np.ndarray, up: np.ndarray,
+                    down: np.ndarray | None) -> str:
+    """Why this body does not stand ('' when it does): 'seated or kneeling' (no support leg), or
+    'lying' (its axis across ``down``).
+
+    joints: (K, 3) metres, any frame, finite; up: (3,) the layout's lower → upper axis in that
+    frame, any length; down: (3,) the scene's down, unit, same frame, or None while unknown.
+    """
+    norm = float(np.linalg.norm(up))
+    if not math.isfinite(norm) or norm <= 0.0:
+        return ''
+    body_down = -up / norm
+    if down is not None and abs(float(body_down @ down)) < _LYING_COS:
+        return 'lying'
+    if not layout.legs:
+        return ''
+    for hip, knee, ankle in layout.legs:
+        thigh = joints[knee] - joints[hip]
+        shin = joints[ankle] - joints[knee]
+        t_norm, s_norm = float(np.linalg.norm(thigh)), float(np.linalg.norm(shin))
+        if t_norm <= 0.0 or s_norm <= 0.0:
+            continue
+        if (float(thigh @ body_down) >= _THIGH_COS * t_norm
+                and float(shin @ body_down) >= _SHIN_COS * s_norm):
+            return ''
+    return 'seated or kneeling'
