@@ -7,6 +7,7 @@ it, made certain rather than hoped for.
 """
 from __future__ import annotations
 
+import re
 import time
 from typing import Any
 
@@ -250,3 +251,28 @@ def test_a_busy_node_coalesces_1khz_poses_says_it_is_behind_and_catches_up(harne
     assert (f"joints frames received {len(published['joints'])} = processed "
             f"{len(published['joints'])} + dropped 0 + waiting 0") in line, line
     assert f'coalesced {counts.coalesced}' in line
+
+
+def test_the_first_drop_says_the_processing_time_against_the_input_period(harness, capfd):
+    """Frames paced, then a node held while 40 more come: the frames it cannot catch up with
+    are dropped, and the one warning says how long a frame takes against the input period, and
+    what to do (fewer map points, a lower rate, fewer people; joints_backlog_max trades drops for
+    latency)."""
+    from test_node import scenario_recording
+
+    walk = scenario_recording('walk', duration=6.0)
+    h = harness(joints_backlog_max=2)
+    half = len(walk.events) // 2
+    h.play(walk.events[:half], frame_period_s=0.02)
+    assert wait_for(lambda: h.node._inbox.counts().processed.get('joints', 0) >= 20, PATIENCE_S)
+    with h.node.lock:
+        for event in walk.events[half:half + 120]:
+            h.publishers[event.kind].publish(event.msg)
+        assert wait_for(lambda: h.node._inbox.counts().dropped > 0, PATIENCE_S)
+    assert wait_for(lambda: h.node.core.rejected['frames_dropped'] > 0, PATIENCE_S)
+    err = capfd.readouterr().err
+    line = next(x for x in err.splitlines() if 'frames_dropped' in x)
+    assert line.startswith('[WARN]')
+    assert re.search(r'processing takes [0-9.]+ ms per frame .* against an input period of '
+                     r'[0-9.]+ ms', line), line
+    assert 'what to do:' in line and 'index_max_points' in line and 'latency' in line

@@ -14,12 +14,14 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 rclpy = pytest.importorskip('rclpy')
 
-from test_node import PATIENCE_S, harness, scenario_recording, wait_for  # noqa: F401
+from test_node import PATIENCE_S, Event, harness, scenario_recording, wait_for  # noqa: F401
 
+from hac_ros.core.numeric import NS
 from hac_ros.core.reasons import REASONS
 from hac_ros.recording.reader import Recording
 from hac_ros.replay.replayer import replay
@@ -166,3 +168,41 @@ def test_a_second_node_of_the_same_name_is_warned_about_by_both(harness, capfd):
     second.close()
     assert wait_for(lambda: first.node.names.others == 0, PATIENCE_S)
     assert log.wait_for(lambda t: 'no other node named /hac_node in the graph' in t, PATIENCE_S)
+
+
+# ================================================================================ escaping
+def test_strings_from_topics_reach_the_log_escaped(harness, capfd):
+    """A frame id with ESC and BEL (clear the screen, ring) in a map and in the SLAM poses: the
+    log writes them as \\x1b and \\x07, never the characters a terminal obeys."""
+    from test_node import TYPES
+
+    from msg_adapters import rt_to_pose_stamped, xyz_to_cloud
+
+    hostile = 'map\x1b[2J\x07'
+    h = harness()
+    points = np.random.default_rng(0).uniform(-3, 3, (500, 3))
+    h.publish(Event(NS, 'cloud', xyz_to_cloud(points, NS, hostile, TYPES)))
+    for k in range(3):  # then poses in another frame: the map's frame is refused, and said
+        h.publish(Event(NS + k, 'pose', rt_to_pose_stamped(np.eye(3), np.zeros(3), NS + k * NS,
+                                                           'other\x1b]0;owned\x07', TYPES)))
+    log = _Log(capfd)
+    assert log.wait_for(lambda t: 'first map:' in t and 'cloud_wrong_frame' in t, PATIENCE_S), \
+        log.text
+    assert '\x1b' not in log.text and '\x07' not in log.text
+    assert "frame 'map\\x1b[2J\\x07'" in log.text
+
+
+def test_joints_without_a_slam_pose_say_at_info_that_the_node_waits_for_one(harness, capfd):
+    """Joints come, no SLAM pose yet: once the joints' first-seen line is written, one INFO
+    line says the node waits for the first pose on its topic; no warning says it."""
+    walk = scenario_recording('walk', duration=6.0)
+    h = harness()
+    log = _Log(capfd)
+    joints = [e for e in walk.events if e.kind == 'joints']
+
+    def waiting() -> bool:
+        h.publishers['joints'].publish(joints[len(log.text) % len(joints)].msg)
+        return 'waiting for the first SLAM pose on /slam/pose' in log.read()
+    assert wait_for(waiting, PATIENCE_S), log.text
+    line = next(x for x in log.text.splitlines() if 'waiting for the first SLAM pose' in x)
+    assert line.startswith('[INFO]') and log.text.count('waiting for the first SLAM pose') == 1

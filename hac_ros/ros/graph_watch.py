@@ -52,8 +52,8 @@ class GraphWatch:
         topic = self.node.resolve_topic_name(topic)
         self.qos_incompatible[topic] += 1
         self.node.get_logger().warning(
-            f'QoS mismatch on {topic}: a publisher offers an incompatible {policy} policy, so no '
-            f'messages from it will arrive; {qos_hint(kind, policy)}')
+            f'QoS mismatch on {printable(topic)}: a publisher offers an incompatible {policy} '
+            f'policy, so no messages from it will arrive; {qos_hint(kind, policy)}')
 
     def message_lost(self, kind: str, info: Any) -> None:
         """rclpy's message-lost event of the ``kind`` subscription: one ``<kind>_lost`` each."""

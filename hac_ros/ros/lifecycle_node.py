@@ -30,6 +30,7 @@ from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackRet
 
 from hac_ros.core.errors import ParameterError
 from hac_ros.core.params import NODE_NAME
+from hac_ros.core.printable import printable
 from hac_ros.ros.arguments import run
 from hac_ros.ros.node import HacShell
 
@@ -68,7 +69,7 @@ class HacLifecycleNode(HacShell, LifecycleNode):
         try:
             self._configure()
         except ParameterError as exc:
-            self.get_logger().error(f'configure failed: invalid parameter: {exc}')
+            self.get_logger().error(f'configure failed: invalid parameter: {printable(exc)}')
             self.calibrator = None
             return FAILURE
         self.get_logger().info('configured')

@@ -43,7 +43,7 @@ import time
 import traceback
 from collections import Counter
 from collections.abc import Callable, Sequence
-from typing import Any
+from typing import Any, cast
 
 from rclpy.clock import Clock, ClockType
 from rclpy.event_handler import SubscriptionEventCallbacks
@@ -64,7 +64,7 @@ from hac_ros.core.outputs import (
     ScaleOut,
 )
 from hac_ros.core.params import NODE_NAME, POSE_MSGTYPES, HacParams, names
-from hac_ros.core.printable import printable
+from hac_ros.core.printable import printable, printable_lines
 from hac_ros.core.reasons import REASONS
 from hac_ros.core.reference import MapIndex
 from hac_ros.ros.arguments import run
@@ -90,6 +90,7 @@ TYPES = rclpy_types()  # rclpy's message classes by ROS name
 DDS_PROFILE_VARIABLES = ('FASTRTPS_DEFAULT_PROFILES_FILE', 'FASTDDS_DEFAULT_PROFILES_FILE')
 
 STALE_CHECK_S = 0.5  # wall seconds between looks at whether input stopped coming
+MAX_QUEUED_S = 60.0  # longer in the middleware's queue than this: a clock changed, not a wait
 STEADY = Clock(clock_type=ClockType.STEADY_TIME)  # timers that must run without /clock
 
 
@@ -118,8 +119,8 @@ class HacShell(RuntimeControl):
         declare_parameters(self)
         self.names = NameWatch(self)  # another node of this name (hac_ros.ros.graph_watch)
         self._name_check = self.create_timer(NAME_CHECK_S, self.names.check, clock=STEADY)
-        for warning in startup_warnings(self, params_files):
-            self.get_logger().warning(warning)
+        for warning in startup_warnings(self, params_files):  # names from a file: escaped
+            self.get_logger().warning(printable(warning))
         self.add_on_set_parameters_callback(self._validate_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
 
@@ -172,12 +173,12 @@ class HacShell(RuntimeControl):
         p = self.params
         poses = (f'TF {p.slam_map_frame} -> {p.slam_pose_frame}' if p.pose_source == 'tf' else
                  f'{self.resolve_topic_name(p.pose_topic)} ({p.pose_type})')
-        self.get_logger().info(
+        self.get_logger().info(printable(
             f'{self.get_name()}: {poses} + '
             f'{self.resolve_topic_name(p.joints_topic)} + {self.resolve_topic_name(p.cloud_topic)}'
             f' -> {self.resolve_topic_name("hac")}/* in {p.metric_frame!r} '
             f'({p.metric_frame_alignment}) and {p.odom_frame!r} (contact_mode {p.contact_mode}, '
-            f'input_qos {p.input_qos}, cloud_qos {p.cloud_qos})')
+            f'input_qos {p.input_qos}, cloud_qos {p.cloud_qos})'))
 
     def _deactivate(self) -> None:
         self.active = False
@@ -235,7 +236,9 @@ class HacShell(RuntimeControl):
             incompatible_qos=functools.partial(self.graph.incompatible_qos, kind, topic),
             message_lost=functools.partial(self.graph.message_lost, kind))
         self._subscriptions_by_kind[kind] = self.create_subscription(
-            msg_type, topic, self._guarded(kind, callback), qos, event_callbacks=events, raw=raw)
+            # rclpy hands the message info to a callback of two arguments (its typing says one)
+            msg_type, topic, cast(Callable[[Any], None], self._guarded(kind, callback)), qos,
+            event_callbacks=events, raw=raw)
 
     def subscription(self, kind: str) -> Any:
         """The rclpy Subscription of input ``kind`` (``pose``, ``joints``, ``camera_info``,
@@ -252,11 +255,15 @@ class HacShell(RuntimeControl):
                 notice.text = text
         self._emit(outputs)
 
-    def _guarded(self, kind: str, callback: Callable[[Any], None]) -> Callable[[Any], None]:
-        """The node never dies on input: an unexpected error is logged once and counted."""
-        def run(msg: Any) -> None:
+    def _guarded(self, kind: str, callback: Callable[[Any, float], None]
+                 ) -> Callable[[Any, Any], None]:
+        """The subscription callback of input ``kind``: ``callback(msg, arrived_s)``, where
+        ``arrived_s`` (time.monotonic) is when the middleware received the message, so that the
+        time it waited for the executor counts in the node's lag (docs/node.md, Overload). The
+        node never dies on input: an unexpected error is logged once and counted."""
+        def run(msg: Any, info: Any) -> None:
             try:
-                callback(msg)
+                callback(msg, arrival_s(info))
             except Exception:
                 with self.lock:
                     self._internal_error(kind)
@@ -268,21 +275,21 @@ class HacShell(RuntimeControl):
     # Poses and joints arrive as CDR bytes (raw subscriptions) and are deserialized here by
     # rclpy, so that bytes that do not deserialize are a counted rejection too, never an
     # exception in the executor.
-    def _on_pose(self, data: bytes) -> None:
-        self._take('pose', data)
+    def _on_pose(self, data: bytes, arrived_s: float) -> None:
+        self._take('pose', data, arrived_s)
 
-    def _on_joints(self, data: bytes) -> None:
-        self._take('joints', data)
+    def _on_joints(self, data: bytes, arrived_s: float) -> None:
+        self._take('joints', data, arrived_s)
 
-    def _on_camera_info(self, msg: Any) -> None:
-        self._take('camera_info', msg)
+    def _on_camera_info(self, msg: Any, arrived_s: float) -> None:
+        self._take('camera_info', msg, arrived_s)
 
-    def _take(self, kind: str, data: Any) -> None:
+    def _take(self, kind: str, data: Any, arrived_s: float | None = None) -> None:
         """Executor thread: into the inbox, in arrival order (hac_ros.ros.intake); a pose with
         its header stamp, read from its bytes (for coalescing)."""
         self.liveness.arrival(kind)
         self.story.seen(kind)
-        self._inbox.put(kind, data, header_stamp_ns(data) if kind == 'pose' else None)
+        self._inbox.put(kind, data, header_stamp_ns(data) if kind == 'pose' else None, arrived_s)
 
     def _handle(self, item: Item) -> None:
         """Processing thread, holding the lock: one input to the calibrator, its outputs out.
@@ -319,8 +326,9 @@ class HacShell(RuntimeControl):
         self._emit(self.core.reject('internal_error', -1))
         if kind not in self._failed_callbacks:
             self._failed_callbacks.add(kind)
-            self.get_logger().error(f'error handling a {kind} message (further ones are counted '
-                                    f'as rejected.internal_error):\n{traceback.format_exc()}')
+            self.get_logger().error(printable_lines(
+                f'error handling a {kind} message (further ones are counted as '
+                f'rejected.internal_error):\n{traceback.format_exc()}'))
 
     def _queued(self, kind: str, callback: Callable[[Any], None]) -> Callable[[Any], None]:
         """``callback`` run on the processing thread, in arrival order with the other inputs
@@ -339,8 +347,9 @@ class HacShell(RuntimeControl):
                     f'frames, with the poses between them) against an input period of '
                     f'{1e3 * period:.1f} ms' if cost == cost and period == period else
                     'frames came faster than the first ones were processed')
-        self._reject('frames_dropped', f'joints frames dropped, the oldest waiting: {measured}; '
-                     f'joints_backlog_max {self.params.joints_backlog_max}')
+        self._reject('frames_dropped', f'rejected input (frames_dropped): joints frames dropped, '
+                     f'the oldest waiting: {measured}; joints_backlog_max '
+                     f'{self.params.joints_backlog_max}; further ones are counted in /diagnostics')
 
     def _on_coalesced(self, item: Item) -> None:
         """A SLAM pose the inbox coalesced into the next one (poses faster than processing),
@@ -350,15 +359,15 @@ class HacShell(RuntimeControl):
             if isinstance(notice, NoticeOut):
                 notice.level = 'info'
                 notice.text = (
-                    'SLAM poses come faster than the node processes them: a pose still waiting '
-                    'when the next one came within pose_coalesce_s '
+                    'poses_coalesced: SLAM poses come faster than the node processes them: a '
+                    'pose still waiting when the next one came within pose_coalesce_s '
                     f'({1e3 * self.params.pose_coalesce_s:g} ms) of the pose before it is '
                     'coalesced into it, so the calibrator gets them at least every '
                     f'{1e3 * self.params.pose_coalesce_s:g} ms; their /hac/odometry and '
                     '/hac/pose are not published (counted as rejected.poses_coalesced)')
         self._emit(outputs)
 
-    def _on_cloud(self, data: bytes) -> None:
+    def _on_cloud(self, data: bytes, arrived_s: float) -> None:
         """Raw CDR bytes: the header read here, decoded and indexed on the builder's thread."""
         self.story.seen('cloud')
         if not self.maps.receive(data, self.params.cloud_mode):
@@ -454,6 +463,18 @@ class HacNode(HacShell, Node):
     def destroy_node(self) -> None:
         self._cleanup()
         super().destroy_node()
+
+
+def arrival_s(info: Any) -> float:
+    """When the middleware received a message (time.monotonic), from rclpy's message info
+    (``received_timestamp``: ns of the system clock); now when it is missing or implausible
+    (more than MAX_QUEUED_S ago, or ahead)."""
+    now = time.monotonic()
+    received = info.get('received_timestamp', 0) if isinstance(info, dict) else 0
+    if not received:
+        return now
+    waited = (time.time_ns() - received) / 1e9
+    return now - waited if 0.0 <= waited <= MAX_QUEUED_S else now
 
 
 def _deserialize(data: bytes, msg_type: type) -> Any:

@@ -2,7 +2,8 @@
 
 - each input, once seen for FIRST_SEEN_S (or when the status line comes first): its topic, type
   and rate (``input /slam/pose (geometry_msgs/msg/PoseStamped): 30.0 Hz``);
-- waiting for a first map or a first SLAM pose while joints come: INFO, naming the topic;
+- waiting for a first SLAM pose while joints come: INFO, naming the topic (waiting for the first
+  map is the calibrator's notice, ``no_map``);
 - the first map, with its size and the time it took to decode and index;
 - convergence, each time the estimate converges: the scale, its spread, the samples, and the
   stamp seconds since the first joints frame (``converged: scale 1.2411 +- 0.0040 (31 samples),
@@ -68,7 +69,7 @@ class Story:
         self._last: dict[str, float] = {}
         self._count: Counter[str] = Counter()
         self._told: set[str] = set()  # inputs whose first-seen line was written
-        self._waiting_told: set[str] = set()
+        self._waiting_told = False
         self.map_told = False
         self.first_joints_ns: int | None = None
         self.converged = False
@@ -91,14 +92,12 @@ class Story:
         for kind, first in list(self._first.items()):
             if kind not in self._told and now - first >= FIRST_SEEN_S:
                 self._tell_input(kind)
-        if 'joints' in self._told:
-            for kind, what in (('cloud', 'map'), ('pose', 'SLAM pose')):
-                if kind in self.inputs and kind not in self._first \
-                        and kind not in self._waiting_told:
-                    self._waiting_told.add(kind)
-                    self.log.info(f'waiting for the first {what} on '
-                                  f'{printable(self.inputs[kind].topic)}: joints come, nothing '
-                                  'metric until it does')
+        if 'joints' in self._told and 'pose' in self.inputs and 'pose' not in self._first \
+                and not self._waiting_told:  # (the first map's wait is the calibrator's notice)
+            self._waiting_told = True
+            self.log.info(f'waiting for the first SLAM pose on '
+                          f'{printable(self.inputs["pose"].topic)}: joints come, nothing metric '
+                          'until it does')
         if log_period_s <= 0:
             self._line_due_s = float('nan')
             return
