@@ -341,9 +341,11 @@ def measure(kind: str, map_raw: bytes, duration_s: float, people: int = 1,
             'counts': counts}
 
 
-def run(map_points: int, duration_s: float, rounds: int) -> dict[str, Any]:
-    """``rounds`` of echo and node, alternating which goes first. Returns pooled percentiles per
-    kind (ms), and the node's p99 minus and over the echo's."""
+def run(map_points: int, duration_s: float, rounds: int, extra_rows: bool = True
+        ) -> dict[str, Any]:
+    """``rounds`` of echo and node, alternating which goes first, then (``extra_rows``) the 1 kHz
+    and overload rows. Returns pooled percentiles per kind (ms), and the node's p99 minus and
+    over the echo's."""
     map_raw = cloud_cdr(room_scene(1).map_points(map_points), 0)
     runs: dict[str, list[dict[str, Any]]] = {'node': [], 'echo': []}
     rclpy.init()
@@ -354,6 +356,9 @@ def run(map_points: int, duration_s: float, rounds: int) -> dict[str, Any]:
                 runs[kind].append(r)
                 print(f"{KINDS[kind]}: p99 {_pct(r['latencies_ms'], 99):.2f} ms, "
                       f"{r['dropped']} of {r['sent']} dropped", flush=True)
+        result = pooled(runs, map_points, duration_s, rounds)
+        if not extra_rows:
+            return result
         khz = {kind: measure(kind, map_raw, duration_s, pose_hz=KHZ_POSE_HZ)
                for kind in ('echo', 'node')}
         print(f"1 kHz poses: node p99 {_pct(khz['node']['latencies_ms'], 99):.2f} ms, echo "
@@ -364,18 +369,6 @@ def run(map_points: int, duration_s: float, rounds: int) -> dict[str, Any]:
               f"{_pct(overload['latencies_ms'], 99):.2f} ms, {overload['counts']}", flush=True)
     finally:
         rclpy.try_shutdown()
-    result: dict[str, Any] = {'map_points': map_points, 'duration_s': duration_s,
-                              'rounds': rounds, 'dds_profile': os.environ.get(
-                                  DDS_PROFILE_VARIABLES[0], '')}
-    for kind, done in runs.items():
-        pooled = np.concatenate([r['latencies_ms'] for r in done])
-        result[kind] = {'p50_ms': _pct(pooled, 50), 'p99_ms': _pct(pooled, 99),
-                        'max_ms': float(pooled.max()) if pooled.size else float('nan'),
-                        'p99_ms_per_run': [_pct(r['latencies_ms'], 99) for r in done],
-                        'sent': sum(r['sent'] for r in done),
-                        'dropped': sum(r['dropped'] for r in done),
-                        'exit_codes': [r['exit_code'] for r in done],
-                        'others': {t: sum(r['others'][t] for r in done) for t in OTHER_OUTPUTS}}
     result['khz'] = {'pose_hz': KHZ_POSE_HZ, **{kind: {
         'p99_ms': _pct(r['latencies_ms'], 99), 'p50_ms': _pct(r['latencies_ms'], 50),
         'max_ms': float(r['latencies_ms'].max()) if r['latencies_ms'].size else float('nan'),
@@ -398,6 +391,24 @@ def run(map_points: int, duration_s: float, rounds: int) -> dict[str, Any]:
     o = result['overload']
     o['adds_up'] = o['sent'] == (o['answered'] + o['before_convergence'] + o['dropped']
                                  + o['lost'] + sum(o['refused'].values()))
+    return result
+
+
+def pooled(runs: dict[str, list[dict[str, Any]]], map_points: int, duration_s: float,
+           rounds: int) -> dict[str, Any]:
+    """The rounds' latencies pooled per kind, and the node's p99 minus and over the echo's."""
+    result: dict[str, Any] = {'map_points': map_points, 'duration_s': duration_s,
+                              'rounds': rounds, 'dds_profile': os.environ.get(
+                                  DDS_PROFILE_VARIABLES[0], '')}
+    for kind, done in runs.items():
+        latencies = np.concatenate([r['latencies_ms'] for r in done])
+        result[kind] = {'p50_ms': _pct(latencies, 50), 'p99_ms': _pct(latencies, 99),
+                        'max_ms': float(latencies.max()) if latencies.size else float('nan'),
+                        'p99_ms_per_run': [_pct(r['latencies_ms'], 99) for r in done],
+                        'sent': sum(r['sent'] for r in done),
+                        'dropped': sum(r['dropped'] for r in done),
+                        'exit_codes': [r['exit_code'] for r in done],
+                        'others': {t: sum(r['others'][t] for r in done) for t in OTHER_OUTPUTS}}
     result['p99_difference_ms'] = result['node']['p99_ms'] - result['echo']['p99_ms']
     result['p99_ratio'] = result['node']['p99_ms'] / result['echo']['p99_ms']
     return result
