@@ -206,3 +206,15 @@ def test_joints_without_a_slam_pose_say_at_info_that_the_node_waits_for_one(harn
     assert wait_for(waiting, PATIENCE_S), log.text
     line = next(x for x in log.text.splitlines() if 'waiting for the first SLAM pose' in x)
     assert line.startswith('[INFO]') and log.text.count('waiting for the first SLAM pose') == 1
+
+
+def test_after_a_slam_reset_the_log_tells_the_new_convergence(harness, capfd):
+    """A SLAM re-initialisation (new map frame, new scale): the reset is logged once (at the
+    core's level), and convergence is told again, timed from the first joints after the reset."""
+    reset = scenario_recording('reset', duration=12.0)
+    h = harness(log_period_s=0.0)
+    h.play(reset.events, frame_period_s=0.01)
+    log = _Log(capfd)
+    assert log.wait_for(lambda t: len(CONVERGED.findall(t)) >= 2, PATIENCE_S), log.text
+    assert 'after the first joints since the reset' in log.text.split('estimator reset')[-1]
+    assert h.node.notices['reset'] == 1 and log.text.count('estimator reset (') == 1

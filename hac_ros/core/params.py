@@ -133,12 +133,12 @@ class HacParams:
     stale_after_s: float = _p(2.0, 'node: no SLAM pose or joints for this long (wall clock): '
                               '/diagnostics says STALE (nothing) or WARN (one of them), seconds',
                               low=0.1, high=1e6)
-    pose_coalesce_s: float = _p(0.01, 'node: a SLAM pose still waiting to be processed when the '
-                                'next one arrives is coalesced into it (its odometry not '
-                                'published, counted as poses_coalesced) when the pose kept before '
-                                'it is at most this long before the new one, so the poses '
-                                'processed are never further apart; 0 = never, stamp seconds',
-                                low=0.0, high=1.0)
+    pose_coalesce_s: float = _p(0.01, 'node: SLAM poses faster than one per this (stamp '
+                                'seconds) are thinned to it: a pose this close after the last one '
+                                'kept is held, and coalesced into the next (its odometry not '
+                                'published, counted as poses_coalesced) while that one is close '
+                                'too; the newest and the pose before each joints frame are kept; '
+                                '0 = every pose', low=0.0, high=1.0)
     log_period_s: float = _p(10.0, 'node: a status line in the log this often (scale, spread, '
                              'samples, status, frames received, processed, dropped); 0 = off, '
                              'wall seconds', low=0.0, high=1e6)

@@ -68,8 +68,8 @@ REASONS: dict[str, Reason] = {
                'fewer people per frame help; a larger joints_backlog_max drops fewer frames '
                'but lets them wait longer (latency)'),
     'poses_coalesced': Reason(
-        REJECTED, 'SLAM poses coalesced by hac_node: a pose still waiting when the next one came '
-        'within pose_coalesce_s of the pose before it (no /hac/odometry for it)',
+        REJECTED, 'SLAM poses coalesced by hac_node: a pose stream faster than one per '
+        'pose_coalesce_s thinned to it (no /hac/odometry for the poses left out)',
         remedy='none: the odometry comes at least every pose_coalesce_s; pose_coalesce_s 0 '
                'processes every pose, and the node then falls behind a stream it cannot keep '
                'up with'),

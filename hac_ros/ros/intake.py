@@ -16,13 +16,19 @@ calibrator sees exactly the messages, in exactly the order, of the replay's feed
   publisher, the network or the node itself (seen at 1x on a loaded 2-core machine: seven frames
   within 1.5 ms) is processed, not dropped, since the node takes milliseconds for what the input
   took 30 ms a frame to send. Until a first frame is processed, only the count applies.
-- **Poses** are never dropped, but one still waiting when the next arrives is coalesced into it
-  (``pose_coalesce_s``): the waiting pose is left out when the pose before it is less than
-  ``pose_coalesce_s`` of stamp time before the new one, so the poses the calibrator gets are
-  never further apart than that. Only a node that is behind has a pose waiting, and only a pose
-  stream faster than 1 / ``pose_coalesce_s`` (100 Hz by default) has stamps that close: at camera
-  rates nothing is coalesced, at 1 kHz a node that falls behind processes 100 poses a second
-  (the odometry of the others is not published: a documented difference from the replay).
+- **Poses** are never dropped, but a stream faster than 1 / ``pose_coalesce_s`` (100 Hz by
+  default) is thinned: a pose stamped within ``pose_coalesce_s`` after the last pose queued for
+  the calibrator is held back, and the next pose replaces it (the held one is coalesced, counted)
+  while it too is within ``pose_coalesce_s`` of the last one queued; otherwise, or when another
+  input comes (a joints frame needs its poses first), or when no input comes for
+  ``pose_coalesce_s`` of wall time, the held pose goes into the queue. So the calibrator gets a
+  pose at least every ``pose_coalesce_s`` of stamp time, the newest always, and the pose just
+  before each joints frame; at camera rates (poses further apart) nothing is held or coalesced.
+  At 1 kHz the node processes about 100 poses a second whatever the machine's load, so it keeps
+  up with the stream instead of falling behind it (the odometry of the coalesced poses is not
+  published: a documented difference from the replay, which processes every pose). Which poses
+  are kept depends on their stamps and arrival order, not on how busy the processing thread is
+  (only a pause of the input releases the newest pose early).
 
 CameraInfo, maps and the transforms of ``pose_source: tf`` (``call`` items) are never dropped.
 """
@@ -34,7 +40,7 @@ import threading
 import time
 from collections import Counter, deque
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 from hac_ros.core.numeric import NS
@@ -62,14 +68,12 @@ def header_stamp_ns(data: bytes) -> int | None:
 class Item:
     """One input for the calibrator: ``kind`` (``pose``, ``joints``, ``camera_info``, ``map``, or
     ``call``: a function to run on the processing thread), its data, its arrival
-    (time.monotonic), and for a pose its header stamp (ns, None when unknown) and that of the pose
-    kept before it (the anchor of the coalescing rule)."""
+    (time.monotonic), and for a pose its header stamp (ns, None when unknown)."""
 
     kind: str
     data: Any
     arrived_s: float
     stamp_ns: int | None = None
-    before_ns: int | None = field(default=None, repr=False)
 
 
 @dataclass
@@ -114,7 +118,8 @@ class Inbox:
         self._ready = threading.Condition()
         self._closed = False
         self._arrivals: deque[float] = deque(maxlen=PERIOD_FRAMES)  # of joints frames
-        self._newest_pose_ns: int | None = None  # stamp of the newest pose kept
+        self._kept_ns: int | None = None  # stamp of the last pose queued for the calibrator
+        self._held: Item | None = None  # a pose held back, in case the next one replaces it
         self._in_hand: Item | None = None  # taken, not yet done
         self.dropped: list[Item] = []  # joints frames dropped, not yet counted by the node
         self.coalesced: list[Item] = []  # poses coalesced, not yet counted by the node
@@ -131,8 +136,10 @@ class Inbox:
             self.received[kind] += 1
             item = Item(kind, data, time.monotonic() if arrived_s is None else arrived_s, stamp_ns)
             if kind == 'pose':
-                self._coalesce(item)
-            self._items.append(item)
+                self._pose(item)
+            else:
+                self._release()  # the pose held came first
+                self._items.append(item)
             if kind == 'joints':
                 self._joints += 1
                 self._arrivals.append(item.arrived_s)
@@ -165,29 +172,47 @@ class Inbox:
                 self.dropped_total += 1
                 return
 
-    def _coalesce(self, pose: Item) -> None:
-        """The pose waiting last in line is left out when ``pose`` is within ``coalesce_s`` of
-        the pose kept before it (module docstring); ``pose`` then follows that one."""
-        pose.before_ns = self._newest_pose_ns
-        tail = self._items[-1] if self._items else None
-        if (tail is not None and tail.kind == 'pose' and self.coalesce_s > 0
-                and pose.stamp_ns is not None and tail.stamp_ns is not None
-                and tail.before_ns is not None
-                and tail.before_ns < tail.stamp_ns < pose.stamp_ns
-                and pose.stamp_ns - tail.before_ns <= self.coalesce_s * NS):
-            self._items.pop()
-            self.coalesced.append(tail)
-            self.coalesced_total += 1
-            pose.before_ns = tail.before_ns
+    def _pose(self, pose: Item) -> None:
+        """A pose stamped within ``coalesce_s`` after the last pose queued is held back; the next
+        pose replaces it (coalesced) while it too is within ``coalesce_s`` of that one, and
+        releases it into the queue otherwise (module docstring)."""
+        held = self._held
+        if held is not None:
+            if (self._kept_ns is not None and pose.stamp_ns is not None
+                    and held.stamp_ns is not None and held.stamp_ns < pose.stamp_ns
+                    and pose.stamp_ns - self._kept_ns <= self.coalesce_s * NS):
+                self._held = None
+                self.coalesced.append(held)
+                self.coalesced_total += 1
+            else:
+                self._release()
+        if (self.coalesce_s > 0 and self._kept_ns is not None and pose.stamp_ns is not None
+                and 0 < pose.stamp_ns - self._kept_ns <= self.coalesce_s * NS):
+            self._held = pose
+        else:
+            self._queue_pose(pose)
+
+    def _queue_pose(self, pose: Item) -> None:
+        self._items.append(pose)
         if pose.stamp_ns is not None:
-            self._newest_pose_ns = pose.stamp_ns
+            self._kept_ns = pose.stamp_ns
+
+    def _release(self) -> None:
+        """The pose held back goes into the queue (the next input is not a pose that replaces
+        it, or none came within ``coalesce_s`` of wall time)."""
+        if self._held is not None:
+            held, self._held = self._held, None
+            self._queue_pose(held)
 
     def get(self) -> Taken:
         """The next item and what was dropped or coalesced since the last call; blocks until
         there is an item or the inbox is closed."""
         with self._ready:
             while not self._items and not self._closed:
-                self._ready.wait()
+                if self._held is None:
+                    self._ready.wait()
+                elif not self._ready.wait(self.coalesce_s):  # no other input: the pose goes on
+                    self._release()
             if self._closed:
                 return Taken(None, [], [], 0)
             item = self._items.popleft()
@@ -209,13 +234,15 @@ class Inbox:
         waiting), None when there is none."""
         with self._ready:
             head = self._items[0] if self._items else None
-            times = [i.arrived_s for i in (self._in_hand, head) if i is not None]
+            times = [i.arrived_s for i in (self._in_hand, head, self._held) if i is not None]
             return min(times, default=None)
 
     def counts(self) -> Counts:
         """A consistent snapshot of what the inbox received, processed, holds and left out."""
         with self._ready:
             waiting = Counter(item.kind for item in self._items)
+            waiting['pose'] += self._held is not None
+            waiting = +waiting  # no zero counts
             in_hand = {self._in_hand.kind: 1} if self._in_hand is not None else {}
             return Counts(dict(self.received), dict(self.processed), dict(waiting), in_hand,
                           self.dropped_total, self.coalesced_total)

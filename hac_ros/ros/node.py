@@ -46,7 +46,7 @@ from collections.abc import Callable, Sequence
 from typing import Any, cast
 
 from rclpy.clock import Clock, ClockType
-from rclpy.event_handler import SubscriptionEventCallbacks
+from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.node import Node
 from rclpy.serialization import deserialize_message
 
@@ -92,6 +92,11 @@ DDS_PROFILE_VARIABLES = ('FASTRTPS_DEFAULT_PROFILES_FILE', 'FASTDDS_DEFAULT_PROF
 STALE_CHECK_S = 0.5  # wall seconds between looks at whether input stopped coming
 MAX_QUEUED_S = 60.0  # longer in the middleware's queue than this: a clock changed, not a wait
 STEADY = Clock(clock_type=ClockType.STEADY_TIME)  # timers that must run without /clock
+# The outputs have no QoS event handlers (rclpy's default warns of an incompatible subscriber,
+# which that subscriber's own side says too): each is a waitable that the executor adds to its
+# wait set for every message it takes, and the 16 of the 8 outputs cost more than a third of the
+# executor thread's time at 1 kHz of poses (docs/node.md, "Performance").
+NO_EVENTS = PublisherEventCallbacks(use_default_callbacks=False)
 
 
 # ---------------------------------------------------------------------------------------- the shell
@@ -157,7 +162,7 @@ class HacShell(RuntimeControl):
     def _activate(self) -> None:
         for topic, msgtype in OUTPUT_TOPICS:
             self._output_publishers[topic] = self.create_publisher(
-                TYPES.get(msgtype), topic, output_qos(topic))
+                TYPES.get(msgtype), topic, output_qos(topic), event_callbacks=NO_EVENTS)
         for kind in ('pose', 'joints', 'camera_info', 'cloud'):
             self._subscribe(kind)
         self._hac_services = [self.create_service(TYPES.get('std_srvs/srv/Trigger'), '~/reset',
@@ -234,7 +239,8 @@ class HacShell(RuntimeControl):
                     'camera_info': self._on_camera_info, 'cloud': self._on_cloud}[kind]
         events = SubscriptionEventCallbacks(
             incompatible_qos=functools.partial(self.graph.incompatible_qos, kind, topic),
-            message_lost=functools.partial(self.graph.message_lost, kind))
+            message_lost=functools.partial(self.graph.message_lost, kind),
+            use_default_callbacks=False)  # (the wrong type is graph_watch's)
         self._subscriptions_by_kind[kind] = self.create_subscription(
             # rclpy hands the message info to a callback of two arguments (its typing says one)
             msg_type, topic, cast(Callable[[Any], None], self._guarded(kind, callback)), qos,
@@ -352,19 +358,19 @@ class HacShell(RuntimeControl):
                      f'{self.params.joints_backlog_max}; further ones are counted in /diagnostics')
 
     def _on_coalesced(self, item: Item) -> None:
-        """A SLAM pose the inbox coalesced into the next one (poses faster than processing),
-        holding the lock: counted; the first said once, at INFO."""
+        """A SLAM pose the inbox coalesced into the next one (a stream faster than one pose per
+        pose_coalesce_s), holding the lock: counted; the first said once, at INFO."""
         outputs = self.core.reject('poses_coalesced', -1)
         for notice in outputs:
             if isinstance(notice, NoticeOut):
                 notice.level = 'info'
                 notice.text = (
-                    'poses_coalesced: SLAM poses come faster than the node processes them: a '
-                    'pose still waiting when the next one came within pose_coalesce_s '
-                    f'({1e3 * self.params.pose_coalesce_s:g} ms) of the pose before it is '
-                    'coalesced into it, so the calibrator gets them at least every '
-                    f'{1e3 * self.params.pose_coalesce_s:g} ms; their /hac/odometry and '
-                    '/hac/pose are not published (counted as rejected.poses_coalesced)')
+                    'poses_coalesced: SLAM poses come more often than one per pose_coalesce_s '
+                    f'({1e3 * self.params.pose_coalesce_s:g} ms): the calibrator gets one at '
+                    f'least every {1e3 * self.params.pose_coalesce_s:g} ms of stamp time, the '
+                    'newest and the one before each joints frame, so the node keeps up; the '
+                    "others' /hac/odometry and /hac/pose are not published (counted as "
+                    'rejected.poses_coalesced; pose_coalesce_s 0 processes every pose)')
         self._emit(outputs)
 
     def _on_cloud(self, data: bytes, arrived_s: float) -> None:

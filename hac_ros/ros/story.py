@@ -6,8 +6,8 @@
   map is the calibrator's notice, ``no_map``);
 - the first map, with its size and the time it took to decode and index;
 - convergence, each time the estimate converges: the scale, its spread, the samples, and the
-  stamp seconds since the first joints frame (``converged: scale 1.2411 +- 0.0040 (31 samples),
-  1.03 s after the first joints``);
+  stamp seconds since the first joints frame, or since the first after a reset (``converged:
+  scale 1.2411 +- 0.004 m per SLAM unit (31 samples), 1.03 s after the first joints``);
 - every change of the ``/diagnostics`` level, with its reasons;
 - every ``log_period_s`` (wall clock; 0 = off) a status line: the last status's level, scale,
   spread and samples, and the joints frames received, processed and dropped (received =
@@ -71,7 +71,8 @@ class Story:
         self._told: set[str] = set()  # inputs whose first-seen line was written
         self._waiting_told = False
         self.map_told = False
-        self.first_joints_ns: int | None = None
+        self.first_joints_ns: int | None = None  # the first joints frame (since the last reset)
+        self._since = 'the first joints'
         self.converged = False
         self._level: int | None = None
         self.status: Status | None = None  # the last status assessed
@@ -123,7 +124,7 @@ class Story:
         waiting = counts.waiting.get('joints', 0) + counts.in_hand.get('joints', 0)
         frames = (f'joints frames received {received} = processed {processed} + dropped '
                   f'{counts.dropped} + waiting {waiting}')
-        poses = counts.received.get('pose', 0)
+        poses = self._count['pose']  # also the transforms of pose_source tf
         poses_text = f'; SLAM poses received {poses}' + (
             f', coalesced {counts.coalesced}' if counts.coalesced else '')
         s, health = self.status, self.health
@@ -171,11 +172,13 @@ class Story:
             return  # a held scale (~/freeze) while a new window fills
         self.converged = True
         after = ('' if self.first_joints_ns is None else
-                 f', {(stamp_ns - self.first_joints_ns) / NS:.2f} s after the first joints')
+                 f', {(stamp_ns - self.first_joints_ns) / NS:.2f} s after {self._since}')
         self.log.info(f'converged: scale {now.scale:.6g} +- {now.spread:.2g} m per SLAM unit '
                       f'({now.samples} samples){after}')
 
     def reset(self) -> None:
         """The estimator restarted (a reset, a rebuilt calibrator): the next convergence is
-        told again."""
+        told again, timed from the first joints frame after it."""
         self.converged = False
+        self.first_joints_ns = None
+        self._since = 'the first joints since the reset'
