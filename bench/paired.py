@@ -66,13 +66,18 @@ def compare(new: dict[tuple[str, int], dict[str, Any]],
             lines.append({'scenario': scenario, 'figure': label, 'n': len(diff),
                           'new': float(np.median(a)), 'old': float(np.median(b)), 'moved': moved,
                           'se': se, 'worse': moved > bound})
-        statuses = sum(new[(scenario, k)].get('statuses', 0) for k in seeds)
-        wrong = sum(new[(scenario, k)].get('ok_wrong', 0) for k in seeds)
-        share = 100.0 * wrong / statuses if statuses else 0.0
+        share, old_share = (_ok_wrong_share([runs[(scenario, k)] for k in seeds])
+                            for runs in (new, old))
         lines.append({'scenario': scenario, 'figure': 'OK>5% share', 'n': len(seeds),
-                      'new': share, 'old': math.nan, 'moved': math.nan, 'se': math.nan,
-                      'worse': share > OK_WRONG_MAX})
+                      'new': share, 'old': old_share, 'moved': share - old_share,
+                      'se': math.nan, 'worse': share > OK_WRONG_MAX})
     return lines
+
+
+def _ok_wrong_share(rows: list[dict[str, Any]]) -> float:
+    """% of the statuses OK and converged while more than 5 % off, over ``rows``."""
+    statuses = sum(row.get('statuses', 0) for row in rows)
+    return 100.0 * sum(row.get('ok_wrong', 0) for row in rows) / statuses if statuses else 0.0
 
 
 def main(argv: list[str] | None = None) -> int:

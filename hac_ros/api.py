@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from hac_ros.core import input_checks as checks
 from hac_ros.core.errors import InputError
 from hac_ros.core.offline import OfflineScale
 from hac_ros.core.outputs import HumanJointsOut, Output, PoseOut, SampleOut, ScaleOut
@@ -33,7 +34,6 @@ log = logging.getLogger(__name__)
 
 MODES = ('offline', 'online')
 MAP_FRAME, CAMERA_FRAME = 'map', 'camera_optical'  # the frames hac import writes
-MAX_STAMP_S = 2.0**31  # builtin_interfaces/Time's sec is an int32
 ROTATION_TOL = 1e-6  # max |RᵀR − I| of a rotation (the message adapters' tolerance)
 
 
@@ -135,40 +135,15 @@ def _params(params: HacParams | Mapping[str, Any] | None, joint_layout: str) -> 
     return base.replace(joint_layout=joint_layout) if joint_layout != base.joint_layout else base
 
 
-def _array(value: Any, name: str, shape: str, unit: str) -> np.ndarray:
-    try:
-        array = np.asarray(value, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise InputError(f'{name}: expected {shape} numbers ({unit}), got {type(value).__name__} '
-                         f'({exc})') from exc
-    return array
-
-
-def _stamps_ns(value: Any, name: str) -> np.ndarray:
-    """(N,) seconds, finite, ROS times, strictly increasing -> int64 ns by round(t × 1e9)."""
-    t = _array(value, name, '(N,)', 'seconds')
-    if t.ndim != 1 or not len(t):
-        raise InputError(f'{name}: expected a non-empty (N,) array of seconds, got shape {t.shape}')
-    bad = ~(np.isfinite(t) & (t >= 0.0) & (t < MAX_STAMP_S))
-    if bad.any():
-        i = int(np.argmax(bad))
-        raise InputError(f'{name}: [{i}] = {float(t[i])!r} s is not a ROS time (finite seconds, '
-                         '0 to 2^31)')
-    ns = np.round(t * 1e9).astype(np.int64)
-    back = np.flatnonzero(np.diff(ns) <= 0)
-    if len(back):
-        i = int(back[0]) + 1
-        raise InputError(f'{name}: stamps must increase (seconds), but [{i}] = {float(t[i])!r} '
-                         f'is not after [{i - 1}] = {float(t[i - 1])!r}')
-    return ns
-
-
 def _validate(pose_stamps: Any, R_wc: Any, c_map: Any, points_map: Any, joints_cam: Any,
               joint_stamps: Any, K: Any, image_size: tuple[int, int] | None,
               params: HacParams) -> _Inputs:
-    pose_ns = _stamps_ns(pose_stamps, 'pose_stamps')
+    """Every argument checked before anything runs, with the checks ``hac import`` makes of the
+    same arrays read from files (:mod:`hac_ros.core.input_checks`): shapes, units, stamps, finite
+    values, the layout."""
+    pose_ns = checks.stamps_ns(pose_stamps, 'pose_stamps')
     n = len(pose_ns)
-    R = _array(R_wc, 'R_wc', '(N, 3, 3)', 'camera-to-map rotations')
+    R = checks.numbers(R_wc, 'R_wc', '(N, 3, 3)', 'camera-to-map rotations')
     if R.shape != (n, 3, 3):
         raise InputError(f'R_wc: expected (N, 3, 3) camera-to-map rotations with N = '
                          f'len(pose_stamps) = {n}, got shape {R.shape}')
@@ -176,39 +151,27 @@ def _validate(pose_stamps: Any, R_wc: Any, c_map: Any, points_map: Any, joints_c
         if not is_rotation(R[i], ROTATION_TOL):
             raise InputError(f'R_wc: [{i}] is not a rotation matrix (finite, RᵀR = I within '
                              f'{ROTATION_TOL:g}, det +1): {R[i].tolist()}')
-    c = _array(c_map, 'c_map', '(N, 3)', 'SLAM units')
+    c = checks.numbers(c_map, 'c_map', '(N, 3)', 'SLAM units')
     if c.shape != (n, 3) or not np.isfinite(c).all():
         raise InputError(f'c_map: expected (N, 3) finite camera centres in SLAM units with N = '
                          f'len(pose_stamps) = {n}, got shape {c.shape}'
                          + ('' if c.shape != (n, 3) else ' with non-finite values'))
-    points = _array(points_map, 'points_map', '(M, 3)', 'SLAM units')
-    if points.ndim != 2 or points.shape[1] != 3:
-        raise InputError(f'points_map: expected (M, 3) map points in SLAM units, got shape '
-                         f'{points.shape}')
-    points = points[np.isfinite(points).all(axis=1) & (points != 0.0).any(axis=1)]
-    if not len(points):
-        raise InputError('points_map: no finite map point other than (0, 0, 0) (SLAM units)')
-
-    k = params.layout().joints_per_person
-    joints = _array(joints_cam, 'joints_cam', '(T, P, K, 3)', 'metres, camera optical frame')
-    if joints.ndim != 4 or joints.shape[3] != 3 or joints.shape[2] != k or not joints.shape[1]:
-        raise InputError(f'joints_cam: expected (T, P, K, 3) metres in the camera optical frame '
-                         f'with K = {k} ({params.joint_layout}), got shape {joints.shape}')
-    if np.isinf(joints).any():
-        raise InputError('joints_cam: holds inf values (metres; NaN blocks mark absent people)')
+    points = checks.map_points(points_map, 'points_map')
+    layout = params.layout()
+    joints = checks.joints(joints_cam, 'joints_cam', layout.joints_per_person, params.joint_layout)
+    odd = checks.joints_unit(joints, 'joints_cam')
+    if odd:
+        log.warning('%d people of joints_cam are not the size of a body in metres: the '
+                    'calibrator refuses them (joints_not_metres)', odd)
     if joint_stamps is None:
         if len(joints) != n:
             raise InputError(f'joints_cam: {len(joints)} frames but no joint_stamps: give '
                              f'joint_stamps (T,) seconds, or one frame per pose (N = {n})')
         joint_ns = pose_ns
     else:
-        joint_ns = _stamps_ns(joint_stamps, 'joint_stamps')
-        if len(joint_ns) != len(joints):
-            raise InputError(f'joint_stamps: {len(joint_ns)} stamps (seconds) but joints_cam has '
-                             f'{len(joints)} frames (shape {joints.shape}); they must match')
+        joint_ns = checks.stamps_ns(joint_stamps, 'joint_stamps')
+        checks.frames_match(joint_ns, joints, 'joint_stamps', 'joints_cam')
     present = [np.flatnonzero(~np.isnan(frame).all(axis=(1, 2))) for frame in joints]
-    if not any(len(p) for p in present):
-        raise InputError('joints_cam: no person in any frame (every (K, 3) block is NaN)')
     return _Inputs(pose_ns, R, c, points, joint_ns, joints, present,
                    _camera(K, image_size))
 
@@ -218,7 +181,7 @@ def _camera(K: Any, image_size: tuple[int, int] | None) -> tuple[np.ndarray, int
         if image_size is not None:
             raise InputError('image_size: given without K (3, 3) intrinsics, pixels')
         return None
-    intrinsics = _array(K, 'K', '(3, 3)', 'pixels')
+    intrinsics = checks.numbers(K, 'K', '(3, 3)', 'pixels')
     if intrinsics.shape != (3, 3) or not np.isfinite(intrinsics).all() \
             or intrinsics[0, 0] <= 0 or intrinsics[1, 1] <= 0:
         raise InputError(f'K: expected (3, 3) finite intrinsics in pixels with fx, fy > 0, got '

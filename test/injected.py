@@ -331,3 +331,23 @@ def person_lifted(path: Path, start_s: float, duration_s: float, height_m: float
                     each.position.z += float(lift[2])
             yield topic, log_ns, msg
     return edit
+
+
+def maps_densified(path: Path, extra_points: int, keep: int) -> Edit:
+    """The first ``keep`` map clouds of the recording at ``path`` each with ``extra_points`` more
+    points on its floor (a dense map: the same surfaces), the later ones left out."""
+    R, t, scale = world_in_map(path)
+    rng = np.random.default_rng(0)
+    floor_world = np.c_[rng.uniform(-7.0, 7.0, (extra_points, 2)), np.zeros(extra_points)]
+    floor_map = (floor_world @ R.T) / scale + t
+
+    def edit(messages: Iterator[Message]) -> Iterator[Message]:
+        seen = 0
+        for topic, log_ns, msg in messages:
+            if topic == CLOUD:
+                seen += 1
+                if seen > keep:
+                    continue
+                msg = _cloud_with(msg, np.vstack([_cloud_points(msg), floor_map]))
+            yield topic, log_ns, msg
+    return edit

@@ -38,7 +38,8 @@ from hac_ros.simulate import make_scenario, write_recording
 
 REPO = Path(__file__).resolve().parents[1]
 SPEC_COLUMNS = ['input', 'status', 'error', 'frames', 'final_scale', 'spread', 'fallback_pct',
-                'resets', 'wall_s', 'ATE', 'ATE_S', 'W_MPJPE', 'scale_err_pct']
+                'resets', 'warn_pct', 'reasons', 'wall_s', 'ATE', 'ATE_S', 'W_MPJPE',
+                'scale_err_pct']
 METRIC_COLUMNS = ('ATE', 'ATE_S', 'W_MPJPE', 'scale_err_pct')
 DURATION_S = 5.0
 OK = ('walk', 'ego', 'stairs', 'odom', 'nogt')  # output names of the inputs that must succeed
@@ -198,6 +199,8 @@ def test_summary_csv_has_specs_columns_and_metrics_where_there_is_ground_truth(p
         assert int(row['frames']) == round(DURATION_S * 30) + 1
         assert float(row['final_scale']) > 0 and float(row['spread']) >= 0
         assert 0 <= float(row['fallback_pct']) <= 100 and int(row['resets']) >= 0
+        assert 0 < float(row['warn_pct']) < 50  # converging: not_converged for a second or two
+        assert row['reasons'].startswith('not_converged '), row['reasons']
         assert float(row['wall_s']) > 0
         has_truth = name != 'nogt'
         assert all((row[c] != '') == has_truth for c in METRIC_COLUMNS), (name, row)

@@ -274,3 +274,54 @@ def test_the_readme_example_runs(walk, tmp_path):
     assert done.returncode == 0, done.stderr
     scale, samples = done.stdout.split()
     assert abs(float(scale) / walk['sc'].true_scale[-1] - 1.0) < 0.03 and int(samples) > 100
+
+
+# the same bad arrays through both doors: calibrate() and hac import of them written as files
+def _wrong_arrays(walk: dict, case: str) -> dict:
+    joints, t_s = walk['joints'], walk['t_s']
+    return {'millimetres': {'joints': joints * 1000.0},
+            'centimetres': {'joints': joints * 100.0},
+            'inf': {'joints': np.where(joints > 3.0, np.inf, joints)},
+            'nobody': {'joints': np.full_like(joints, np.nan)},
+            'COCO K': {'joints': joints[:, :, :17]},
+            'joint stamps back': {'joint_t_s': t_s[::-1].copy()},
+            'joint stamps before 1970': {'joint_t_s': t_s - t_s[0] - 100.0},
+            'fewer joint stamps': {'joint_t_s': t_s[1:]}}[case]
+
+
+@pytest.mark.parametrize('case', ['millimetres', 'centimetres', 'inf', 'nobody', 'COCO K',
+                                  'joint stamps back', 'joint stamps before 1970',
+                                  'fewer joint stamps'])
+def test_calibrate_and_hac_import_say_the_same_of_the_same_bad_arrays(walk, tmp_path, capsys,
+                                                                     case):
+    """One check for both (hac_ros.core.input_checks): what is wrong is said in the same words;
+    only how each names the input differs (calibrate's argument, import's file and array)."""
+    from hac_ros import calibrate
+
+    wrong = {'joints': walk['joints'], 'joint_t_s': walk['t_s'], **_wrong_arrays(walk, case)}
+    with pytest.raises(InputError) as caught:
+        calibrate(walk['t_s'], walk['R_wc'], walk['c'], walk['points'], wrong['joints'],
+                  joint_stamps=wrong['joint_t_s'])
+    said = str(caught.value)
+    argument, _, what = said.partition(': ')
+    assert argument in ('joints_cam', 'joint_stamps'), said
+    files = write_files(tmp_path, walk['t_s'], walk['R_wc'], walk['c'], walk['points'],
+                        wrong['joint_t_s'], wrong['joints'])
+    assert hac(['import', '-o', str(tmp_path / 'rec'), '--trajectory', str(files['trajectory']),
+                '--map', str(files['map']), '--joints', str(files['joints'])]
+               + (['--joint-layout', 'smpl24'] if case == 'COCO K' else [])) == 2
+    line = capsys.readouterr().err.strip()
+    array = 'joints' if argument == 'joints_cam' else 'stamps'
+    what = what.replace('joints_cam', 'joints')  # the other input, as each door names it
+    assert line == f'hac import: error: joints {files["joints"]}: {array}: {what}', (said, line)
+
+
+def test_millimetre_joints_raise_naming_the_argument_and_the_unit_expected(walk):
+    """Not a silent 'scale nan' with rejected joints_not_metres: an InputError before anything
+    runs."""
+    from hac_ros import calibrate
+
+    with pytest.raises(InputError, match=r'^joints_cam: .* HMR joints must be metres, about '
+                                         r'1000x too large: millimetres\? \(the median of \d+ '
+                                         r'people\)$'):
+        calibrate(walk['t_s'], walk['R_wc'], walk['c'], walk['points'], walk['joints'] * 1000.0)

@@ -202,10 +202,21 @@ def test_a_droid_slam_npz_trajectory_imports_as_its_tum_file(files, tmp_path, ca
     assert np.array_equal([t for t, _ in poses], seconds_to_ns(k / 30.0))
     assert len(read_bag(tmp_path / 'fps')['/hmr/joints']) == len(sc.joints_stamps_ns)
     capsys.readouterr()
-    # ... and without --fps they are taken as seconds, with a warning saying so
+    # ... without --fps they are refused, naming it (taken as seconds, a replay would keep only
+    # the joints frames on whole seconds: 20 of 580 in issue 36) ...
     assert hac(import_args(files, tmp_path / 'secs', **base, **{
-        '--trajectory': str(tmp_path / 'frames.npz')})) == 0
-    assert 'tstamp holds whole numbers' in capsys.readouterr().err
+        '--trajectory': str(tmp_path / 'frames.npz')})) == 2
+    err = capsys.readouterr().err
+    assert err.count('\n') == 1 and ('tstamp holds whole numbers (0, 1, ...): frame indices? give '
+                                     'the frame rate, --fps (seconds = index / fps); a trajectory '
+                                     'at 1 Hz stamped in seconds is --fps 1') in err, err
+    assert not (tmp_path / 'secs').exists()
+    # ... and --fps 1 takes them as a 1 Hz trajectory stamped in seconds
+    assert hac(import_args(files, tmp_path / 'one_hz', **base, **{
+        '--trajectory': str(tmp_path / 'frames.npz'), '--fps': '1'})) == 0
+    poses = read_bag(tmp_path / 'one_hz')['/slam/pose']
+    assert np.array_equal([t for t, _ in poses], seconds_to_ns(k / 1.0))
+    capsys.readouterr()
 
     # what is wrong is said in one line, naming the array
     np.savez(tmp_path / 'no_traj.npz', poses=traj)
@@ -328,8 +339,9 @@ def _garbage(tmp: Path, files: dict) -> dict[str, tuple[dict, str]]:
         'garbage PLY header': ({'--map': tmp / 'garbage.ply'}, 'not a PLY file'),
         'truncated npz': ({'--joints': tmp / 'short.npz'}, 'not a readable .npz'),
         'npz without the arrays': ({'--joints': tmp / 'nokeys.npz'}, "no 'stamps' or 'joints'"),
-        'npz stamps vs joints': ({'--joints': tmp / 'frames.npz'}, '5 stamps but joints has 4'),
-        'K vs joint layout': ({'--joint-layout': 'coco17'}, '24 joints per person'),
+        'npz stamps vs joints': ({'--joints': tmp / 'frames.npz'},
+                                 '5 stamps (seconds) but joints has 4 frames'),
+        'K vs joint layout': ({'--joint-layout': 'coco17'}, 'with K = 17 (coco17), got shape'),
         'joints stamps go back': ({'--joints': tmp / 'back.npz'}, 'stamps must increase'),
         'trajectory stamps go back': ({'--trajectory': tmp / 'back.tum'}, 'stamps must increase'),
         'joints stamps before 1970': ({'--joints': tmp / 'negative.npz'}, 'not a ROS time'),
@@ -337,7 +349,8 @@ def _garbage(tmp: Path, files: dict) -> dict[str, tuple[dict, str]]:
         'PLY list of negative length': ({'--map': tmp / 'neglist.ply'}, 'a list of -100 items'),
         'TUM wrong columns': ({'--trajectory': tmp / 'cols.tum'}, 'expected 8 values'),
         'NaN in trajectory': ({'--trajectory': tmp / 'nan.tum'}, 'not finite'),
-        'GT joints shapes': ({'--gt-joints': tmp / 'frames.npz'}, '5 stamps but joints has 4'),
+        'GT joints shapes': ({'--gt-joints': tmp / 'frames.npz'},
+                             '5 stamps (seconds) but joints has 4 frames'),
         'GT shares no stamp': ({'--gt-trajectory': files['dir'] / 'far.tum'}, 'Sim(3) fit needs 3'),
         'bad camera': ({'--camera': '500,500,320'}, 'fx,fy,cx,cy,width,height'),
     }

@@ -290,9 +290,9 @@ def test_hmr_focal_px_undoes_a_focal_length_mismatch():
     assert abs(final(fixed_out) - baseline) < 0.005
     notes = [o.text for o in fixed_out if isinstance(o, NoticeOut) and o.cause == 'hmr_focal']
     assert len(notes) == 1 and '800.0 px' in notes[0]
-    plain = [o.text for o in _run(sc, HacParams()) if isinstance(o, NoticeOut)
-             and o.cause == 'hmr_focal']
-    assert len(plain) == 1 and 'hmr_focal_px 0' in plain[0]
+    # hmr_focal_px 0: nothing to say on a correct run (issue 36: correct runs look alarming)
+    assert not [o for o in _run(sc, HacParams()) if isinstance(o, NoticeOut)
+                and o.cause.startswith('hmr_focal')]
     # without CameraInfo: one clear warning, depths uncorrected
     blind = _run(sc, HacParams(hmr_focal_px=f_a), joints_fn=assumed, camera_info=False)
     assert [o.cause for o in blind if isinstance(o, NoticeOut)].count('hmr_focal_no_camera_info') == 1

@@ -262,6 +262,17 @@ def test_demo_live_gives_the_online_replays_final_scale(tmp_path):
     frames += int(dropped.group(1)) if dropped else 0
     assert frames >= 0.85 * online.status.frames, out
     assert 'converged' in out and 'hac_node over DDS' in out
+    # what the statuses said, counted from what came back as the replay counts what it wrote:
+    # about as many, and no reason of the core's that the replay's statuses did not give (the
+    # node adds its own: dropped or lost frames, latency)
+    from hac_ros.core.reasons import NODE, REASONS
+
+    said = re.search(r'statuses \((\d+) /diagnostics, one per second\): (.*)', out)
+    assert said and abs(int(said.group(1)) - online.statuses.total) <= 2, out
+    reasons = set(re.findall(r'([a-z_]+) [<>]?\d+ %', said.group(2)))
+    node_only = {r for r in reasons if r == 'frames_dropped' or r.endswith('_lost')
+                 or REASONS[r].kind == NODE}
+    assert 'not_converged' in reasons and reasons - node_only <= set(online.statuses.reasons), out
     # the counts are the last stamp-time status's, within the 20 s recording (not a status the
     # node republished on its steady clock after the play ended, stamped with its clock)
     as_of = re.search(r'counts as of t\+([0-9.]+) s', out)

@@ -17,6 +17,7 @@ from typing import Any
 from hac_ros import __version__
 from hac_ros.core.errors import ArgumentError, HacError
 from hac_ros.core.params import HacParams
+from hac_ros.core.printable import printable, printable_lines
 from hac_ros.recording.atomic import PARTIAL_SUFFIX, staged_output
 from hac_ros.recording.reader import GT_CAMERA, GT_JOINTS, GT_SCALE, Recording
 from hac_ros.replay.replayer import MODES
@@ -44,6 +45,8 @@ COLUMNS = {
     'spread': ('spread', '.4g', 'spread (m/SLAM unit)'),
     'fallback_pct': ('fallback_pct', '.1f', 'fallback (%)'),
     'resets': ('resets', 'd', 'resets'),
+    'warn_pct': ('warn_pct', '.1f', 'WARN (%)'),
+    'reasons': ('reasons', 's', 'reasons'),
     'wall_s': ('wall_s', '.2f', 'wall (s)'),
     'ATE': ('ate_m', '.4f', 'ATE (m)'),
     'ATE_S': ('ate_s_m', '.4f', 'ATE-S (m)'),
@@ -86,8 +89,10 @@ class Job:
 @dataclass
 class Row:
     """One line of the summary. Scale and spread in metres per SLAM unit (the last segment's),
-    fallback_pct: ground-plane share of the samples (%), wall_s: seconds this recording took
-    (replay and evaluation), ate_m / ate_s_m: metres, w_mpjpe_mm: mm, scale_err_pct: % of the
+    fallback_pct: ground-plane share of the samples (%), warn_pct: share of its /diagnostics
+    statuses that were not OK (%), reasons: the reasons they gave with their shares (the replay
+    summary's ``floor_unknown 30 %, ...``), wall_s: seconds this recording took (replay and
+    evaluation), ate_m / ate_s_m: metres, w_mpjpe_mm: mm, scale_err_pct: % of the
     final scale against the truth; None where not known (no ground truth, a failed row)."""
 
     input: str
@@ -98,6 +103,8 @@ class Row:
     spread: float | None = None
     fallback_pct: float | None = None
     resets: int | None = None
+    warn_pct: float | None = None
+    reasons: str = ''
     wall_s: float | None = None
     ate_m: float | None = None
     ate_s_m: float | None = None
@@ -147,14 +154,23 @@ def run_job(job: Job) -> Row:
     return row
 
 
+class JobLogFormatter(logging.Formatter):
+    """A job log's line, every character a terminal would obey escaped (names and paths from the
+    recording: :mod:`hac_ros.core.printable`); a traceback is left as it is."""
+
+    def formatMessage(self, record: logging.LogRecord) -> str:
+        return printable_lines(super().formatMessage(record))
+
+
 @contextlib.contextmanager
 def job_log(path: Path) -> Iterator[None]:
     """Everything hac_ros logs meanwhile (the replay's notices, the summaries) goes to ``path``
-    (replaced), through a handler on the package's logger, at level INFO; the process's streams
-    are left alone. Used in a pool worker or a Ray task, one job at a time."""
+    (replaced), through a handler on the package's logger, at level INFO, every character a
+    terminal would obey escaped (:mod:`hac_ros.core.printable`); the process's streams are left
+    alone. Used in a pool worker or a Ray task, one job at a time."""
     path.parent.mkdir(parents=True, exist_ok=True)
     handler = logging.FileHandler(path, mode='w', encoding='utf-8')
-    handler.setFormatter(logging.Formatter(JOB_LOG_FORMAT))
+    handler.setFormatter(JobLogFormatter(JOB_LOG_FORMAT))
     package = logging.getLogger(PACKAGE_LOGGER)
     level = package.level
     package.addHandler(handler)
@@ -188,7 +204,8 @@ def _calibrate(job: Job) -> Row:
         raise HacError(summary.why_not_calibrated())
     row = Row(job.input, 'ok', frames=status.frames, final_scale=summary.last_scale.scale,
               spread=summary.last_scale.spread, fallback_pct=100.0 * status.fallback_rate,
-              resets=status.resets)
+              resets=status.resets, warn_pct=summary.statuses.warn_pct,
+              reasons=summary.statuses.reasons_text())
     if has_ground_truth(job.input_path):
         evaluation = evaluate(output, job.input_path, params, references=False)
         log.info('%s', evaluation.text())
@@ -317,7 +334,7 @@ def one_line(exc: BaseException) -> str:
     """An exception as one line: a HacError's own text, otherwise prefixed with its type."""
     from msg_adapters import MessageError
 
-    text = (str(exc).strip().splitlines() or [''])[0]
+    text = printable((str(exc).strip().splitlines() or [''])[0])
     if isinstance(exc, (HacError, MessageError)) and text:
         return text
     return f'{type(exc).__name__}: {text}' if text else type(exc).__name__

@@ -12,7 +12,10 @@ from hac_ros.batch.pool import default_workers, run_pool
 from hac_ros.batch.summary import medians_line, write_summary
 from hac_ros.core.errors import ArgumentError
 from hac_ros.core.params import HacParams
+from hac_ros.core.printable import printable
 from hac_ros.replay.feeder import Progress, progress_pass
+
+MOSTLY_WARN_PCT = 50.0  # a recording WARN for more of its statuses is named in the summary
 
 
 # ============================================================================ the batch
@@ -37,6 +40,9 @@ class BatchResult:
                  + f', {len(self.rows) - ok} failed -> {self.out_dir / SUMMARY_CSV}, '
                  f'{self.out_dir / SUMMARY_MD}']
         lines += [f'  failed: {row.input}: {row.error}' for row in self.rows if not row.ok]
+        lines += [f'  mostly WARN: {row.input}: WARN {row.warn_pct:.0f} % of its statuses '
+                  f'({row.reasons})' for row in self.rows
+                  if row.ok and row.warn_pct is not None and row.warn_pct > MOSTLY_WARN_PCT]
         medians = medians_line(self.rows)
         if medians:
             lines.append('  ' + medians)
@@ -72,8 +78,8 @@ def batch(inputs: Sequence[str | Path], out_dir: str | Path, params: HacParams |
         for name in done:
             with open(out_dir / LOGS / f'{name}.log', 'a', encoding='utf-8') as log:
                 print(f'hac batch: {time.strftime("%Y-%m-%d %H:%M:%S")}: skipped (resumed): '
-                      f'{out_dir / name} is complete for the same input, parameters and mode',
-                      file=log)
+                      f'{printable(out_dir / name)} is complete for the same input, parameters '
+                      'and mode', file=log)
         total = len(jobs) + len(done)
         bar = stack.enter_context(progress_pass(progress, total, 'hac batch'))
         if bar is not None and done:

@@ -8,6 +8,7 @@ from collections.abc import Iterable
 from pathlib import Path
 
 from hac_ros.batch.jobs import COLUMNS, LOGS, SUMMARY_CSV, SUMMARY_MD, Row, _finite, write_text
+from hac_ros.core.printable import printable
 
 
 # ============================================================================ the summary
@@ -20,7 +21,7 @@ def write_summary(out_dir: Path, rows: list[Row], mode: str) -> None:
     writer.writerows(row.cells() for row in rows)
     write_text(out_dir / SUMMARY_CSV, text.getvalue())
     ok = sum(row.ok for row in rows)
-    lines = [f'# hac batch: {out_dir}', '',
+    lines = [f'# hac batch: {printable(out_dir)}', '',
              f'{len(rows)} recordings ({mode} mode): {ok} ok, {len(rows) - ok} failed. Logs in '
              f'`{LOGS}/`; metrics where a recording has ground truth.', '',
              '| ' + ' | '.join(header for _, _, header in COLUMNS.values()) + ' |',
@@ -52,4 +53,6 @@ def medians_line(rows: Iterable[Row]) -> str:
 
 
 def _md_escape(text: str) -> str:
-    return text.replace('|', '\\|').replace('\n', ' ')
+    """A cell of summary.md: one line, its pipes escaped, nothing a terminal would obey (an input's
+    name can hold anything: hac_ros.core.printable)."""
+    return printable(text.replace('\n', ' ')).replace('|', '\\|')

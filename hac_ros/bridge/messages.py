@@ -21,7 +21,7 @@ import numpy as np
 from rosbags.typesys import Stores, get_typestore
 from scipy.spatial.transform import Rotation
 
-from hac_ros.core.health import Finding, HealthMonitor
+from hac_ros.core.health import Finding, Health, HealthMonitor
 from hac_ros.core.numeric import NS
 from hac_ros.core.outputs import (
     CloudOut,
@@ -125,6 +125,7 @@ class OutputMessages:
 
     def __init__(self, params: HacParams) -> None:
         self.health = HealthMonitor()  # the level and reasons of each /diagnostics status
+        self.last_health: Health | None = None  # those of the last status made
         # the node's own findings and key-values, added to every status (None in the replay)
         self.extra_status: Callable[[], tuple[list[Finding], list[tuple[str, str]]]] | None = None
         self.params = params
@@ -223,6 +224,7 @@ class OutputMessages:
         values += [(f'condition.{key}', text) for key, text in sorted(status.conditions.items())]
         values += list(extra_values)
         health = self.health.assess(status, extra) if take else self.health.peek(status, extra)
+        self.last_health = health  # what the message says (the replay's summary counts them)
         values.append(('reasons', ','.join(health.reasons)))
         KeyValue = TYPES.get('diagnostic_msgs/msg/KeyValue')
         diagnostic = TYPES.get('diagnostic_msgs/msg/DiagnosticStatus')(

@@ -36,10 +36,12 @@ import importlib  # noqa: E402
 import threading  # noqa: E402
 from collections.abc import Iterator, Sequence  # noqa: E402
 from types import FrameType  # noqa: E402
+from typing import TextIO  # noqa: E402
 
 from hac_ros import __version__  # noqa: E402
 from hac_ros.cli.terminal import terminal_logging  # noqa: E402
 from hac_ros.core.errors import ArgumentError, ArgumentText, HacError  # noqa: E402
+from hac_ros.core.printable import printable_lines  # noqa: E402
 from hac_ros.recording.atomic import STOP_SIGNALS, Interrupted  # noqa: E402
 
 # sub-command -> (module in this package, one-line help)
@@ -105,8 +107,15 @@ def main(argv: Sequence[str] | None = None) -> int:
             reason = user_error(exc, args if 'args' in locals() else None)
             if reason is None:
                 raise
-            print(f'{command}: error: {reason}', file=sys.stderr)
+            show(f'{command}: error: {reason}', sys.stderr)
             return 2
+
+
+def show(text: object, file: TextIO | None = None) -> None:
+    """Print ``text`` for the user (stdout, or ``file``): every character a terminal would obey
+    rather than show escaped, line by line (:func:`~hac_ros.core.printable.printable_lines`): what
+    a command prints holds names and paths from recordings and files."""
+    print(printable_lines(text), file=file if file is not None else sys.stdout, flush=True)
 
 
 def interrupted(command: str, signum: int) -> int:

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import argparse
 
-from hac_ros.cli import add_mode_and_params
+from hac_ros.cli import add_mode_and_params, show
 from hac_ros.files.params_file import load_params
 
 
@@ -36,7 +36,7 @@ def run(args: argparse.Namespace) -> int:
     result = batch(args.inputs, args.output, load_params(args.params), mode=args.mode,
                    workers=args.workers, ray=args.ray, resume=args.resume,
                    progress=progress_bar('rec', leave=True))
-    print(result.text())
+    show(result.text())
     if any(row.error for row in result.rows):
-        print('  (--resume redoes what failed and keeps what is complete)')
+        show('  (--resume redoes what failed and keeps what is complete)')
     return result.exit_code

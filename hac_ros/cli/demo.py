@@ -14,13 +14,17 @@ directory.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import shutil
 import tempfile
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
+from hac_ros.cli import show
 from hac_ros.core.errors import HacError
+from hac_ros.recording.atomic import signals_held
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -58,7 +62,7 @@ def recording_or_simulated(recording: str | None, tmp: Path) -> Path:
     """The demo recording (:func:`find_recording`), else one simulated into ``tmp``."""
     source = find_recording(recording)
     if source is None:
-        print(f'{DEMO_RECORDING} not found: simulating a {SIMULATED["duration_s"]:.0f} s '
+        show(f'{DEMO_RECORDING} not found: simulating a {SIMULATED["duration_s"]:.0f} s '
               f'"{SIMULATED["scenario"]}" recording instead')
         source = simulate_into(tmp)
     return source
@@ -73,6 +77,26 @@ def clear_results(out_dir: Path) -> None:
         elif path.exists() or path.is_symlink():
             path.unlink()
 
+@contextlib.contextmanager
+def results_dir(out_dir: Path) -> Iterator[None]:
+    """``out_dir`` for the demo's results: made if missing (with its parents), an earlier demo's
+    results cleared. On an error or an interruption the results written so far are removed and so
+    are the directories made here: nothing partial, no empty ``-o NEWDIR`` left behind."""
+    made = [p for p in (out_dir, *out_dir.parents) if not p.exists()]  # the deepest first
+    with signals_held():  # a signal cannot land between the mkdir and the clean-up's reach
+        out_dir.mkdir(parents=True, exist_ok=True)
+    try:
+        clear_results(out_dir)
+        yield
+    except BaseException:
+        with signals_held():
+            clear_results(out_dir)
+            for path in made:
+                with contextlib.suppress(OSError):  # not empty: something else is in it
+                    path.rmdir()
+        raise
+
+
 def demo(out_dir: Path, recording: str | None = None) -> int:
     from hac_ros.cli.terminal import progress_bar
     from hac_ros.evaluation.evaluate import evaluate
@@ -82,25 +106,20 @@ def demo(out_dir: Path, recording: str | None = None) -> int:
     start = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix='hac_demo_') as tmp:
         source = recording_or_simulated(recording, Path(tmp))
-        out_dir.mkdir(parents=True, exist_ok=True)
-        clear_results(out_dir)
-        try:
+        with results_dir(out_dir):
             summary = replay(source, out_dir / 'replay', mode='offline',
                              export_tum=out_dir / 'tum', progress=progress_bar('msg'))
-            print(summary.text())
-            print()
+            show(summary.text())
+            show('')
             result = evaluate(out_dir / 'replay', source)
-            print(result.text())
+            show(result.text())
             (out_dir / 'eval.json').write_text(json.dumps(result.as_dict(), indent=2) + '\n',
                                                encoding='utf-8')
             (out_dir / 'eval.md').write_text(result.markdown() + '\n', encoding='utf-8')
-            print()
+            show('')
             for name, path in make_plots(out_dir / 'replay', out_dir, source).items():
-                print(f'figure {name}: {path}')
-        except BaseException:  # interrupted or failed: no half set of results
-            clear_results(out_dir)
-            raise
-    print(f'\ndemo done in {time.perf_counter() - start:.1f} s; results in {out_dir}/')
+                show(f'figure {name}: {path}')
+    show(f'\ndemo done in {time.perf_counter() - start:.1f} s; results in {out_dir}/')
     return 0
 
 
@@ -110,10 +129,10 @@ def live_demo(recording: str | None, rate: float, params_file: str | None) -> in
 
     with tempfile.TemporaryDirectory(prefix='hac_demo_') as tmp:
         source = recording_or_simulated(recording, Path(tmp))
-        print(f'starting hac_node and playing {source} into it at {rate:g}x real time '
-              '(hac play) ...', flush=True)
+        show(f'starting hac_node and playing {source} into it at {rate:g}x real time '
+              '(hac play) ...')
         summary = live_run(source, rate, params_file)
-    print(summary.text())
+    show(summary.text())
     return 0
 
 

@@ -5,7 +5,7 @@ import argparse
 import json
 from pathlib import Path
 
-from hac_ros.cli import add_params
+from hac_ros.cli import add_params, show
 from hac_ros.files.params_file import load_params
 
 
@@ -28,7 +28,7 @@ def run(args: argparse.Namespace) -> int:
 
     result = evaluate(args.output, args.gt, load_params(args.params) if args.params else None,
                       references=not args.no_references)
-    print(result.text(), flush=True)
+    show(result.text())
     if args.json:
         Path(args.json).write_text(json.dumps(result.as_dict(), indent=2) + '\n', encoding='utf-8')
     if args.md:

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 
+from hac_ros.cli import show
 from hac_ros.core.layouts import LAYOUTS
 
 
@@ -24,5 +25,5 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from hac_ros.files.exporter import export
 
-    print(export(args.output, args.npz, args.joint_layout).text())
+    show(export(args.output, args.npz, args.joint_layout).text())
     return 0

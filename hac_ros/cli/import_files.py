@@ -7,7 +7,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from hac_ros.cli import add_output_recording, say
+from hac_ros.cli import add_output_recording, say, show
 from hac_ros.core.layouts import LAYOUTS
 
 
@@ -64,9 +64,9 @@ def run(args: argparse.Namespace) -> int:
                           joint_layout=args.joint_layout, storage=args.storage,
                           map_frame=args.map_frame, camera_frame=args.camera_frame,
                           world_frame=args.world_frame, fps=args.fps)
-    print(result.text())
+    show(result.text())
     if result.params_file is not None:
-        print(f'  parameters: {result.params_file} (for hac replay --params)')
+        show(f'  parameters: {result.params_file} (for hac replay --params)')
     for warning in result.warnings:
-        print(f'hac import: warning: {say(warning, args)}', file=sys.stderr)
+        show(f'hac import: warning: {say(warning, args)}', sys.stderr)
     return 0

@@ -11,6 +11,7 @@ import argparse
 import sys
 from collections.abc import Sequence
 
+from hac_ros.cli import show
 from hac_ros.core.errors import HacError
 
 
@@ -68,13 +69,13 @@ def run(args: argparse.Namespace) -> int:
         with Player(args.input, rate=args.rate, loop=args.loop, clock_hz=args.clock,
                     topics=args.topics, remap=remap, wait_s=args.wait) as player:
             for reason in player.skipped:
-                print(f'hac play: warning: not played: {reason}', file=sys.stderr)
+                show(f'hac play: warning: not played: {reason}', sys.stderr)
             names = ', '.join(f'{t.name} -> {t.published_as}' if t.name != t.published_as
                               else t.name for t in player.plan)
-            print(f'hac play: {args.input}: {names} at {args.rate:g}x'
-                  + (' (loop)' if args.loop else ''), flush=True)
+            show(f'hac play: {args.input}: {names} at {args.rate:g}x'
+                  + (' (loop)' if args.loop else ''))
             stats = player.run()
     finally:
         rclpy.try_shutdown()
-    print(f'hac play: {stats.text()}')
+    show(f'hac play: {stats.text()}')
     return 0

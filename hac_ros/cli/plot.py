@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import argparse
 
+from hac_ros.cli import show
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('output', metavar='OUT', help='a recording written by hac replay')
@@ -16,5 +18,5 @@ def run(args: argparse.Namespace) -> int:
     from hac_ros.evaluation.plots import make_plots
 
     for name, path in make_plots(args.output, args.out_dir, args.gt).items():
-        print(f'{name}: {path}')
+        show(f'{name}: {path}')
     return 0

@@ -4,7 +4,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from hac_ros.cli import add_mode_and_params, add_output_recording
+from hac_ros.cli import add_mode_and_params, add_output_recording, show
 from hac_ros.core.params import POSE_MSGTYPES
 from hac_ros.files.params_file import load_params
 
@@ -43,8 +43,8 @@ def run(args: argparse.Namespace) -> int:
                      pose_type=args.pose_type,
                      copy_inputs=args.copy_inputs, export_tum=args.export_tum,
                      progress=None if args.no_progress else progress_bar('msg'))
-    print(summary.text())
+    show(summary.text())
     if not summary.calibrated:  # a replay that calibrated nothing is not a success
-        print(f'hac replay: {summary.why_not_calibrated()}', file=sys.stderr)
+        show(f'hac replay: {summary.why_not_calibrated()}', sys.stderr)
         return NOT_CALIBRATED
     return 0

@@ -4,7 +4,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from hac_ros.cli import add_output_recording, escape_help
+from hac_ros.cli import add_output_recording, escape_help, show
 from hac_ros.core.errors import HacError
 from hac_ros.core.layouts import BUILT_IN
 from hac_ros.core.params import POSE_TYPES
@@ -54,7 +54,7 @@ def run(args: argparse.Namespace) -> int:
                        joint_layout=args.joint_layout)
     write_recording(sc, output, storage=args.storage, pose_type=args.pose_type,
                     pose_frame=args.pose_frame, pose_source=args.pose_source)
-    print(f'{args.output}: {args.scenario}, {sc.duration_s:.1f} s, {len(sc.pose_stamps_ns)} poses, '
+    show(f'{args.output}: {args.scenario}, {sc.duration_s:.1f} s, {len(sc.pose_stamps_ns)} poses, '
           f'{len(sc.joints_stamps_ns)} joints frames, {len(sc.maps)} maps, true scale '
           f'{sc.true_scale[0]:.4g} m/unit, HMR bias {sc.hmr_bias:+.3f}')
     return 0

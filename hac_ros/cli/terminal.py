@@ -16,6 +16,8 @@ import sys
 from collections.abc import Iterator
 from typing import TYPE_CHECKING, Any
 
+from hac_ros.core.printable import printable_lines
+
 if TYPE_CHECKING:  # the command starts without importing the library
     from hac_ros.replay.feeder import Progress
 
@@ -36,14 +38,16 @@ class TerminalHandler(logging.Handler):
 
 
 class CommandFormatter(logging.Formatter):
-    """``hac COMMAND: level: message`` (and the traceback, when a record carries one)."""
+    """``hac COMMAND: level: message`` (and the traceback, when a record carries one); the
+    message's characters that a terminal would obey escaped (:mod:`hac_ros.core.printable`)."""
 
     def __init__(self, command: str) -> None:
         super().__init__()
         self.command = command
 
-    def format(self, record: logging.LogRecord) -> str:
-        return f'hac {self.command}: {record.levelname.lower()}: {super().format(record)}'
+    def formatMessage(self, record: logging.LogRecord) -> str:
+        return (f'hac {self.command}: {record.levelname.lower()}: '
+                f'{printable_lines(record.message)}')
 
 
 @contextlib.contextmanager

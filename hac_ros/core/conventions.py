@@ -57,11 +57,7 @@ NO_CAMERA_INFO = ('hmr_focal_px is set but no CameraInfo has arrived: HMR depths
 
 
 def focal_note(fx: float, hmr_focal_px: float) -> str:
-    """The start-up line saying which focal length the HMR depths are taken at."""
-    if not hmr_focal_px:
-        return (f'HMR depth taken at the camera\'s focal length fx = {fx:.1f} px (hmr_focal_px 0): '
-                'if the HMR model assumed another (e.g. one derived from the image size), set '
-                'hmr_focal_px')
+    """The start-up line saying that, and how, the HMR depths are corrected (hmr_focal_px set)."""
     return (f'HMR depth corrected from the focal length it assumed, {hmr_focal_px:.1f} px '
             f'(hmr_focal_px), to the camera\'s fx = {fx:.1f} px')
 
@@ -88,7 +84,11 @@ class Conventions:
         return to_optical(R_map_child, c_map_child, self.child_optical)
 
     def camera_info_notes(self, stamp_ns: int, K: np.ndarray) -> list[Output]:
-        """The first CameraInfo: one line saying which focal length the HMR depth is taken at."""
+        """The first CameraInfo: with hmr_focal_px set, one line saying the correction it makes.
+        Nothing with hmr_focal_px 0: the depths are used as they come, and a line on every correct
+        run would say nothing a user must act on (docs/inputs.md says how a wrong focal shows)."""
+        if not self.hmr_focal_px:
+            return []
         return [NoticeOut(stamp_ns, 'hmr_focal', focal_note(float(K[0, 0]), self.hmr_focal_px),
                           'info')]
 

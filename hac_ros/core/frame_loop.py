@@ -43,12 +43,16 @@ from hac_ros.core.reasons import text as reason_text
 from hac_ros.core.reference import MapIndex
 from hac_ros.core.sample import Scene, person_sample
 from hac_ros.core.services import ServiceRequests
+from hac_ros.core.stamp_reach import UNMATCHED, StampReach
 from hac_ros.core.timeline import Timeline
 
 GROUND_SHARE_SAMPLES = 30  # recent samples whose sources say whether the ground plane carries
 # resets that keep the map in use, and the ground model: the same SLAM map goes on
 KEEPS_MAP = ('map_overlap', 'service', 'time_jump_ahead')
 KEEPS_GROUND = ('service', 'time_jump_ahead')
+# rejections that correct runs meet: their first notice is INFO (a sample the outlier gate kept
+# out, a person sitting down)
+ROUTINE_REJECTIONS = ('gated', 'not_standing')
 
 
 @dataclass
@@ -72,6 +76,8 @@ class FrameLoop:
         self.rejected: Counter[str] = Counter()
         self.events: Counter[str] = Counter()  # time jumps (hac_ros.core.timeline)
         self._noticed: set[str] = set()
+        self._map_seen = False  # a map was in use for a frame (before: no_map is waiting for it)
+        self.reach = StampReach()  # joints and poses stamped apart (hac_ros.core.stamp_reach)
         self.frames = self.people = self.map_hits = self.ground_fallbacks = self.resets = 0
         self._K: np.ndarray | None = None
         self._image_size = (0, 0)
@@ -180,12 +186,31 @@ class FrameLoop:
         """Count a rejection; the first of each reason is announced with ``detail`` (else the
         reason's text)."""
         self.rejected[reason] += 1
+        out: list[Record] = []
+        if reason in UNMATCHED:  # a frame without its pose: two clocks? (said once)
+            track = self.track
+            first = (track.poses[0] if track.poses else
+                     track.candidates[0] if track.candidates else None)
+            out += self.reach.judge(int(stamp_ns), None if first is None else first.stamp_ns,
+                                    track.newest_stamp_ns, self.frames)
         if reason in self._noticed:
-            return []
+            return out
         self._noticed.add(reason)
+        if reason == 'no_map' and not self._map_seen:
+            return [*out, NoticeOut(int(stamp_ns), reason, 'waiting for the first map: joints '
+                                    'frames give no scale sample until it comes (counted as '
+                                    'rejected.no_map in /diagnostics)', 'info')]
         text = detail or reason_text(reason)
-        return [NoticeOut(int(stamp_ns), reason, f'rejected input ({reason}): {text}; '
-                          'further ones are counted in /diagnostics')]
+        return [*out, NoticeOut(int(stamp_ns), reason, f'rejected input ({reason}): {text}; '
+                                'further ones are counted in /diagnostics',
+                                self._notice_level(reason))]
+
+    def _notice_level(self, reason: str) -> str:
+        """The level of a reason's first notice: ``info`` for what correct runs meet (the
+        outlier gate at work, people sitting, a ray that meets nothing while the ground plane is
+        still being found; waiting for the first map is said above), ``warn`` otherwise."""
+        waiting = reason == 'no_reference' and self.ground.normal() is None
+        return 'info' if reason in ROUTINE_REJECTIONS or waiting else 'warn'
 
     # ================================================================== poses
     def _accept_pose(self, pose: Pose, move: tuple[float, float] | None = None,
@@ -245,7 +270,7 @@ class FrameLoop:
         self._pending = [f for f in self._pending if f.stamp_ns >= first_pose.stamp_ns]
         out += [ResetOut(first_pose.stamp_ns, cause),
                 NoticeOut(first_pose.stamp_ns, 'reset', f'estimator reset ({cause}): {text}',
-                          'warn')]
+                          'info')]  # what a SLAM does; /diagnostics counts it
         for frame in stale:
             out += self._reject('no_pose', frame.stamp_ns)
         return out
@@ -295,6 +320,7 @@ class FrameLoop:
             return self._reject('no_pose', stamp)
         out += self._activate_map(stamp, pose[1])
         out += self._hand_map(stamp)
+        self._map_seen = self._map_seen or self.map is not None
         R_wc, c_map = pose
         self._last_frame_ns = stamp
         self.frames += 1

@@ -11,13 +11,18 @@ posture is judged on the HMR body itself, scale-free, in the body's own frame:
   axis (about 90 degrees); kneeling: the shins are (about 90 degrees); walking, the stance leg is
   within 40 degrees on both. People on their hands keep their legs along the axis: they measure,
   as before (the hands are the contact).
+- without a support leg, a person *balanced over their feet* stands on them (a squat, a crouch
+  to pick something up): once the scene's down is known, the mean of their joints lies within
+  BALANCE_MAX_M of their feet across it. A seated person's weight is on the seat, behind the feet
+  (0.3 m and more), a kneeling one's on the knees.
 - lying: the body's axis is across the scene's down (within LYING_MAX_DEG of horizontal), judged
   once down is known (:mod:`hac_ros.core.down_vote`): a lying body's legs are along its axis.
 
 Jumps are not judged here: a jump's samples leave the estimator's gate. A layout without legs
 (``custom`` without ``legs``) is judged by its axis alone. Measured on the CMU motions: every
 frame of the walk 131_02 and of the hop 131_03 stands; 131_01 crouches for about 9 % of its
-frames (the pelvis 0.6 m up: a seated shape) and those do not (docs/method.md).
+frames (the pelvis 0.5-0.8 m up: a seated shape, its weight within 9 cm of its feet): they stand
+by balance (docs/method.md).
 """
 from __future__ import annotations
 
@@ -30,6 +35,7 @@ from hac_ros.core.layouts import JointLayout
 STANDING_THIGH_MAX_DEG = 65.0  # a support leg's thigh against the body's down axis
 STANDING_SHIN_MAX_DEG = 50.0  # ... and its shin
 LYING_MAX_DEG = 45.0  # a body axis within this of horizontal (scene's down known) is lying
+BALANCE_MAX_M = 0.15  # the joints' mean within this of the feet, across down: on its feet
 
 _THIGH_COS = math.cos(math.radians(STANDING_THIGH_MAX_DEG))
 _SHIN_COS = math.cos(math.radians(STANDING_SHIN_MAX_DEG))
@@ -61,4 +67,9 @@ def posture_problem(layout: JointLayout, joints: np.ndarray, up: np.ndarray,
         if (float(thigh @ body_down) >= _THIGH_COS * t_norm
                 and float(shin @ body_down) >= _SHIN_COS * s_norm):
             return ''
+    if down is not None and layout.feet:
+        offset = joints.mean(axis=0) - joints[list(layout.feet)].mean(axis=0)
+        across = offset - float(offset @ down) * down
+        if float(np.linalg.norm(across)) <= BALANCE_MAX_M:
+            return ''  # balanced over the feet: a squat, a crouch
     return 'seated or kneeling'

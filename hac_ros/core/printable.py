@@ -6,7 +6,7 @@ control sequence that can clear the screen or retitle the window, BEL rings, CR 
 U+202E reverses what follows) or that an encoder refuses (the lone surrogates of a file name that
 is not UTF-8). Every such string is passed through :func:`printable` before it is written to a
 terminal or a log; what a command prints or logs as a whole goes through :func:`printable_lines`
-(or :class:`PrintableFormatter` for log records) as the last step.
+as the last step (``hac``'s output and its log lines, ``hac batch``'s job logs).
 
 A character that is not printable (``str.isprintable``: the control characters, format characters
 such as U+202E, separators other than the space, surrogates, unassigned code points) is written
@@ -14,8 +14,6 @@ as Python writes it in a repr (``\\x1b``, ``\\t``, ``\\u202e``, ``\\udcff``); ev
 letters of every script included, is left as it is.
 """
 from __future__ import annotations
-
-import logging
 
 _NAMED = {'\t': '\\t', '\n': '\\n', '\r': '\\r'}
 
@@ -44,15 +42,3 @@ def _escaped(char: str) -> str:
         return f'\\x{code:02x}'
     return f'\\u{code:04x}' if code < 0x10000 else f'\\U{code:08x}'
 
-
-class PrintableFormatter(logging.Formatter):
-    """A :class:`logging.Formatter` that writes each record's message through
-    :func:`printable_lines` (a traceback, when a record carries one, is left as it is)."""
-
-    def formatMessage(self, record: logging.LogRecord) -> str:
-        message = record.message
-        record.message = printable_lines(message)
-        try:
-            return super().formatMessage(record)
-        finally:
-            record.message = message

@@ -38,11 +38,12 @@ from typing import Any
 
 import numpy as np
 
+from hac_ros.core import input_checks as checks
 from hac_ros.core.errors import ArgumentText, HacError, InputError
 from hac_ros.core.layouts import BUILT_IN, joints_per_person
 from hac_ros.core.numeric import NS
 from hac_ros.core.params import NODE_NAME, HacParams
-from hac_ros.core.plausibility import body_spans, span_problem
+from hac_ros.core.plausibility import body_spans
 from hac_ros.evaluation.metrics import umeyama
 from hac_ros.files.map_files import read_map
 from hac_ros.files.readers import (
@@ -142,15 +143,11 @@ def check_joints(traj: Trajectory, hmr: Joints, params: HacParams) -> list[str]:
     """The joints as the calibrator will judge them: InputError when they are not metres (the
     median body's spread, hac_ros.core.plausibility) or share no time with the trajectory;
     warnings for a few such bodies and for stamps the replay will find no pose for."""
-    spans = body_spans(hmr.joints)
-    problem = span_problem(float(np.median(spans))) if len(spans) else ''
-    if problem:
-        raise InputError(f'joints {hmr.path}: {problem} (the median of {len(spans)} people)')
     warnings = []
-    odd = sum(bool(span_problem(float(span))) for span in spans)
+    odd = checks.joints_unit(hmr.joints, f'joints {hmr.path}: joints')  # as calibrate() does
     if odd:
-        warnings.append(f'{odd} of {len(spans)} people in {hmr.path} are not the size of a body '
-                        'in metres: hac replay refuses them (joints_not_metres)')
+        warnings.append(f'{odd} of {len(body_spans(hmr.joints))} people in {hmr.path} are not the '
+                        'size of a body in metres: hac replay refuses them (joints_not_metres)')
     slop_ns = int(round(params.sync_slop_s * NS))
     first, last = int(traj.stamps_ns[0]) - slop_ns, int(traj.stamps_ns[-1]) + slop_ns
     if not ((hmr.stamps_ns >= first) & (hmr.stamps_ns <= last)).any():
@@ -205,7 +202,7 @@ def import_files(output: str | Path, trajectory: str | Path, map_file: str | Pat
     warnings: list[str] = []
     traj = read_any_trajectory(trajectory, 'trajectory', fps, warnings)
     points = read_map(map_file)
-    hmr: Joints = read_joints(joints, 'joints', k_layout)
+    hmr: Joints = read_joints(joints, 'joints', k_layout, joint_layout or '')
     k = hmr.joints_per_person
     intrinsics = parse_camera(camera) if camera is not None else None
     repeated: list[int] = []

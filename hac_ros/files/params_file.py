@@ -37,12 +37,16 @@ import yaml
 
 from hac_ros.core.errors import ParameterError
 from hac_ros.core.params import NODE_NAME, HacParams, names
+from hac_ros.core.printable import printable
 
 PARAMETERS_KEY = 'ros__parameters'
 # Parameters every ROS 2 node has (or that ROS reads for it): accepted, not hac_ros'
 ROS_OWN_PARAMETERS = frozenset({'use_sim_time', 'start_type_description_service'})
 ROS_OWN_PREFIXES = ('qos_overrides.',)
 NEAR_MISS_EDITS = 2  # a section key this many edits from the node's name is probably meant for it
+# PyYAML's safe loader, on libyaml when it has it (as rcl's parser: fast, and a nesting limit
+# where the pure-Python parser takes seconds over a deep file)
+LOADER = getattr(yaml, 'CSafeLoader', yaml.SafeLoader)
 
 log = logging.getLogger(__name__)
 
@@ -93,7 +97,7 @@ def read_params_file(path: str | Path, node_name: str = NODE_NAME,
     that cannot be read or is not a parameters file.
     """
     path = Path(path)
-    sections = list(_sections(path, _load_yaml(path)))
+    sections = list(_sections(path, _top(path, _load_yaml(path))))
     if namespace is None:
         namespace = _namespace_of(path, [key for key, _ in sections], node_name)
     node = _join(namespace, node_name)
@@ -139,17 +143,98 @@ def unknown_names(unknown: list[str]) -> str:
 
 
 # ---------------------------------------------------------------------------------------- the file
-def _load_yaml(path: Path) -> dict[Any, Any]:
+def check_params_file(path: str | Path) -> None:
+    """What rcl would refuse in the parameters file at ``path``, as a :class:`ParameterError` of
+    one line naming the file, the line and what is wrong (``hac_node`` calls it before
+    ``rclpy.init``, where rcl parses the file and would end the process with its own
+    traceback): a file that cannot be read, is not UTF-8 or not YAML, uses YAML aliases, or has a
+    section that is not a node's ``ros__parameters``. An empty file passes, as in rcl."""
+    path = Path(path)
+    data = _load_yaml(path)
+    if data is not None:
+        for key, parameters in _sections(path, _top(path, data)):
+            for _ in _flatten(path, key, parameters):
+                pass
+
+
+def _load_yaml(path: Path) -> Any:
+    """The YAML document of the file at ``path`` (None when it is empty). ParameterError, one line
+    naming the file (and the line and column where the YAML says), for anything else: a file that
+    cannot be read (a directory, no permission), bytes that are not UTF-8, invalid YAML, YAML
+    aliases (ROS 2's parser refuses them: no alias cycle gets further), nesting too deep, a value
+    YAML cannot build (an integer of thousands of digits)."""
+    where = f'parameters file {printable(path)}'
+    if path.is_dir():
+        raise ParameterError(f'{where} is a directory, not a file')
     try:
-        data = yaml.safe_load(path.read_text(encoding='utf-8'))
+        raw = path.read_bytes()
     except OSError as exc:
-        raise ParameterError(f'cannot read parameters file {path}: {exc}') from exc
+        raise ParameterError(f'cannot read {where}: {exc.strerror or exc}') from exc
+    try:
+        text = raw.decode('utf-8')
+    except UnicodeDecodeError as exc:
+        line, column = _line_and_column(raw, exc.start)
+        raise ParameterError(f'{where}, line {line}, column {column}: not UTF-8 text (byte '
+                             f'0x{raw[exc.start]:02x}): is it a parameters file?') from exc
+    try:
+        alias = next((event for event in yaml.parse(text, Loader=LOADER)
+                      if isinstance(event, yaml.AliasEvent)), None)
+        data = None if alias is not None else yaml.load(text, Loader=LOADER)
+    except yaml.MarkedYAMLError as exc:
+        raise ParameterError(f'{where}, {_yaml_problem(exc)}') from exc
+    except yaml.reader.ReaderError as exc:  # a character YAML does not allow (NUL, ...)
+        line, column = _line_and_column(raw, len(text[:exc.position].encode('utf-8')))
+        char = chr(exc.character) if isinstance(exc.character, int) else str(exc.character)
+        raise ParameterError(f'{where}, line {line}, column {column}: not valid YAML: the '
+                             f'character {printable(repr(char))} is not allowed') from exc
     except yaml.YAMLError as exc:
-        raise ParameterError(f'parameters file {path} is not valid YAML: {exc}') from exc
+        raise ParameterError(f'{where}: not valid YAML: {_one_line(str(exc))}') from exc
+    except RecursionError as exc:
+        raise ParameterError(f'{where}: nested too deeply to be a parameters file') from exc
+    except ValueError as exc:  # a value YAML's constructors refuse
+        raise ParameterError(f'{where}: a value YAML cannot read: {_one_line(str(exc))}') from exc
+    if alias is not None:
+        mark = alias.start_mark
+        raise ParameterError(f'{where}, line {mark.line + 1}, column {mark.column + 1}: the '
+                             f'alias *{printable(alias.anchor)}: ROS 2 parameters files cannot '
+                             'use YAML aliases (rcl refuses them)')
+    return data
+
+
+def _top(path: Path, data: Any) -> dict[Any, Any]:
+    """The document's top level: a mapping of node names (ParameterError otherwise)."""
     if not isinstance(data, dict):
-        raise ParameterError(f'parameters file {path}: expected node names at the top '
+        raise ParameterError(f'parameters file {printable(path)}: expected node names at the top '
                              f'("{NODE_NAME}: {{{PARAMETERS_KEY}: ...}}")')
     return data
+
+
+def _line_and_column(raw: bytes, offset: int) -> tuple[int, int]:
+    """Line and column (1-based, in characters of the valid text before it) of byte ``offset``."""
+    before = raw[:offset]
+    line_start = before.rfind(b'\n') + 1
+    return before.count(b'\n') + 1, len(before[line_start:].decode('utf-8', 'replace')) + 1
+
+
+def _yaml_problem(exc: yaml.MarkedYAMLError) -> str:
+    """``line 3, column 15: not valid YAML: expected ',' or ']' (while parsing a flow sequence
+    at line 3, column 13)``: where (the problem's mark, else the context's) and what."""
+    mark = exc.problem_mark or exc.context_mark
+    at = f'line {mark.line + 1}, column {mark.column + 1}: ' if mark is not None else ''
+    what = _one_line(exc.problem or 'invalid YAML')
+    context = ''
+    if exc.context:
+        context = f' ({_one_line(exc.context)}'
+        place = exc.context_mark
+        if place is not None and (mark is None or (place.line, place.column) != (mark.line,
+                                                                                  mark.column)):
+            context += f' at line {place.line + 1}, column {place.column + 1}'
+        context += ')'
+    return f'{at}not valid YAML: {what}{context}'
+
+
+def _one_line(text: str) -> str:
+    return printable(' '.join(text.split()))
 
 
 def _sections(path: Path, data: Mapping[Any, Any], prefix: str = ''

@@ -14,27 +14,19 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from hac_ros.core import input_checks as checks
 from hac_ros.core.errors import ArgumentError, InputError
 from hac_ros.core.numeric import NS
 from hac_ros.files.tum import tum_rows
-from msg_adapters.stamps import INT32_MAX
-
-MAX_STAMP_S = INT32_MAX + 1  # builtin_interfaces/Time's sec is an int32; no ROS time is negative
 
 
 def seconds_to_ns(t: np.ndarray, where: str = 'stamps', labels: list[str] | None = None
                   ) -> np.ndarray:
     """Float seconds (N,) → int64 nanoseconds by round(t × 1e9) (docs/interface.md, "Conventions").
     :class:`InputError` (``where``: the file, ``labels``: each stamp's place in it) for a stamp
-    that is not a ROS time: negative, or past 2^31 s."""
-    t = np.asarray(t, dtype=np.float64)
-    outside = ~((t >= 0.0) & (t < MAX_STAMP_S))
-    if outside.any():
-        i = int(np.argmax(outside))
-        label = labels[i] if labels is not None else f'[{i}]'
-        raise InputError(f'{where}: {label}: stamp {float(t[i])!r} s is not a ROS time '
-                         '(0 to 2^31 s)')
-    return np.round(t * NS).astype(np.int64)
+    that is not a ROS time: negative, or past 2^31 s (the check ``calibrate()`` makes:
+    :func:`hac_ros.core.input_checks.ros_time_ns`)."""
+    return checks.ros_time_ns(t, where, labels)
 
 
 @dataclass
@@ -93,12 +85,7 @@ def _unit_quaternions(path: str | Path, what: str, quats: np.ndarray, labels: li
 
 
 def _check_increasing(path: Path, what: str, stamps_ns: np.ndarray, labels: list[str]) -> None:
-    bad = np.flatnonzero(np.diff(stamps_ns) <= 0)
-    if len(bad):
-        i = int(bad[0]) + 1
-        raise InputError(f'{what} {path}: stamps must increase, but {labels[i]} '
-                         f'({stamps_ns[i] / NS:.9f} s) is not after the one before '
-                         f'({stamps_ns[i - 1] / NS:.9f} s)')
+    checks.increasing(stamps_ns, f'{what} {path}', labels)
 
 
 def read_trajectory(path: str | Path, what: str = 'trajectory',
@@ -153,8 +140,9 @@ def read_any_trajectory(path: str | Path, what: str = 'trajectory', fps: float |
     if Path(path).suffix.lower() == '.npz':
         return read_droid_trajectory(path, what, fps, warnings)
     if fps is not None:
-        raise InputError(f'{what} {path}: fps applies to the frame indices of a DROID-SLAM-style '
-                         '.npz trajectory, not to a TUM file (whose stamps are seconds)')
+        raise ArgumentError(f'{what} {path}: {{fps}} applies to the frame indices of a '
+                            'DROID-SLAM-style .npz trajectory, not to a TUM file (whose stamps are '
+                            'seconds)', 'fps')
     return read_trajectory(path, what)
 
 
@@ -165,7 +153,9 @@ def read_droid_trajectory(path: str | Path, what: str = 'trajectory', fps: float
     ``tstamp`` (N,) seconds, or frame indices when ``fps`` is given (seconds = index / fps; without
     ``tstamp`` frame i is at i / fps). Stamps must increase; quaternions are normalised (a zero
     one is an error). Stamps that are all whole numbers without ``fps`` look like frame indices:
-    a warning is appended to ``warnings``."""
+    an :class:`ArgumentError` naming ``fps`` (taken as seconds, a replay would keep only the
+    joints frames that fall on whole seconds). ``warnings``: where warnings would go (none
+    today)."""
     path = existing_file(path, what)
     arrays = _load_npz(path, what)
     if 'traj' not in arrays:
@@ -178,7 +168,7 @@ def read_droid_trajectory(path: str | Path, what: str = 'trajectory', fps: float
                          f'got shape {traj.shape} of {traj.dtype}')
     traj = traj.astype(float)
     if fps is not None and not 0.0 < fps < float('inf'):
-        raise InputError(f'{what} {path}: fps must be a number > 0, got {fps!r}')
+        raise ArgumentError(f'{what} {path}: {{fps}} must be a number > 0, got {fps!r}', 'fps')
     if 'tstamp' in arrays:
         tstamp = arrays['tstamp']
         if tstamp.shape != (len(traj),) or tstamp.dtype.kind not in 'iuf':
@@ -188,15 +178,16 @@ def read_droid_trajectory(path: str | Path, what: str = 'trajectory', fps: float
     elif fps is not None:
         t = np.arange(len(traj), dtype=float)
     else:
-        raise InputError(f'{what} {path}: no \'tstamp\' array: give the frame rate (fps) to '
-                         'stamp frame i at i / fps')
+        raise ArgumentError(f'{what} {path}: no \'tstamp\' array: give the frame rate ({{fps}}) '
+                            'to stamp frame i at i / fps', 'fps')
     labels = [f'row {i}' for i in range(len(traj))]
     bad = ~np.isfinite(traj).all(axis=1) | ~np.isfinite(t)
     if bad.any():
         raise InputError(f'{what} {path}: {labels[int(np.argmax(bad))]}: a value is not finite')
-    if fps is None and warnings is not None and len(t) > 1 and np.all(t == np.round(t)):
-        warnings.append(f'{what} {path}: tstamp holds whole numbers ({t[0]:g}, {t[1]:g}, ...), '
-                        'taken as seconds: if they are frame indices, give the frame rate (fps)')
+    if fps is None and len(t) > 1 and np.all(t == np.round(t)):
+        raise ArgumentError(f'{what} {path}: tstamp holds whole numbers ({t[0]:g}, {t[1]:g}, '
+                            '...): frame indices? give the frame rate, {fps} (seconds = index / '
+                            'fps); a trajectory at 1 Hz stamped in seconds is {fps} 1', 'fps')
     stamps = seconds_to_ns(t / fps if fps is not None else t, f'{what} {path}', labels)
     _check_increasing(path, what, stamps, labels)
     return Trajectory(path, stamps, traj[:, :3], _unit_quaternions(path, what, traj[:, 3:7],
@@ -204,9 +195,11 @@ def read_droid_trajectory(path: str | Path, what: str = 'trajectory', fps: float
 
 
 def read_joints(path: str | Path, what: str = 'joints',
-                joints_per_person: int | None = None) -> Joints:
+                joints_per_person: int | None = None, layout: str = '') -> Joints:
     """A ``.npz`` with ``stamps`` (T,) float seconds and ``joints`` (T, P, K, 3) metres (NaN blocks
-    for absent people); K checked against ``joints_per_person`` when given."""
+    for absent people); K checked against ``joints_per_person`` (the layout ``layout``'s) when
+    given. The arrays pass the checks ``calibrate()`` makes of the same arrays
+    (:mod:`hac_ros.core.input_checks`)."""
     path = existing_file(path, what)
     arrays = _load_npz(path, what)
     missing = [name for name in ('stamps', 'joints') if name not in arrays]
@@ -214,35 +207,12 @@ def read_joints(path: str | Path, what: str = 'joints',
         raise InputError(f'{what} {path}: no {" or ".join(repr(m) for m in missing)} array (it '
                          f'holds: {", ".join(sorted(arrays)) or "nothing"}); expected stamps (T,) '
                          'seconds and joints (T, P, K, 3) metres')
-    stamps, joints = arrays['stamps'], arrays['joints']
-    if stamps.ndim != 1 or stamps.dtype.kind not in 'iuf':
-        raise InputError(f'{what} {path}: stamps must be (T,) numbers, got shape {stamps.shape} '
-                         f'of {stamps.dtype}')
-    if joints.ndim != 4 or joints.shape[3] != 3 or joints.dtype.kind not in 'iuf':
-        raise InputError(f'{what} {path}: joints must be (T, P, K, 3) numbers, got shape '
-                         f'{joints.shape} of {joints.dtype}')
-    if joints.shape[0] != len(stamps):
-        raise InputError(f'{what} {path}: {len(stamps)} stamps but joints has {joints.shape[0]} '
-                         f'frames (shape {joints.shape}); they must match')
-    if not len(stamps):
-        raise InputError(f'{what} {path}: no frame (stamps is empty)')
-    if not np.isfinite(stamps).all():
-        raise InputError(f'{what} {path}: stamps[{int(np.argmin(np.isfinite(stamps)))}] is not '
-                         'finite')
-    if joints.shape[2] == 0 or joints.shape[1] == 0:
-        raise InputError(f'{what} {path}: joints has no person or no joint (shape {joints.shape})')
-    if joints_per_person is not None and joints.shape[2] != joints_per_person:
-        raise InputError(f'{what} {path}: {joints.shape[2]} joints per person (shape '
-                         f'{joints.shape}), but the joint layout has {joints_per_person}')
-    labels = [f'stamps[{i}]' for i in range(len(stamps))]
-    stamps_ns = seconds_to_ns(stamps, f'{what} {path}', labels)
-    _check_increasing(path, what, stamps_ns, labels)
-    joints = joints.astype(float)
-    if np.isinf(joints).any():
-        raise InputError(f'{what} {path}: joints holds inf values (use NaN blocks for absent '
-                         'people)')
-    if np.isnan(joints).all():
-        raise InputError(f'{what} {path}: no person in any frame (every joints block is NaN)')
+    frame = ("the ground truth's world frame" if 'ground-truth' in what
+             else 'the camera optical frame')
+    joints = checks.joints(arrays['joints'], f'{what} {path}: joints', joints_per_person, layout,
+                           frame)
+    stamps_ns = checks.stamps_ns(arrays['stamps'], f'{what} {path}: stamps')
+    checks.frames_match(stamps_ns, joints, f'{what} {path}: stamps', 'joints')
     return Joints(path, stamps_ns, joints)
 
 

@@ -13,6 +13,7 @@ from rosbags.typesys import Stores, get_typestore
 
 from hac_ros.core.errors import ArgumentError, HacError
 from hac_ros.core.layouts import BUILT_IN, SMPL24, JointLayout
+from hac_ros.core.printable import printable
 
 GT_CAMERA = ('/gt/camera_pose', 'geometry_msgs/msg/PoseStamped')
 
@@ -130,7 +131,8 @@ class Recording:
         """What the recording holds: ``topic (type, N messages)`` for each topic."""
         if not self.topics:
             return 'no topics'
-        return ', '.join(f'{t} ({self.topics[t]}, {self.counts[t]})' for t in sorted(self.topics))
+        return ', '.join(f'{printable(t)} ({printable(self.topics[t])}, {self.counts[t]})'
+                         for t in sorted(self.topics))
 
     def has(self, topic: str, msgtype: str | None = None) -> bool:
         return topic in self.topics and self.counts.get(topic, 0) > 0 and (
@@ -142,15 +144,15 @@ class Recording:
         added to a missing or mistyped topic's error: an :class:`ArgumentError` template naming
         ``arguments`` (``' (use {joints_topic})'``)."""
         msgtypes = list(msgtypes)
+        name, path = printable(topic), printable(self.path)
         if topic not in self.topics:
-            raise ArgumentError(f'{what} topic {topic} is not in {self.path}{hint}; the '
+            raise ArgumentError(f'{what} topic {name} is not in {path}{hint}; the '
                                 f'recording contains: {self.describe()}', *arguments)
         if self.topics[topic] not in msgtypes:
-            raise ArgumentError(f'{what} topic {topic} has type {self.topics[topic]}, expected '
-                                f'{" or ".join(msgtypes)}{hint}', *arguments)
+            raise ArgumentError(f'{what} topic {name} has type {printable(self.topics[topic])}, '
+                                f'expected {" or ".join(msgtypes)}{hint}', *arguments)
         if self.counts.get(topic, 0) == 0:
-            raise HacError(f'{what} topic {topic} in {self.path} has no messages (empty '
-                           'recording?)')
+            raise HacError(f'{what} topic {name} in {path} has no messages (empty recording?)')
 
     def messages(self, topics: Iterable[str]) -> Iterator[tuple[str, int, Any]]:
         """(topic, log time ns, raw bytes) of ``topics`` in log-time order."""
@@ -206,11 +208,12 @@ class Recording:
                 for _, log_ns, raw in self.messages([topic])]
 
     def _corrupt(self, topic: str, log_ns: int, exc: BaseException) -> HacError:
-        return HacError(f'{self.path} is corrupt: a {topic} message (log time {log_ns} ns) does '
-                        f'not decode as {self.topics[topic]}: {_reason(exc)}')
+        return HacError(f'{printable(self.path)} is corrupt: a {printable(topic)} message (log '
+                        f'time {log_ns} ns) does not decode as {printable(self.topics[topic])}: '
+                        f'{_reason(exc)}')
 
 
 def _reason(exc: BaseException) -> str:
     """The first line of an exception's text (rosbags' messages can run to many lines)."""
     text = str(exc).strip() or type(exc).__name__
-    return text.splitlines()[0]
+    return printable(text.splitlines()[0])

@@ -30,6 +30,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from hac_ros.bridge.messages import (
     CLOUD,
     LATCHED_TOPICS,
@@ -45,8 +47,9 @@ from hac_ros.bridge.messages import (
 from hac_ros.core.calibrator import Calibrator
 from hac_ros.core.errors import ArgumentError
 from hac_ros.core.numeric import NS
-from hac_ros.core.offline import OfflineScale, resolve_offline
+from hac_ros.core.offline import OfflineScale, SegmentScale, resolve_offline
 from hac_ros.core.outputs import (
+    DiagnosticsOut,
     NoticeOut,
     Output,
     PoseOut,
@@ -57,6 +60,7 @@ from hac_ros.core.outputs import (
 )
 from hac_ros.core.params import HacParams
 from hac_ros.core.reasons import text as reason_text
+from hac_ros.core.status_shares import StatusShares
 from hac_ros.files.tum import write_tum_exports
 from hac_ros.recording.atomic import staged_output
 from hac_ros.recording.reader import STORAGES, Recording, layout_data
@@ -82,6 +86,8 @@ class OutputHandler:
         self.resets: list[ResetOut] = []
         self.poses: list[PoseOut] | None = [] if keep_poses else None  # /hac/pose, for TUM
         self.last_scale: ScaleOut | None = None  # the last /hac/scale written
+        self.statuses = StatusShares()  # what the /diagnostics written said
+        self.max_samples = 0  # the most samples in the estimator's window, by its statuses
 
     def __call__(self, outputs: list[Output], progress: ProgressBar | None = None) -> None:
         """Write the messages of ``outputs``; ``progress``: a bar advanced as they are written."""
@@ -107,6 +113,10 @@ class OutputHandler:
                 self.last_scale = output
             for message in self.messages.convert(output):
                 self._write(message)
+            if isinstance(output, DiagnosticsOut) and self.messages.last_health is not None:
+                health = self.messages.last_health
+                self.statuses.add(health.level, health.reasons)
+                self.max_samples = max(self.max_samples, output.status.samples)
         if frame_samples:
             self._write_samples(frame_samples)
         if progress is not None:
@@ -140,6 +150,29 @@ class NoticeLog:
         log.log(NOTICE_LEVELS.get(notice.level, logging.WARNING), '%s%s', when, notice.text)
 
 
+def segment_text(segment: SegmentScale, window_s: float, min_samples: int) -> str:
+    """An offline segment for the summary: its samples and scale, and the drift test's statistic
+    where the test ran, else why it did not (docs/replay.md, "The two modes")."""
+    if not math.isfinite(segment.median):
+        return f'{segment.samples} samples: too few (min_samples {min_samples}), no estimate'
+    kind = 'constant: median'
+    if segment.drift:
+        lo, hi = float(np.min(segment.knots_scale)), float(np.max(segment.knots_scale))
+        kind = f'drifting: centred rolling median {lo:.6g} .. {hi:.6g}'
+    span_s = (segment.last_sample_ns - segment.first_sample_ns) / NS
+    if span_s < window_s:
+        drift = (f'no drift test: its samples span {span_s:.1f} s, less than one window '
+                 f'(window_s {window_s:g} s)')
+    elif segment.drift_z == 0.0 and segment.drift_rel == 0.0 and segment.sigma > 0.0:
+        drift = (f'no drift test: no window of window_s {window_s:g} s held min_samples '
+                 f'{min_samples} samples')
+    else:
+        drift = (f'drift test: max z {segment.drift_z:.1f}, max departure '
+                 f'{100 * segment.drift_rel:.1f} %')
+    return (f'{segment.samples} samples, median {segment.median:.6g} +- {segment.sigma:.2g}, '
+            f'{kind} ({drift})')
+
+
 def _seconds(stamp_ns: int, start_ns: int) -> str:
     """A stamp as seconds into the recording (its absolute value would be unreadable)."""
     return f't+{(stamp_ns - start_ns) / NS:.3f} s'
@@ -162,6 +195,10 @@ class ReplaySummary:
     tum: dict[str, Path] = field(default_factory=dict)
     start_ns: int = 0  # the recording's first log time: times are printed relative to it
     last_scale: ScaleOut | None = None  # the last /hac/scale written (None: none was)
+    statuses: StatusShares = field(default_factory=StatusShares)  # the /diagnostics written
+    params: HacParams = field(default_factory=HacParams)  # the replay's parameters
+    max_samples: int = 0  # the most samples the estimator's window held (its statuses)
+    stamps_apart_s: float | None = None  # joints minus poses, s, when they never met (core)
 
     @property
     def final_scale(self) -> float | None:
@@ -174,15 +211,41 @@ class ReplaySummary:
         return self.last_scale is not None
 
     def why_not_calibrated(self) -> str:
-        """One line: why no scale was written (the estimate never converged, and the input
-        rejected most often)."""
-        s = self.status
-        text = (f'nothing calibrated: no /hac/scale written ({s.frames} frames, {s.samples} '
-                'samples: the estimate never converged)')
-        if s.rejected:
-            reason, count = max(s.rejected.items(), key=lambda item: item[1])
-            text += f'; rejected most: {reason} {count} ({reason_text(reason)})'
-        return text
+        """One line: why no scale was written, naming what kept the estimate from converging
+        (:meth:`what_kept_it`)."""
+        return (f'nothing calibrated: no /hac/scale written ({self.status.frames} frames, at most '
+                f'{self.max_samples} samples in the window): {self.what_kept_it()}')
+
+    def what_kept_it(self) -> str:
+        """What kept the estimate from converging, the first that applies: no frame found its
+        SLAM pose (the joints and poses stamped apart, when they were), no frame gave a sample
+        (the reason most of them were refused), ``min_samples`` out of reach (beyond
+        ``window_max_samples``, or more than the window ever held), else the estimator's test."""
+        s, p = self.status, self.params
+        if s.frames == 0:
+            apart = self.stamps_apart_s
+            if apart is not None:
+                return (f'joints and SLAM poses never came within reach of each other: the joints '
+                        f'are stamped {abs(apart):.6g} s {"after" if apart > 0 else "before"} the '
+                        'poses (different clocks?)')
+            return 'no joints frame found its SLAM pose' + self._rejected_most()
+        if self.max_samples == 0:
+            return 'no frame gave a scale sample' + self._rejected_most()
+        if self.max_samples < p.min_samples:
+            if p.min_samples > p.window_max_samples:
+                return (f'min_samples {p.min_samples} can never be reached: the window holds at '
+                        f'most window_max_samples {p.window_max_samples} samples')
+            return (f'min_samples {p.min_samples} was never reached: the window of window_s '
+                    f'{p.window_s:g} s held at most {self.max_samples} samples')
+        return (f'the estimate never passed its convergence test although the window held '
+                f'{self.max_samples} samples (min_samples {p.min_samples})')
+
+    def _rejected_most(self) -> str:
+        """``; rejected most: no_map 901 (its text)``, or '' when nothing was rejected."""
+        if not self.status.rejected:
+            return ''
+        reason, count = max(self.status.rejected.items(), key=lambda item: item[1])
+        return f'; rejected most: {reason} {count} ({reason_text(reason)})'
 
     @property
     def frames_per_s(self) -> float:
@@ -193,17 +256,22 @@ class ReplaySummary:
         lines = [f'hac replay ({self.mode}): {self.input_path} -> {self.output_path}',
                  f'  frames {s.frames}, people {s.people}, input messages {self.input_messages}']
         if self.offline is not None:
+            window_s, min_samples = self.params.window_s, self.params.min_samples
             for k, segment in enumerate(self.offline.segments):
                 start = ('the start' if segment.start_ns < self.start_ns
                          else _seconds(segment.start_ns, self.start_ns))
-                lines.append(f'  segment {k} (from {start}): {segment.describe()}')
+                lines.append(f'  segment {k} (from {start}): '
+                             f'{segment_text(segment, window_s, min_samples)}')
         if self.last_scale is None:
             lines.append(f'  final scale: none ({self.why_not_calibrated()})')
         else:
             lines.append(f'  final scale {self.last_scale.scale:.6g} m/SLAM unit, spread '
                          f'{self.last_scale.spread:.3g} (the last /hac/scale written)')
+        lines.append(f'  statuses ({self.statuses.total} /diagnostics, one per second): '
+                     f'{self.statuses.text()}')
         lines.append(f'  estimator at the end: {s.samples} samples in the window, '
-                     f'{"converged" if s.converged else "not converged"}')
+                     f'{"converged" if s.converged else "not converged"}, status '
+                     f'{self.statuses.last_text()}')
         lines.append(f'  fallback rate {100 * s.fallback_rate:.1f} % (map hits {s.map_hits}, '
                      f'ground plane {s.ground_fallbacks})')
         if s.pose_matches:
@@ -285,7 +353,8 @@ def replay(input_path: str | Path, output_path: str | Path, params: HacParams | 
                                         recording)
     return ReplaySummary(mode, input_path, output_path, status, time.perf_counter() - start,
                          n_inputs, dict(writer.counts), list(handler.resets), schedule, tum,
-                         start_ns, handler.last_scale)
+                         start_ns, handler.last_scale, handler.statuses, params,
+                         max(handler.max_samples, status.samples), feeder.calibrator.reach.apart_s)
 
 
 def _offline(feeder: CoreFeeder, handler: OutputHandler,

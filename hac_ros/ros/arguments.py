@@ -8,12 +8,14 @@ prints :data:`USAGE` without starting ROS. :func:`run` is the process of ``hac_n
 from __future__ import annotations
 
 import gc
+import re
 import signal
 import sys
 from collections.abc import Sequence
 from typing import Any, Protocol
 
 import rclpy
+from rclpy._rclpy_pybind11 import RCLError
 from rclpy.exceptions import (
     InvalidParameterTypeException,
     InvalidParameterValueException,
@@ -24,6 +26,8 @@ from rclpy.signals import SignalHandlerOptions
 
 from hac_ros.core.errors import ParameterError
 from hac_ros.core.params import NODE_NAME
+from hac_ros.core.printable import printable
+from hac_ros.files.params_file import check_params_file
 
 ROS_ARGS, ROS_ARGS_END, PARAMS_FILE = '--ros-args', '--', '--params-file'
 HELP = ('-h', '--help')
@@ -93,6 +97,23 @@ def params_files(argv: Sequence[str]) -> list[str]:
     return files
 
 
+def refused_params_file(argv: Sequence[str]) -> str:
+    """One line naming the first ``--params-file`` that rcl would refuse, its line and what is
+    wrong (:func:`hac_ros.files.params_file.check_params_file`), or '' when all are good."""
+    for path in params_files(argv):
+        try:
+            check_params_file(path)
+        except ParameterError as exc:
+            return printable(exc)
+    return ''
+
+
+def rcl_reason(exc: Exception) -> str:
+    """rcl's error, one line without its source locations (``, at /project/src/...``)."""
+    text = ' '.join(str(exc).split())
+    return printable(re.sub(r',? at /\S+:\d+', '', text))
+
+
 # SIGINT and SIGTERM are Python's here, not rclpy's: rclpy's (Jazzy) signal thread triggers the
 # executor's guard condition while the main thread may already be destroying it (a segfault at
 # shutdown, about once in 30 SIGINTs, core dump in rcl_trigger_guard_condition), and its wake-up
@@ -103,8 +124,9 @@ SHUTDOWN_POLL_S = 0.5
 
 def run(node_class: NodeClass, args: list[str] | None = None) -> int:
     """init → spin ``node_class()`` → clean shutdown on SIGINT, SIGTERM or SIGHUP (exit code 0);
-    2 on invalid parameters; ``-h``/``--help`` prints the usage (:mod:`hac_ros.ros.arguments`)
-    and exits 0 without starting ROS.
+    2 on invalid parameters (a parameters file rcl would refuse is said in one line before ROS
+    starts: its file, line and what is wrong); ``-h``/``--help`` prints the usage
+    (:mod:`hac_ros.ros.arguments`) and exits 0 without starting ROS.
 
     The signals set a flag (see SHUTDOWN_POLL_S): one during start-up ends the loop before it
     spins, and everything made so far is destroyed in order.
@@ -113,10 +135,19 @@ def run(node_class: NodeClass, args: list[str] | None = None) -> int:
     if wants_help(argv):
         print(usage(node_class))
         return 0
+    refused = refused_params_file(argv)
+    if refused:  # rcl parses the files in rclpy.init and would end with a traceback
+        print(f'{node_class.PROGRAM}: {refused}', file=sys.stderr)
+        return 2
     stop: list[int] = []
     for signum in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
         signal.signal(signum, lambda number, _frame: stop.append(number))
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    try:
+        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    except RCLError as exc:  # what rcl refuses that the check above let through
+        print(f'{node_class.PROGRAM}: ROS refused its arguments: {rcl_reason(exc)}',
+              file=sys.stderr)
+        return 2
     executor = SingleThreadedExecutor()
     node = None
     try:

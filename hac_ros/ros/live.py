@@ -29,6 +29,8 @@ from hac_ros.core.errors import HacError
 from hac_ros.core.numeric import NS
 from hac_ros.core.outputs import Status
 from hac_ros.core.params import NODE_NAME
+from hac_ros.core.status_shares import StatusShares
+from hac_ros.files.params_file import check_params_file
 from hac_ros.ros.liveness import STEADY_CLOCK_REASONS
 
 log = logging.getLogger(__name__)
@@ -63,6 +65,7 @@ class LiveSummary:
     status_stamp_ns: int = -1
     start_ns: int = 0
     node_log: str = field(default='', repr=False)
+    statuses: StatusShares = field(default_factory=StatusShares)  # the stamp-time /diagnostics
 
     def text(self) -> str:
         s = self.status
@@ -75,8 +78,12 @@ class LiveSummary:
             f'hac demo (live): {self.input_path} -> hac_node over DDS (ROS_DOMAIN_ID '
             f'{self.domain_id}, localhost)',
             f'  frames {s.frames}, people {s.people}, input messages {self.played}{behind}',
-            f'  final scale {s.scale:.6g} m/SLAM unit, spread {s.spread:.3g} ({s.samples} samples '
-            f'in the window, {"converged" if s.converged else "not converged"})',
+            f'  final scale {s.scale:.6g} m/SLAM unit, spread {s.spread:.3g} (the last /hac/scale)',
+            f'  statuses ({self.statuses.total} /diagnostics, one per second): '
+            f'{self.statuses.text()}',
+            f'  estimator at the end: {s.samples} samples in the window, '
+            f'{"converged" if s.converged else "not converged"}, status '
+            f'{self.statuses.last_text()}',
             f'  fallback rate {100 * s.fallback_rate:.1f} % (map hits {s.map_hits}, ground plane '
             f'{s.ground_fallbacks})',
             f'  rejected: {rejected}',
@@ -116,6 +123,15 @@ def stamp_time_status(msg: Any) -> bool:
     return not set(values.get('reasons', '').split(',')) & set(STEADY_CLOCK_REASONS)
 
 
+def level_and_reasons(msg: Any) -> tuple[int, list[str]]:
+    """The level and the ``reasons`` of a /diagnostics message's (first) status."""
+    status = msg.status[0]
+    level = status.level
+    level = int.from_bytes(level, 'little') if isinstance(level, (bytes, bytearray)) else int(level)
+    values = {kv.key: kv.value for kv in status.values}
+    return level, [r for r in values.get('reasons', '').split(',') if r]
+
+
 def domain_id() -> int:
     """ROS_DOMAIN_ID when set, else one of this process's own (10..99: clear of 0 and of
     Linux's ephemeral ports)."""
@@ -138,6 +154,7 @@ class _Collector:
         self.node = rclpy.create_node('hac_demo_live', context=context)
         self.counts: Counter[str] = Counter()
         self.last: dict[str, Any] = {}
+        self.statuses = StatusShares()  # the node's stamp-time statuses, as they came
         self.last_arrival = time.monotonic()
         self._lock = threading.Lock()
         for topic, msgtype in OUTPUTS.items():
@@ -156,6 +173,8 @@ class _Collector:
                 self.counts[topic] += 1
                 if topic != '/diagnostics' or stamp_time_status(msg):
                     self.last[topic] = msg
+                if topic == '/diagnostics' and stamp_time_status(msg):
+                    self.statuses.add(*level_and_reasons(msg))
                 self.last_arrival = time.monotonic()
         return record
 
@@ -202,6 +221,8 @@ def live_run(recording: str | Path, rate: float = 1.0, params_file: str | Path |
     check_rate(rate)
     if not Path(recording).exists():
         raise HacError(f'recording {recording} does not exist')
+    if params_file:  # what rcl would refuse, said here in one line rather than by the node
+        check_params_file(params_file)
     with Recording(recording) as rec:
         start_ns = rec.start_ns
     domain = domain_id()
@@ -243,7 +264,8 @@ def live_run(recording: str | Path, rate: float = 1.0, params_file: str | Path |
     if '/hac/scale' in collector.last:
         status.scale = float(collector.last['/hac/scale'].data)
     return LiveSummary(Path(recording), status, dict(collector.counts), stats.total,
-                       time.monotonic() - started, domain, stamp, start_ns, node_log)
+                       time.monotonic() - started, domain, stamp, start_ns, node_log,
+                       collector.statuses)
 
 
 def _settle(collector: _Collector) -> None:

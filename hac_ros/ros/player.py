@@ -41,6 +41,7 @@ from typing import Any
 from hac_ros.core.errors import ArgumentError, HacError, ParameterError
 from hac_ros.core.numeric import NS
 from hac_ros.core.params import POSE_MSGTYPES
+from hac_ros.core.printable import printable
 from hac_ros.recording.reader import Recording
 from hac_ros.replay.feeder import tie_ordered
 from msg_adapters import MessageError, ns_to_stamp, rclpy_types
@@ -122,19 +123,20 @@ def plan_topics(recording: Recording, topics: Sequence[str] | None = None,
         wanted = [t if t.startswith('/') else '/' + t for t in topics]
         missing = [t for t in wanted if t not in present]
         if missing:
-            raise ArgumentError(f'{{topics}}: {", ".join(missing)} not in {recording.path}; it '
+            raise ArgumentError(f'{{topics}}: {printable(", ".join(missing))} not in '
+                                f'{printable(recording.path)}; it '
                                 f'holds: {recording.describe()}', 'topics')
     else:
         wanted = [t for t in DEFAULT_TOPICS if t in present]
         if not wanted:
-            raise ArgumentError(f'{recording.path} holds none of the input topics '
+            raise ArgumentError(f'{printable(recording.path)} holds none of the input topics '
                                 f'({", ".join(DEFAULT_TOPICS)}); name the ones to play '
                                 f'({{topics}}) and {{remap}} them to the node\'s names. It '
                                 f'holds: {recording.describe()}', 'topics', 'remap')
     unknown = [old for old in remap if old not in wanted]
     if unknown:
-        raise ArgumentError(f'{{remap}}: {", ".join(unknown)} is not a topic played (played: '
-                            f'{", ".join(wanted)})', 'remap')
+        raise ArgumentError(f'{{remap}}: {printable(", ".join(unknown))} is not a topic played '
+                            f'(played: {printable(", ".join(wanted))})', 'remap')
     plan, skipped = [], []
     types = rclpy_types()
     offered = _latched_topics(recording)
@@ -147,7 +149,8 @@ def plan_topics(recording: Recording, topics: Sequence[str] | None = None,
         except MessageError as exc:
             package = (msgtype or '?').split('/')[0]
             hint = INSTALL_HINT.get(package, f'the ROS 2 package {package}')
-            reason = f'{name} ({msgtype}) cannot be published here: install {hint} ({exc})'
+            reason = (f'{printable(name)} ({printable(msgtype)}) cannot be published here: '
+                      f'install {printable(hint)} ({exc})')
             if topics:
                 raise HacError(f'topics: {reason}') from exc
             skipped.append(reason)
@@ -280,7 +283,7 @@ class Player:
                   if p.get_subscription_count() == 0]
         if lonely and not stop.is_set():
             log.warning('no subscriber after %.1f s on %s: playing anyway', self.wait_s,
-                        ', '.join(lonely))
+                        printable(', '.join(lonely)))
 
     def _wait_for_acks(self) -> None:
         """Reliable publishers: give subscribers a moment to acknowledge the last messages

@@ -9,12 +9,15 @@ the walking surface only in mid-stance, as in real gait (the CMU walks: :data:`F
 """
 from __future__ import annotations
 
+import zipfile
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from hac_ros.core.errors import InputError
+from hac_ros.core.printable import printable
 from hac_ros.simulate.world import World
 
 THIGH_M, SHANK_M = 0.41, 0.39
@@ -233,12 +236,33 @@ def _placed(t: np.ndarray, body: np.ndarray, xy: tuple[float, float], heading: f
     return placed[None] + sway[:, None, :]
 
 
+def _read_motion(path: Path) -> tuple[np.ndarray, float]:
+    """The joints (T, 24, 3) metres and fps of a motion ``.npz``; InputError naming the file when
+    it is not one (no pickles are loaded)."""
+    where = f'motion file {printable(path)}'
+    try:
+        data = np.load(path, allow_pickle=False)
+        if not isinstance(data, np.lib.npyio.NpzFile):
+            raise ValueError('a single array, not an archive of named arrays')
+        with data:
+            joints = np.asarray(data['joints'], dtype=float)
+            fps = float(data['fps'])
+    except KeyError as exc:
+        raise InputError(f'{where}: no {exc} array (expected joints (T, 24, 3) metres and '
+                         'fps)') from exc
+    except (OSError, ValueError, TypeError, EOFError, zipfile.BadZipFile) as exc:
+        raise InputError(f'{where}: not a readable motion .npz ({printable(exc)})') from exc
+    if joints.ndim != 3 or joints.shape[1:] != (24, 3) or len(joints) < 2 \
+            or not np.isfinite(joints).all() or not 0.0 < fps < float('inf'):
+        raise InputError(f'{where}: expected joints (T >= 2, 24, 3) finite metres and fps > 0, '
+                         f'got joints {joints.shape} and fps {fps:g}')
+    return joints, fps
+
+
 def load_motion(path: str | Path, t: np.ndarray) -> np.ndarray:
     """Real motion (a ``cmu_mocap`` npz: joints (T, 24, 3) y-up, floor y = 0, metres) at stamps t,
     z-up, played forwards then backwards to fill ``t``, its mean root over the origin."""
-    data = np.load(path)
-    joints = np.asarray(data['joints'], dtype=float)
-    fps = float(data['fps'])
+    joints, fps = _read_motion(Path(path))
     joints = np.stack([joints[..., 0], -joints[..., 2], joints[..., 1]], axis=-1)
     n = len(joints)
     frame = np.asarray(t, dtype=float) * fps
