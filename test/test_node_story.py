@@ -105,7 +105,8 @@ def test_the_readme_two_terminal_example_converges_at_1x_and_drops_nothing(tmp_p
     bags/demo_walk --wait 30`` at real time in another. The node's log has the convergence line,
     its scale within 0.5 % of the first /hac/scale of ``hac replay --mode online`` of the same
     recording; its status lines add up (received = processed + dropped + waiting) and, once the
-    play is over, every frame played was received and processed, none dropped."""
+    play is over, every frame played was received and processed, none dropped; nothing is
+    logged at WARN or above."""
     source = REPO / 'bags' / 'demo_walk'
     replay(source, tmp_path / 'online', mode='online')
     with Recording(tmp_path / 'online') as out:
@@ -146,6 +147,7 @@ def test_the_readme_two_terminal_example_converges_at_1x_and_drops_nothing(tmp_p
     _, received, processed, dropped, waiting = lines[-1]
     assert (int(received), int(processed), int(dropped), int(waiting)) == (played, played, 0, 0)
     assert 'frames_dropped' not in text and 'Traceback' not in text
+    assert not re.findall(r'^\[(WARN|ERROR|FATAL)\]', text, re.M), text  # a correct run: quiet
 
 
 # ================================================================================ same name
