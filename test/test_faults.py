@@ -726,11 +726,13 @@ def test_a_recording_looped_into_the_node_calibrates_its_second_loop(walk, live)
 
 
 def test_the_inbox_drops_the_oldest_joints_frames_never_a_pose():
-    """Input faster than processing, in the node's inbox (joints_backlog_max 2): of six joints
-    frames waiting, the four oldest are dropped, in order; every pose stays, in arrival order."""
+    """Input faster than processing, in the node's inbox (joints_backlog_max 2, a node that
+    takes a second a frame): of six joints frames waiting, the four oldest are dropped, in order;
+    every pose stays, in arrival order."""
     from hac_ros.ros.intake import Inbox
 
     inbox = Inbox(backlog_max=2)
+    inbox.frame_cost_s = 1.0  # as the processing thread measures it
     for k in range(6):
         inbox.put('pose', k)
         inbox.put('joints', k)

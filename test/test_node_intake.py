@@ -22,7 +22,7 @@ from test_node import PATIENCE_S, TYPES, harness, wait_for  # noqa: F401
 from hac_ros.core.health import OK, WARN
 from hac_ros.core.numeric import NS
 from hac_ros.core.params import HacParams
-from hac_ros.ros.intake import Inbox, header_stamp_ns
+from hac_ros.ros.intake import STARTUP_FRAMES, Inbox, header_stamp_ns
 from hac_ros.ros.liveness import Liveness
 from msg_adapters import joints_to_pose_array, rt_to_pose_stamped, stamp_to_ns, xyz_to_cloud
 
@@ -63,14 +63,15 @@ def test_a_burst_the_node_catches_up_with_is_kept_and_a_slow_node_still_drops():
         assert counts.received['joints'] == 18 and counts.dropped == 10 - kept
 
 
-def test_before_any_frame_is_processed_only_the_count_applies():
-    """No processing time measured yet (the first frames): beyond joints_backlog_max frames
-    waiting, the oldest are dropped, whatever the period."""
+def test_before_anything_is_measured_a_start_up_burst_waits():
+    """No processing time measured yet (the node still making its first outputs): a burst of
+    frames waits, up to STARTUP_FRAMES; beyond, the oldest are dropped."""
     inbox = Inbox(backlog_max=2)
-    for k in range(6):
-        inbox.put('joints', k, arrived_s=float(k))
+    for k in range(STARTUP_FRAMES + 5):
+        inbox.put('joints', k, arrived_s=1e-4 * k)
     taken, dropped, _ = drain(inbox)
-    assert taken == [('joints', 4), ('joints', 5)] and dropped == [0, 1, 2, 3]
+    assert [data for _, data in taken] == list(range(5, STARTUP_FRAMES + 5))
+    assert dropped == [0, 1, 2, 3, 4]
 
 
 # ================================================================================ poses

@@ -15,7 +15,8 @@ calibrator sees exactly the messages, in exactly the order, of the replay's feed
   frames waiting, as before; a burst of frames that arrived together after a stall of the
   publisher, the network or the node itself (seen at 1x on a loaded 2-core machine: seven frames
   within 1.5 ms) is processed, not dropped, since the node takes milliseconds for what the input
-  took 30 ms a frame to send. Until a first frame is processed, only the count applies.
+  took 30 ms a frame to send. Until the cost and the period are measured (a first frame
+  processed, five arrived), STARTUP_FRAMES may wait.
 - **Poses** are never dropped, but a stream faster than 1 / ``pose_coalesce_s`` (100 Hz by
   default) is thinned: a pose stamped within ``pose_coalesce_s`` after the last pose queued for
   the calibrator is held back, and the next pose replaces it (the held one is coalesced, counted)
@@ -49,6 +50,11 @@ from hac_ros.ros.liveness import LoadStats
 COST_FRAMES = 31  # recent joints frames whose processing time gives the cost of a frame (median)
 PERIOD_FRAMES = 30  # recent joints arrivals whose mean interval gives the input period
 PERIOD_MIN_FRAMES = 5  # arrivals needed before the input period is known
+# joints frames that may wait before the processing time per frame and the input period are
+# known (1 s at 30 Hz): the first frames wait while the node makes its first outputs, and a
+# start-up burst (seen: the first three frames before the first was processed, on a loaded
+# machine) is not dropped for want of a measurement
+STARTUP_FRAMES = 30
 # the first bytes of a CDR message: its representation (little or big endian), then 2 options
 CDR_ORDER = {b'\x00\x01': '<', b'\x00\x03': '<', b'\x00\x00': '>', b'\x00\x02': '>'}
 
@@ -160,8 +166,12 @@ class Inbox:
 
     def _catches_up(self) -> bool:
         """Whether the joints frames waiting can be processed within ``backlog_max`` input
-        periods (False while the cost or the period is unknown: NaN compares False)."""
-        return self._joints * self.frame_cost_s <= self.backlog_max * self._period()
+        periods; while the cost or the period is not yet known, whether at most STARTUP_FRAMES
+        wait."""
+        cost, period = self.frame_cost_s, self._period()
+        if cost != cost or period != period:  # NaN: not measured yet
+            return self._joints <= STARTUP_FRAMES
+        return self._joints * cost <= self.backlog_max * period
 
     def _drop_oldest_joints(self) -> None:
         for k, item in enumerate(self._items):
