@@ -16,7 +16,7 @@ all: test
 $(STAMP): setup.py setup.cfg package.xml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
-	$(PY) -m pip install -q -e '.[ros,dev]'
+	$(PY) -m pip install -q -e '.[ros,dev,people]'
 	touch $(STAMP)
 
 install: $(STAMP)
@@ -43,6 +43,9 @@ bench: $(STAMP)
 	$(PY) bench/batch_throughput.py
 	$(PY) bench/node_latency.py
 	$(PY) bench/node_memory.py
+	$(PY) bench/people_speed.py
+	$(PY) bench/people_accuracy.py
+	$(PY) bench/people_real.py
 
 clean:
 	rm -rf out build install log .pytest_cache

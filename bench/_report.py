@@ -23,7 +23,7 @@ RESULTS = REPO / 'bench' / 'results'
 DOC = REPO / 'docs' / 'benchmarks.md'
 DOC_HEADER = '# Benchmarks\n'
 VERSIONED = ('numpy', 'scipy', 'rosbags', 'rclpy')
-SPEED_RESULTS = ('core_speed', 'replay_throughput', 'node_latency', 'node_memory')
+SPEED_RESULTS = ('core_speed', 'replay_throughput', 'node_latency', 'node_memory', 'people_speed')
 
 
 def machine() -> dict[str, Any]:

@@ -7,8 +7,9 @@ Each scene (a clean simulated scenario at its own duration, or a clean real-data
 bench/composite.py) is run through the core's offline estimate (bench/_accuracy_runs.py:
 ``run_ours``, the replay's default) as it comes and as a real pipeline may deliver it:
 
-- ``coco17``, ``h36m17``: the HMR model's joints in that layout (the simulator writes the layout;
-  the composite's joints are mapped by ``hac_ros.simulate.skeletons``), ``joint_layout`` set;
+- every other layout the simulator writes (``coco17``, ...): the HMR model's joints in that
+  layout (the simulator writes the layout; the composite's joints are mapped by
+  ``hac_ros.simulate.skeletons``), ``joint_layout`` set;
 - ``focal``: an HMR model that assumed a focal length of 800 px on the camera (the people at
   800/f times their depth), ``hmr_focal_px: 800``;
 - ``body_frame``: SLAM poses of an x-forward, z-up camera frame, ``pose_to_optical`` set;
@@ -39,7 +40,11 @@ from _report import command_line, machine, machine_line, table, write_json, writ
 REPO = Path(__file__).resolve().parents[1]
 SHARED = REPO.parent / 'shared' / 'data'
 SCENARIOS = ('walk', 'crowd', 'stairs', 'static', 'composite')
-VARIANTS = ('smpl24', 'coco17', 'h36m17', 'focal', 'body_frame', 'imported')
+sys.path.insert(0, str(REPO))
+from hac_ros.simulate.skeletons import simulated_layouts
+
+OTHER_LAYOUTS = tuple(name for name in simulated_layouts() if name != 'smpl24')
+VARIANTS = ('smpl24', *OTHER_LAYOUTS, 'focal', 'body_frame', 'imported')
 HMR_FOCAL_PX = 800.0
 BODY_FRAME_Q = [-0.5, 0.5, -0.5, 0.5]
 TARGET_POINTS = 0.5
@@ -118,7 +123,7 @@ def run_task(task: tuple[str, int]) -> dict[str, Any]:
                   base.replace(hmr_focal_px=HMR_FOCAL_PX)),
         'body_frame': (dataclasses.replace(scene, events=_body_frame(scene.events)),
                        base.replace(pose_to_optical=BODY_FRAME_Q))}
-    for layout in ('coco17', 'h36m17'):
+    for layout in OTHER_LAYOUTS:
         if sc is not None:  # the simulator writes the layout (its own detection and noise)
             other = scene_from_scenario(make_scenario(name, seed=seed, hmr_bias=0.0,
                                                       joint_layout=layout))

@@ -105,7 +105,8 @@ def calibrate(pose_stamps: Any, R_wc: Any, c_map: Any, points_map: Any, joints_c
     joint_stamps: (T,) seconds, increasing (default: ``pose_stamps``, then T = N); K: (3, 3)
     intrinsics in pixels (joints projecting outside the image go to the ground plane), with
     ``image_size`` (width, height) in pixels (default: twice the principal point); joint_layout:
-    ``smpl24``, ``coco17``, ``h36m17`` or ``custom`` (its index lists in ``params``); params: a
+    a built-in layout (:data:`hac_ros.core.layouts.LAYOUTS`) or ``custom`` (its index lists in
+    ``params``); params: a
     :class:`HacParams` or a mapping of parameter names (the node's: docs/interface.md), the
     replay's defaults otherwise; literal: the authors' method instead of ours; mode: ``offline``
     (the whole sequence at once, as ``hac replay``) or ``online`` (causal, what ``hac_node``

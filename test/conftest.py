@@ -47,19 +47,65 @@ os.environ['ROS_DOMAIN_ID'] = str(claim_dds_domain())
 REPO = Path(__file__).resolve().parents[1]
 SHARED_DATA = REPO.parent / 'shared' / 'data'
 
+# CI: .ci/run exports CI=1 (most CI services set CI=true). There, a test whose inputs are missing
+# fails, naming them: CI installs them all, and a test that skipped there would prove nothing.
+# Elsewhere (a user's fresh clone) it skips, naming what to install.
+IN_CI = os.environ.get('CI', '').strip().lower() in ('1', 'true', 'yes')
+
+
+def missing(what: str, remedy: str) -> None:
+    """A test's input is missing: fail in CI, skip elsewhere; both say ``remedy``."""
+    text = f'{what} (to run this test: {remedy})'
+    if IN_CI:
+        pytest.fail(f'CI is set and {text}', pytrace=False)
+    pytest.skip(text)
+
 
 @pytest.fixture(scope='session')
 def shared_data() -> Path:
     """``../shared/data`` beside the repository (present in CI; absent in a user's fresh clone)."""
     if not SHARED_DATA.is_dir():
-        pytest.skip(f'real data not found at {SHARED_DATA} (../shared/data is only beside the '
-                    'repository in CI and on developer machines)')
+        missing(f'real data not found at {SHARED_DATA}', '../shared/data is only beside the '
+                'repository in CI and on developer machines')
     return SHARED_DATA
+
+
+# ---------------------------------------------------------------- people from pixels (docs/people.md)
+OPENCV_DATA = Path('/usr/share/doc/opencv-doc/examples/data')  # Debian's opencv-doc samples
+OPENCV_IMAGES = ('basketball1.png', 'basketball2.png', 'messi5.jpg')
+
+
+@pytest.fixture(scope='session')
+def people_extra() -> None:
+    """The [people] extra (MediaPipe with its shipped models, OpenCV)."""
+    from hac_ros.people import extra
+
+    try:
+        extra.require()
+    except extra.ExtraMissing as exc:
+        missing(str(exc), f"{extra.INSTALL}, or make install (it installs .[ros,dev,people])")
+
+
+@pytest.fixture(scope='session')
+def opencv_images(people_extra) -> dict[str, object]:
+    """The opencv-doc sample images with people, as (H, W, 3) uint8 RGB by file name."""
+    import cv2
+
+    found = {}
+    for name in OPENCV_IMAGES:
+        bgr = cv2.imread(str(OPENCV_DATA / name))
+        if bgr is None:
+            missing(f'{OPENCV_DATA / name} not found', 'apt-get install opencv-doc (Debian, '
+                    'Ubuntu)')
+        found[name] = bgr[:, :, ::-1].copy()
+    if not (OPENCV_DATA / 'vtest.avi').is_file():
+        missing(f'{OPENCV_DATA / "vtest.avi"} not found', 'apt-get install opencv-doc')
+    return found
 
 
 # ================================================================ no node outlives its test
 NODE_COMMANDS = ('hac_node', 'hac_lifecycle_node', 'hac_ros.ros.node', 'hac_ros.ros.lifecycle_node',
-                 'hac_ros.cli play', 'hac_ros.cli demo')
+                 'hac_ros.cli play', 'hac_ros.cli demo', 'hac_people_node', 'hac_ros.people.node')
 
 
 def _live_children() -> dict[int, str]:

@@ -21,9 +21,23 @@ def _reasons() -> str:
     return markdown_table()
 
 
+def _layouts() -> str:
+    from hac_ros.core.layouts import markdown_table
+
+    return markdown_table() + '\n'
+
+
+def _people_params() -> str:
+    from hac_ros.people.params import parameter_table
+
+    return parameter_table() + '\n'
+
+
 # (page, block name) -> what the block holds
 BLOCKS: dict[tuple[str, str], Callable[[], str]] = {
     ('docs/node.md', 'reasons'): _reasons,
+    ('docs/inputs.md', 'layouts'): _layouts,
+    ('docs/people.md', 'people_params'): _people_params,
 }
 
 

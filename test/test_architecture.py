@@ -105,7 +105,7 @@ def test_the_core_imports_only_the_core_numpy_and_scipy():
     """hac_ros.core is the bottom layer: pure numpy/scipy, nothing from the shells or ROS."""
     modules = _modules()
     stdlib = {'__future__', 'bisect', 'collections', 'dataclasses', 'functools', 'itertools',
-              'math', 'pathlib', 'typing', 'abc'}
+              'math', 'pathlib', 'typing', 'abc', 'importlib', 'pkgutil'}
     for name, path in modules.items():
         if not name.startswith('hac_ros.core'):
             continue
@@ -129,3 +129,63 @@ def test_only_the_command_draws_progress_bars():
                      if not name.startswith('hac_ros.cli')
                      and any(m == 'tqdm' or m.startswith('tqdm.') for m in _imports(path, modules)))
     assert drawing == []
+
+
+# -------------------------------------------------------------- MediaPipe stays in hac_ros.people
+PEOPLE_ONLY = {'mediapipe', 'cv2'}  # the [people] extra's libraries
+
+
+def _reachable(graph: dict[str, set[str]], roots: list[str]) -> set[str]:
+    seen: set[str] = set()
+    todo = [r for r in roots if r in graph]
+    while todo:
+        name = todo.pop()
+        if name not in seen:
+            seen.add(name)
+            todo += sorted(graph[name] - seen)
+    return seen
+
+
+def test_only_the_people_front_end_imports_mediapipe_and_opencv():
+    """MediaPipe and OpenCV (the [people] extra) are imported by hac_ros.people's model only,
+    or through hac_ros.people.extra (which imports them by name, for a clear message when they
+    are missing); the core, the replay and hac_node reach neither, through any chain of
+    imports."""
+    modules = _modules()
+    importers = sorted(name for name, path in modules.items()
+                       if any(m.split('.')[0] in PEOPLE_ONLY for m in _imports(path, modules)))
+    assert importers == ['hac_ros.people.model']
+    gate_users = sorted(name for name, path in modules.items()
+                        if 'hac_ros.people.extra' in _imports(path, modules))
+    assert gate_users and all(n.startswith(('hac_ros.people.', 'hac_ros.cli.people'))
+                              for n in gate_users), gate_users
+    graph = _graph()
+    roots = [n for n in graph if n.startswith(('hac_ros.core', 'hac_ros.replay'))]
+    reached = _reachable(graph, [*roots, 'hac_ros.ros.node', 'hac_ros.ros.lifecycle_node',
+                                 'hac_ros.api', 'hac_ros.files.importer'])
+    assert 'hac_ros.ros.node' in reached and 'hac_ros.core.calibrator' in reached
+    assert not reached & {'hac_ros.people.extra', 'hac_ros.people.images',
+                          'hac_ros.people.model', 'hac_ros.people.node'}
+
+
+def test_hac_node_and_the_replay_run_without_importing_mediapipe():
+    """The real thing: a process that imports hac_node, the replay and calibrate() and calibrates
+    a simulated scene has neither MediaPipe nor OpenCV loaded."""
+    import subprocess
+    import sys
+
+    code = ('import sys\n'
+            'import hac_ros.ros.node, hac_ros.replay.replayer, hac_ros.cli.replay\n'
+            'from hac_ros.simulate import make_scenario\n'
+            'from hac_ros.core.calibrator import Calibrator\n'
+            'from hac_ros.core.params import HacParams\n'
+            'from hac_ros.simulate.feed import feed_events, scenario_events\n'
+            "sc = make_scenario('walk', seed=1, duration=3.0, joint_layout='blazepose33')\n"
+            "cal = Calibrator(HacParams().replace(joint_layout='blazepose33'))\n"
+            'out = feed_events(cal, scenario_events(sc))\n'
+            "print(len(out), sorted(m for m in ('mediapipe', 'cv2') if m in sys.modules))\n")
+    run = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
+                         cwd=REPO, timeout=300)
+    assert run.returncode == 0, run.stderr
+    count, loaded = run.stdout.split(' ', 1)
+    assert int(count) > 0 and loaded.strip() == '[]', run.stdout

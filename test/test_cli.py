@@ -39,8 +39,9 @@ OTHER_PROGRAMS_FLAGS = {'--head',  # "ray start --head"
 FLAG = re.compile(r'(?<![\w-])--[a-z][a-z0-9-]*')
 
 
-# Command lines besides cli/: hac_node's own (--help, and the ROS arguments it reads)
-COMMAND_LINES = {Path('hac_ros/ros/arguments.py')}
+# Command lines besides cli/: hac_node's and hac_people_node's own (--help, and the ROS
+# arguments they read)
+COMMAND_LINES = {Path('hac_ros/ros/arguments.py'), Path('hac_ros/people/arguments.py')}
 
 
 def _library_strings() -> list[tuple[str, int, str]]:

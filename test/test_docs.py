@@ -70,7 +70,7 @@ def _parameter_sets(text: str) -> list[dict]:
     sets = [f['hac_node']['ros__parameters'] for f in found if f and 'hac_node' in f]
     for snippet in _snippets(text):
         pairs = re.findall(r'-p (\w+):=(\S+)', snippet)
-        if pairs:
+        if pairs and 'hac_people_node' not in snippet:
             sets.append({k: yaml.safe_load(v) for k, v in pairs})
     return sets
 
@@ -80,6 +80,23 @@ def test_every_parameter_set_the_docs_show_is_valid():
     assert len(sets) >= 4
     for _, values in sets:
         HacParams.from_dict(values)  # raises naming the parameter: unknown or invalid
+
+
+def test_the_people_node_parameters_the_docs_show_are_its_own():
+    """hac_people_node's command lines set its parameters (hac_ros.people.params), and
+    docs/people.md's table is the code's (a block of regen_docs)."""
+    from regen_docs import BLOCKS
+
+    from hac_ros.people.params import PeopleParams, parameter_table
+
+    shown = [dict(re.findall(r'-p (\w+):=(\S+)', snippet)) for page in PAGES
+             for snippet in _snippets(_text(page)) if 'hac_people_node' in snippet]
+    shown = [s for s in shown if s]
+    assert shown
+    for values in shown:
+        PeopleParams.from_dict({k: yaml.safe_load(v) for k, v in values.items()})
+    assert BLOCKS[('docs/people.md', 'people_params')]() == parameter_table() + '\n'
+
 
 
 def _stated_defaults(text: str) -> list[tuple[str, object, object]]:
@@ -187,12 +204,81 @@ def test_the_readme_layout_names_every_library_module():
         current = head.group(1) if head else current if line.startswith(' ') else ''
         if current:
             described[current] = described.get(current, '') + ' ' + line
-    packages = ('core', 'ros', 'bridge', 'recording', 'replay', 'batch', 'files', 'evaluation')
+    packages = ('core', 'ros', 'bridge', 'recording', 'replay', 'batch', 'files', 'evaluation',
+                'people')
     missing = [f'hac_ros/{package}/{module.stem}.py' for package in packages
                for module in sorted((REPO / 'hac_ros' / package).glob('*.py'))
                if module.stem != '__init__'
                and not re.search(rf'\b{module.stem}\b', described.get(f'hac_ros/{package}', ''))]
     assert missing == []
+
+
+# ---------------------------------------------------------------- layouts: one source, the registry
+def _layout_statements(text: str) -> list[str]:
+    """What a text says about the built-in layouts that the registry (hac_ros.core.layouts) does
+    not: a list of choices (names ending with ``custom``) that leaves a built-in layout out, a
+    name that is not a layout in such a list, and a joint count stated for a layout ("smpl24: 24",
+    "`coco17` and `h36m17`: 17", "24 for `smpl24`", "`smpl24`, K = 24") that is not its K."""
+    from hac_ros.core.layouts import BUILT_IN
+
+    name = r'`?([a-z][a-z0-9]*\d\d|custom)`?(?: \([^)]*\))?'
+    separator = r'(?:,? (?:or|and) |, | \| | / )'
+    wrong = []
+    for m in re.finditer(rf'{name}(?:{separator}{name})+', text):
+        listed = re.findall(name, m.group(0))
+        if listed[-1] != 'custom':
+            continue
+        missing = [n for n in BUILT_IN if n not in listed]
+        unknown = [n for n in listed if n not in BUILT_IN and n != 'custom']
+        if missing or unknown:
+            wrong.append(f'"{m.group(0)}" lists {listed}: missing {missing}, unknown {unknown}')
+    known = '|'.join(BUILT_IN)
+    counts = [(m.group(1), m.group(2)) for m in re.finditer(
+        rf'`?({known})`?(?:,? K =|:) (\d+)\b', text)]
+    counts += [(m.group(2), m.group(1)) for m in re.finditer(rf'\b(\d+) for `?({known})\b', text)]
+    for m in re.finditer(rf'`?({known})`? and `?({known})`?: (\d+)\b', text):
+        counts += [(m.group(1), m.group(3)), (m.group(2), m.group(3))]
+    wrong += [f'{layout}: {count} joints stated, K is {BUILT_IN[layout].joints_per_person}'
+              for layout, count in sorted(set(counts)) if int(count) != BUILT_IN[layout].joints_per_person]
+    return wrong
+
+
+def test_the_layout_checker_finds_stale_lists_and_counts():
+    """The check below can fail: a list of choices without a layout, a layout that is not one,
+    a wrong count, each form."""
+    from hac_ros.core.layouts import BUILT_IN
+
+    all_but_one = [*BUILT_IN][:-1]
+    assert len(_layout_statements('(' + ' | '.join([*all_but_one, 'custom']) + ')')) == 1
+    assert _layout_statements('(' + ' | '.join([*BUILT_IN, 'custom']) + ')') == []
+    assert len(_layout_statements('`smpl24`, `coco18`, `custom`')) == 1
+    assert len(_layout_statements('set joint_layout (smpl24: 24, coco17: 24)')) == 1
+    assert len(_layout_statements('24 for `coco17`, 17 for `h36m17`')) == 1
+    assert len(_layout_statements('`coco17` and `h36m17`: 33')) == 2
+    assert len(_layout_statements('`h36m17`, K = 24')) == 1
+    assert _layout_statements('`coco17` / `smpl24` for a 17-joint or a 24-joint model') == []
+
+
+def test_the_docs_and_code_name_the_layouts_and_counts_the_registry_has():
+    """README, docs/, config/ and the package's own texts: every list of joint_layout's choices
+    has every built-in layout, every stated joint count is the layout's; docs/inputs.md's table of
+    layouts is the registry's (hac_ros.core.layouts.markdown_table, a block of regen_docs)."""
+    from regen_docs import BLOCKS
+
+    wrong = [f'{page.relative_to(REPO)}: {w}' for page in PAGES + _code_files()
+             for w in _layout_statements(_text(page))]
+    assert wrong == []
+    assert 'layouts' in {name for _, name in BLOCKS}  # the table: a generated block (make docs)
+
+
+def test_config_comments_list_each_parameters_choices():
+    """config/hac.yaml: the "(a | b | c)" a parameter's comment ends with is its choices."""
+    listed = re.findall(r'^    (\w+): .*\(([\w | ]+)\)$', _text(REPO / 'config' / 'hac.yaml'),
+                        re.M)
+    with_choices = [(n, c) for n, c in listed if ' | ' in c]
+    assert len(with_choices) >= 8
+    assert [(n, c.split(' | ')) for n, c in with_choices] == [
+        (n, list(describe(n)['choices'])) for n, _ in with_choices]
 
 
 def test_the_generated_blocks_of_the_docs_are_up_to_date():
@@ -215,7 +301,8 @@ def test_every_reason_the_code_gives_is_in_the_one_table():
 
     used: set[str] = set()
     for path in (REPO / 'hac_ros').rglob('*.py'):
-        used.update(_REASON_CALLS.findall(_text(path)))
+        if 'people' not in path.relative_to(REPO / 'hac_ros').parts:  # its own table, below
+            used.update(_REASON_CALLS.findall(_text(path)))
     used.update(f'{kind}_{what}' for kind in ('pose', 'joints', 'camera_info', 'cloud')
                 for what in ('lost', 'wrong_type'))
     assert len(used) > 30
@@ -232,3 +319,14 @@ def test_every_reason_that_can_warn_says_what_to_do():
     assert sorted(key for key, r in warning.items() if len(r.remedy.strip()) < 4) == []
     table = (REPO / 'docs' / 'node.md').read_text(encoding='utf-8')
     assert all(r.remedy in table for r in warning.values())
+
+
+def test_every_reason_the_people_node_gives_is_in_its_table():
+    """hac_people_node's reasons (hac_ros/people/): its own one table."""
+    from hac_ros.people.reasons import REJECTIONS
+
+    used: set[str] = set()
+    for path in (REPO / 'hac_ros' / 'people').rglob('*.py'):
+        used.update(_REASON_CALLS.findall(_text(path)))
+    assert len(used) >= 5
+    assert sorted(used - set(REJECTIONS)) == []

@@ -1,8 +1,10 @@
-"""joint_layout (smpl24, coco17, h36m17, custom) end to end, and the warnings that catch a wrong
+"""joint_layout (every built-in layout, custom) end to end, and the warnings that catch a wrong
 input convention (hac_ros.core.convention_check)."""
 from __future__ import annotations
 
+import dataclasses
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -10,17 +12,19 @@ from scipy.spatial.transform import Rotation
 
 from hac_ros.bridge.messages import OutputMessages
 from hac_ros.cli import main as hac
+from hac_ros.core import layouts
 from hac_ros.core.calibrator import Calibrator
+from hac_ros.core.contact import leg_lengths
 from hac_ros.core.errors import ParameterError
-from hac_ros.core.layouts import BUILT_IN
+from hac_ros.core.layouts import BUILT_IN, problems
 from hac_ros.core.outputs import HumanJointsOut, NoticeOut, ScaleOut
-from hac_ros.core.params import HacParams
+from hac_ros.core.params import HacParams, describe
 from hac_ros.recording.reader import Recording
 from hac_ros.recording.tracks import read_output
 from hac_ros.simulate import make_scenario
 from hac_ros.simulate.feed import feed_events, scenario_events
 from hac_ros.simulate.motions import STANDING
-from hac_ros.simulate.skeletons import to_layout
+from hac_ros.simulate.skeletons import simulated_layouts, to_layout
 
 DURATION_S = 15.0
 BODY_FRAME_Q = [-0.5, 0.5, -0.5, 0.5]  # the optical frame in an x-forward, z-up camera frame
@@ -65,12 +69,49 @@ def test_the_simulated_layouts_place_their_joints_on_the_same_body():
     np.testing.assert_allclose(h36m[3], STANDING[8])  # H36M's right ankle is SMPL's
     assert coco[0, 0] > STANDING[15, 0]  # the nose is in front of the head
     assert h36m[10, 2] > STANDING[15, 2]  # the top of the head above SMPL's head joint
-    for name, joints in (('coco17', coco), ('h36m17', h36m)):
-        up = BUILT_IN[name].up_axis(joints)
-        assert up[2] > 0.8 * np.linalg.norm(up)  # the layout's body axis points up
 
 
-@pytest.mark.parametrize('layout', ['coco17', 'h36m17'])
+@pytest.mark.parametrize('name', simulated_layouts())
+def test_a_simulated_layout_is_a_standing_body(name):
+    """Each layout the simulator writes, on the standing template (forward x, left y, up z): its
+    body axis points up, its root is at the pelvis, its legs are 0.7-0.9 m, its joints called left
+    are on the left, and its lowest joint is one of its contact candidates."""
+    layout = BUILT_IN[name]
+    joints = to_layout(STANDING[None], name)[0]
+    up = layout.up_axis(joints)
+    assert up[2] > 0.8 * np.linalg.norm(up)
+    assert np.linalg.norm(layout.root_of(joints) - STANDING[0]) < 0.1
+    assert all(0.7 < leg < 0.9 for leg in leg_lengths(layout, joints))
+    sides = [(n, joints[i, 1]) for i, n in enumerate(layout.joint_names)
+             if n.startswith(('left_', 'right_'))]
+    assert sides and all((y > 0) == n.startswith('left_') for n, y in sides), sides
+    assert int(np.argmin(joints[:, 2])) in (layout.contact or range(len(joints)))
+
+
+def test_the_registry_is_the_layout_modules():
+    """hac_ros/core/layouts/: one module per built-in layout, each registered under its own name;
+    the parameter's choices and the simulator's are the registry's."""
+    modules = sorted(p.stem for p in Path(layouts.__file__).parent.glob('*.py')
+                     if p.stem not in ('__init__', 'base'))
+    assert sorted(BUILT_IN) == modules and next(iter(BUILT_IN)) == 'smpl24'
+    assert describe('joint_layout')['choices'] == (*BUILT_IN, 'custom')
+    assert set(simulated_layouts()) == {n for n, lay in BUILT_IN.items() if lay.sim_placement}
+    assert all(problems(layout) == [] for layout in BUILT_IN.values())
+
+
+def test_a_wrong_layout_module_is_told_what_is_wrong():
+    """problems() (run on every layout module at import) names what does not fit."""
+    good = BUILT_IN['coco17']
+    assert problems(good) == []
+    wrong = dataclasses.replace(good, root=(17,), joint_names=good.joint_names[:-1],
+                                sole_height_rel={15: 0.6}, sim_placement=good.sim_placement[:3])
+    found = ' '.join(problems(wrong))
+    for text in ('root has indices outside 0..16', '16 joint names', 'sole height outside',
+                 '3 simulator placements'):
+        assert text in found, found
+
+
+@pytest.mark.parametrize('layout', [n for n in simulated_layouts() if n != 'smpl24'])
 def test_each_layout_calibrates_like_smpl24_on_the_same_scene(layout):
     errors = {}
     for name in ('smpl24', layout):

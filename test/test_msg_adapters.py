@@ -595,3 +595,37 @@ def test_importing_the_adapters_imports_no_ros():
             'assert "rclpy" not in sys.modules, "rclpy imported"; '
             'assert not any(m.endswith("_msgs") or m.endswith("_msgs.msg") for m in sys.modules)')
     subprocess.run([sys.executable, '-c', code], check=True)
+
+
+# ================================================================================ images
+@pytest.mark.parametrize('flavour', flavours())
+def test_images_of_every_encoding_read_as_rgb_rows_padding_ignored(flavour):
+    """sensor_msgs/Image → (H, W, 3) RGB for rgb8, bgr8, mono8, rgba8, bgra8, rows padded to a
+    longer step; a wrong encoding, no pixels or too few bytes raise ImageError with its reason."""
+    from msg_adapters.image import ImageError, image_to_rgb, rgb_to_image
+
+    types = ma.rosbags_types() if flavour == 'rosbags' else ma.rclpy_types()
+    rgb = np.random.default_rng(3).integers(0, 256, (5, 7, 3), dtype=np.uint8)
+    for encoding in ('rgb8', 'bgr8'):
+        np.testing.assert_array_equal(image_to_rgb(rgb_to_image(rgb, 1, 'c', types, encoding)),
+                                      rgb)
+    mono = image_to_rgb(rgb_to_image(rgb, 1, 'c', types, 'mono8'))
+    np.testing.assert_array_equal(mono[..., 0], rgb.mean(axis=2).round())
+    for encoding, pixel in (('rgba8', [0, 1, 2, 3]), ('bgra8', [2, 1, 0, 3])):
+        msg = rgb_to_image(rgb, 1, 'c', types)
+        step = 7 * 4 + 6  # padded rows
+        data = np.zeros((5, step), dtype=np.uint8)
+        data[:, :28] = np.concatenate([rgb, np.full((5, 7, 1), 255, np.uint8)], axis=2)[
+            :, :, pixel].reshape(5, 28)
+        msg.encoding, msg.step = encoding, step
+        msg.data = data.reshape(-1) if types.is_rosbags else data.tobytes()
+        np.testing.assert_array_equal(image_to_rgb(msg), rgb)
+    for change, reason in ((dict(encoding='16UC1'), 'wrong_encoding'),
+                           (dict(height=0), 'empty_image'),
+                           (dict(step=3), 'corrupt_image')):
+        msg = rgb_to_image(rgb, 1, 'c', types)
+        for key, value in change.items():
+            setattr(msg, key, value)
+        with pytest.raises(ImageError) as error:
+            image_to_rgb(msg)
+        assert error.value.reason == reason

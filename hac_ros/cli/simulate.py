@@ -6,9 +6,10 @@ from pathlib import Path
 
 from hac_ros.cli import add_output_recording, escape_help, show
 from hac_ros.core.errors import HacError
-from hac_ros.core.layouts import BUILT_IN
+from hac_ros.core.layouts import DEFAULT
 from hac_ros.core.params import POSE_TYPES
 from hac_ros.simulate.scenarios import SCENARIOS
+from hac_ros.simulate.skeletons import simulated_layouts
 from hac_ros.simulate.writer import POSE_FRAMES, POSE_SOURCES
 
 
@@ -32,7 +33,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--hmr-bias', type=float, default=None,
                         help=escape_help('HMR depth bias (0.03 = 3 % too far); default: random '
                                          'few %; 0: none'))
-    parser.add_argument('--joint-layout', choices=tuple(BUILT_IN), default='smpl24',
+    parser.add_argument('--joint-layout', choices=simulated_layouts(), default=DEFAULT,
                         help='the HMR model\'s joints (replay with the same joint_layout)')
     parser.add_argument('--motion', type=Path, default=None,
                         help='real motion instead of the gait: a .npz with joints (T, 24, 3) '

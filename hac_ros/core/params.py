@@ -84,7 +84,7 @@ class HacParams:
     cone_min_points: int = _p(3, 'map points needed in the cone for a hit', low=1, high=1000)
     ground_mode: str = _p('hmr', 'ground plane strategy', choices=GROUND_MODES)
 
-    # --- the HMR model's joints (core/layouts.py); the index lists are for joint_layout custom
+    # --- the HMR model's joints (core/layouts/); the index lists are for joint_layout custom
     joint_layout: str = _p('smpl24', 'joint order of each person in the joints message',
                            choices=LAYOUTS)
     joints_per_person: int = _p(0, 'custom: joints per person (ignored by the built-in layouts)',

@@ -14,6 +14,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from hac_ros.core.layouts import counts_text
+
 # kinds: how the reason shows in /diagnostics
 REJECTED = 'rejected'  # an input (or an output) refused and counted: rejected.<key>
 EVENT = 'event'  # something that happened, counted: event.<key>
@@ -81,8 +83,7 @@ REASONS: dict[str, Reason] = {
         remedy='publish a PoseArray of the layout\'s joints per person, with a valid stamp'),
     'joints_wrong_layout': Reason(
         REJECTED, 'the number of joints is not a multiple of the joint layout\'s joints per '
-        'person: set joint_layout (smpl24: 24, coco17 and h36m17: 17, custom: '
-        'joints_per_person)',
+        f'person: set joint_layout ({counts_text()})',
         remedy='set joint_layout (joints_per_person for custom)'),
     'joints_wrong_frame': Reason(REJECTED, 'joints in a frame other than the camera frame',
         remedy='one camera per node: set camera_frame to its optical frame and publish every '

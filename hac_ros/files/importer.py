@@ -40,7 +40,7 @@ import numpy as np
 
 from hac_ros.core import input_checks as checks
 from hac_ros.core.errors import ArgumentText, HacError, InputError
-from hac_ros.core.layouts import BUILT_IN, joints_per_person
+from hac_ros.core.layouts import BUILT_IN, SMPL24, joints_per_person, names_text
 from hac_ros.core.numeric import NS
 from hac_ros.core.params import NODE_NAME, HacParams
 from hac_ros.core.plausibility import body_spans
@@ -215,10 +215,11 @@ def import_files(output: str | Path, trajectory: str | Path, map_file: str | Pat
         warnings.append(f'the ground-truth trajectory {gt.path} repeats the stamp of the line '
                         f'before on {len(repeated)} line(s) (first: line {repeated[0]}): the first '
                         'pose of each stamp is used')
-    if joint_layout is None and k != 24:
+    if joint_layout is None and k != SMPL24.joints_per_person:
         warnings.append(ArgumentText(
-            f'{hmr.path} has {k} joints per person, not SMPL-24\'s 24: give {{joint_layout}} '
-            '(coco17, h36m17 or custom) so that OUT gets a params.yaml saying it for the replay',
+            f'{hmr.path} has {k} joints per person, not {SMPL24.name}\'s '
+            f'{SMPL24.joints_per_person}: give {{joint_layout}} '
+            f'({names_text()}) so that OUT gets a params.yaml saying it for the replay',
             'joint_layout'))
     warnings += check_joints(traj, hmr, params)
 
@@ -264,7 +265,7 @@ def import_files(output: str | Path, trajectory: str | Path, map_file: str | Pat
                             'eval matches joints by stamp')
     messages.sort(key=lambda m: (m[0], m[1]))
 
-    layout_name = joint_layout or ('smpl24' if k == 24 else 'custom')
+    layout_name = joint_layout or (SMPL24.name if k == SMPL24.joints_per_person else 'custom')
     used = {topic for _, _, topic, _ in messages}
     with staged_output(out) as staged:
         data = (layout_data(BUILT_IN[layout_name]) if layout_name in BUILT_IN

@@ -24,7 +24,7 @@ from rclpy.exceptions import (
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.signals import SignalHandlerOptions
 
-from hac_ros.core.errors import ParameterError
+from hac_ros.core.errors import HacError, ParameterError
 from hac_ros.core.params import NODE_NAME
 from hac_ros.core.printable import printable
 from hac_ros.files.params_file import check_params_file
@@ -68,8 +68,11 @@ class NodeClass(Protocol):
 
 
 def usage(node_class: NodeClass) -> str:
-    """The ``--help`` text of ``node_class``'s command."""
-    return USAGE.format(program=node_class.PROGRAM, what=node_class.SUMMARY, node=NODE_NAME)
+    """The ``--help`` text of ``node_class``'s command (its own ``USAGE`` template when it has
+    one: ``hac_people_node``)."""
+    template = getattr(node_class, 'USAGE', USAGE)
+    return template.format(program=node_class.PROGRAM, what=node_class.SUMMARY, node=NODE_NAME,
+                           install=getattr(node_class, 'INSTALL', ''))
 
 
 def wants_help(argv: Sequence[str]) -> bool:
@@ -163,7 +166,10 @@ def run(node_class: NodeClass, args: list[str] | None = None) -> int:
         pass
     except (ParameterError, InvalidParameterValueException, InvalidParameterTypeException,
             ParameterException) as exc:
-        print(f'hac_node: invalid parameter: {exc}', file=sys.stderr)
+        print(f'{node_class.PROGRAM}: invalid parameter: {exc}', file=sys.stderr)
+        return 2
+    except HacError as exc:  # a node that cannot start with what is installed (a model missing)
+        print(f'{node_class.PROGRAM}: {exc}', file=sys.stderr)
         return 2
     finally:
         executor.shutdown()

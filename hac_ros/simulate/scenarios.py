@@ -16,7 +16,7 @@ from hac_ros.core.numeric import NS
 from hac_ros.simulate import camera as rigs
 from hac_ros.simulate import motions
 from hac_ros.simulate.hmr import DepthBias, draw_bias, in_view, predict
-from hac_ros.simulate.skeletons import to_layout
+from hac_ros.simulate.skeletons import simulated_layouts, to_layout
 from hac_ros.simulate.slam import MapMessage, run_slam
 from hac_ros.simulate.world import Box, World, room
 
@@ -129,8 +129,9 @@ def make_scenario(name: str, seed: int = 0, duration: float | None = None, rate:
                   hmr_bias: float | None = None, motion: str | None = None,
                   joint_layout: str = 'smpl24', foot_roll: bool = True) -> Scenario:
     """Build one scenario (deterministic for ``seed``; the same people, camera and SLAM for every
-    ``joint_layout``: smpl24, coco17 or h36m17, the HMR model's joints). ``foot_roll`` False: the
-    walkers' stance feet stay planted (motions.FootRoll(), the simulator before the roll)."""
+    ``joint_layout``: the HMR model's joints, one of
+    :func:`~hac_ros.simulate.skeletons.simulated_layouts`). ``foot_roll`` False: the walkers'
+    stance feet stay planted (motions.FootRoll(), the simulator before the roll)."""
     if name not in SCENARIOS:
         raise HacError(f'unknown scenario {name!r}; one of: {", ".join(SCENARIOS)}')
     if rate <= 0 or (duration is not None and duration <= 0):
@@ -238,9 +239,10 @@ def make_scenario(name: str, seed: int = 0, duration: float | None = None, rate:
                     (rigs.WIDTH, rigs.HEIGHT), scale_fn, segments, rng)
 
     # --- HMR: the same bodies, in the HMR model's joint layout
-    layout = BUILT_IN.get(joint_layout)
-    if layout is None:
-        raise HacError(f'joint layout must be one of {", ".join(BUILT_IN)}, not {joint_layout!r}')
+    if joint_layout not in simulated_layouts():
+        raise HacError(f'joint layout must be one of {", ".join(simulated_layouts())}, not '
+                       f'{joint_layout!r}')
+    layout = BUILT_IN[joint_layout]
     people = [to_layout(person, joint_layout) for person in people]
     depth_bias = DepthBias(bias, t, body_rng, wander=hmr_bias is None or hmr_bias != 0.0)
     j_stamps, j_cam, j_world, ids, outliers = [], [], [], [], []

