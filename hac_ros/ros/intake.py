@@ -55,8 +55,21 @@ PERIOD_MIN_FRAMES = 5  # arrivals needed before the input period is known
 # start-up burst (seen: the first three frames before the first was processed, on a loaded
 # machine) is not dropped for want of a measurement
 STARTUP_FRAMES = 30
+MAX_QUEUED_S = 60.0  # longer in the middleware's queue than this: a clock changed, not a wait
 # the first bytes of a CDR message: its representation (little or big endian), then 2 options
 CDR_ORDER = {b'\x00\x01': '<', b'\x00\x03': '<', b'\x00\x00': '>', b'\x00\x02': '>'}
+
+
+def arrival_s(info: Any) -> float:
+    """When the middleware received a message (time.monotonic), from rclpy's message info
+    (``received_timestamp``: ns of the system clock); now when it is missing or implausible
+    (more than MAX_QUEUED_S ago, or ahead)."""
+    now = time.monotonic()
+    received = info.get('received_timestamp', 0) if isinstance(info, dict) else 0
+    if not received:
+        return now
+    waited = (time.time_ns() - received) / 1e9
+    return now - waited if 0.0 <= waited <= MAX_QUEUED_S else now
 
 
 def header_stamp_ns(data: bytes) -> int | None:

@@ -70,7 +70,7 @@ from hac_ros.core.reference import MapIndex
 from hac_ros.ros.arguments import run
 from hac_ros.ros.control import RuntimeControl
 from hac_ros.ros.graph_watch import GRAPH_CHECK_S, NAME_CHECK_S, GraphWatch, NameWatch
-from hac_ros.ros.intake import Inbox, Item, Processor, header_stamp_ns
+from hac_ros.ros.intake import Inbox, Item, Processor, arrival_s, header_stamp_ns
 from hac_ros.ros.liveness import Liveness
 from hac_ros.ros.map_intake import MapIntake
 from hac_ros.ros.parameters import (
@@ -90,7 +90,6 @@ TYPES = rclpy_types()  # rclpy's message classes by ROS name
 DDS_PROFILE_VARIABLES = ('FASTRTPS_DEFAULT_PROFILES_FILE', 'FASTDDS_DEFAULT_PROFILES_FILE')
 
 STALE_CHECK_S = 0.5  # wall seconds between looks at whether input stopped coming
-MAX_QUEUED_S = 60.0  # longer in the middleware's queue than this: a clock changed, not a wait
 STEADY = Clock(clock_type=ClockType.STEADY_TIME)  # timers that must run without /clock
 # The outputs have no QoS event handlers (rclpy's default warns of an incompatible subscriber,
 # which that subscriber's own side says too): each is a waitable that the executor adds to its
@@ -469,18 +468,6 @@ class HacNode(HacShell, Node):
     def destroy_node(self) -> None:
         self._cleanup()
         super().destroy_node()
-
-
-def arrival_s(info: Any) -> float:
-    """When the middleware received a message (time.monotonic), from rclpy's message info
-    (``received_timestamp``: ns of the system clock); now when it is missing or implausible
-    (more than MAX_QUEUED_S ago, or ahead)."""
-    now = time.monotonic()
-    received = info.get('received_timestamp', 0) if isinstance(info, dict) else 0
-    if not received:
-        return now
-    waited = (time.time_ns() - received) / 1e9
-    return now - waited if 0.0 <= waited <= MAX_QUEUED_S else now
 
 
 def _deserialize(data: bytes, msg_type: type) -> Any:
