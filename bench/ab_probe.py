@@ -66,7 +66,7 @@ def replay(recording: Path, mode: str, repeats: int = 2) -> dict[str, Any]:
 def node(duration_s: float) -> dict[str, Any]:
     import node_latency  # sets the DDS environment before rclpy is imported
 
-    r = node_latency.run(NODE_POINTS, duration_s, rounds=1)
+    r = node_latency.run(NODE_POINTS, duration_s, rounds=1, extra_rows=False)
     return {'value': r['p99_ratio'], 'node_p99_ms': r['node']['p99_ms'],
             'echo_p99_ms': r['echo']['p99_ms'], 'dropped': r['node']['dropped']}
 

@@ -309,6 +309,18 @@ def test_every_reason_the_code_gives_is_in_the_one_table():
     assert sorted(used - set(REASONS)) == []
 
 
+def test_every_reason_that_can_warn_says_what_to_do():
+    """Each reason that can make a status WARN has a remedy in the one table, or says there is
+    none ("none: ..."): the node appends it to the warning it logs, docs/node.md lists it."""
+    from hac_ros.core.reasons import REASONS
+
+    warning = {key: r for key, r in REASONS.items() if r.makes_warn}
+    assert len(warning) > 10
+    assert sorted(key for key, r in warning.items() if len(r.remedy.strip()) < 4) == []
+    table = (REPO / 'docs' / 'node.md').read_text(encoding='utf-8')
+    assert all(r.remedy in table for r in warning.values())
+
+
 def test_every_reason_the_people_node_gives_is_in_its_table():
     """hac_people_node's reasons (hac_ros/people/): its own one table."""
     from hac_ros.people.reasons import REJECTIONS

@@ -189,6 +189,9 @@ class Harness:
         return self.connected() and outputs
 
     def close(self) -> None:
+        """Stop and destroy everything (once: a test may close it before the fixture does)."""
+        if not self.context.ok():
+            return
         self.spinner.close()
         self.node.destroy_node()
         self.io.destroy_node()

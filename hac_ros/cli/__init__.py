@@ -1,5 +1,5 @@
 """The ``hac`` command: ``simulate | replay | batch | eval | plot | demo | import | export | play |
-people``.
+lifecycle | people``.
 
 Thin: each sub-command is a module of this package with ``add_arguments(parser)`` and
 ``run(args) -> int``, and only argument parsing in it; the work is done by the library modules
@@ -55,6 +55,7 @@ COMMANDS = {
     'import': ('import_files', 'make a recording from SLAM and HMR files (TUM, PLY, npz)'),
     'export': ('export', 'a replayed recording as numpy arrays (.npz)'),
     'play': ('play', 'publish a recording\'s input topics over DDS (drives hac_node)'),
+    'lifecycle': ('lifecycle', 'take a lifecycle transition of a managed node (configure, ...)'),
     'people': ('people', 'metric people from a video or images (the [people] extra), for hac '
                'import'),
 }

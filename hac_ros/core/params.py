@@ -125,15 +125,29 @@ class HacParams:
                         choices=INPUT_QOS)
     cloud_qos: str = _p('transient_local', 'QoS durability of the map subscription',
                         choices=CLOUD_QOS)
-    joints_backlog_max: int = _p(2, 'node: joints frames that may wait to be processed; beyond, '
-                                 'the oldest are dropped (frames_dropped), never poses', low=1,
-                                 high=100_000)
-    latency_warn_s: float = _p(0.1, 'node: /diagnostics warns when the p99 latency of the recent '
-                               'joints frames (arrival to processed, wall clock) is above this, '
-                               'seconds', low=0.0, high=1e6)
+    joints_backlog_max: int = _p(2, 'node: joints frames that may wait to be processed, in input '
+                                 'periods of work: beyond this many frames, the oldest are dropped '
+                                 '(frames_dropped) when the frames waiting would take longer than '
+                                 'this many input periods to process (never poses); larger trades '
+                                 'drops for latency', low=1, high=100_000)
+    latency_warn_s: float = _p(0.1, 'node: /diagnostics warns when the node is behind by more '
+                               'than this (now minus the arrival of the oldest input waiting, or '
+                               'the p99 of the recent joints frames from arrival to processed; '
+                               'wall clock), seconds', low=0.0, high=1e6)
     stale_after_s: float = _p(2.0, 'node: no SLAM pose or joints for this long (wall clock): '
                               '/diagnostics says STALE (nothing) or WARN (one of them), seconds',
                               low=0.1, high=1e6)
+    pose_coalesce_s: float = _p(0.01, 'node: SLAM poses faster than one per this (stamp '
+                                'seconds) are thinned to it: a pose this close after the last one '
+                                'kept is held, and coalesced into the next (its odometry not '
+                                'published, counted as poses_coalesced) while that one is close '
+                                'too; the newest and the pose before each joints frame are kept; '
+                                '0 = every pose', low=0.0, high=1.0)
+    log_period_s: float = _p(10.0, 'node: a status line in the log this often (scale, spread, '
+                             'samples, status, frames received, processed, dropped); 0 = off, '
+                             'wall seconds', low=0.0, high=1e6)
+    autostart: bool = _p(False, 'hac_lifecycle_node: configure and activate at start (nav2\'s '
+                         'convention); hac_node accepts it and is always active')
     publish_markers: bool = _p(True, 'publish /hac/markers for RViz')
     publish_cloud: bool = _p(True, 'publish /hac/cloud: the map in metric_frame, metres')
     cloud_republish_rel: float = _p(0.01, '/hac/cloud is republished when the estimate moved by '

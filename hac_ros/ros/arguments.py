@@ -7,6 +7,7 @@ prints :data:`USAGE` without starting ROS. :func:`run` is the process of ``hac_n
 """
 from __future__ import annotations
 
+import gc
 import re
 import signal
 import sys
@@ -154,6 +155,10 @@ def run(node_class: NodeClass, args: list[str] | None = None) -> int:
     node = None
     try:
         node = node_class(params_files=params_files(argv))
+        # the objects made so far (modules, message types, serializers: ~85k) are left out of
+        # the garbage collector's full collections, which otherwise stalled the node 70 ms
+        # about every 15 s at 1 kHz of poses (docs/node.md, "Performance")
+        gc.freeze()
         executor.add_node(node)
         while rclpy.ok() and not stop:  # not executor.spin(): see SHUTDOWN_POLL_S
             executor.spin_once(timeout_sec=SHUTDOWN_POLL_S)

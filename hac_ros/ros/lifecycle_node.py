@@ -10,12 +10,15 @@ these transitions:
 - cleanup: drops the state (the next configure starts afresh); shutdown: cleans up from any state.
 
 Parameters are declared at construction, so ``ros2 param set`` works in every state; a change
-before configure is simply read by configure. nav2's ``lifecycle_manager`` expects a bond
-(bondcpp) from the nodes it manages, which rclpy lacks: give the manager ``bond_timeout: 0.0``
-(docs/node.md).
+before configure is simply read by configure. ``autostart`` (default false, the convention of
+nav2's lifecycle manager) configures and activates the node as it starts; the plain
+``hac_node`` accepts the parameter and ignores it (it is always active), so one parameters file
+serves both. nav2's ``lifecycle_manager`` expects a bond (bondcpp) from the nodes it manages,
+which rclpy lacks: give the manager ``bond_timeout: 0.0`` (docs/node.md).
 
 Run: ``ros2 run hac_ros hac_lifecycle_node --ros-args --params-file config/hac.yaml``, then
-``ros2 lifecycle set /hac_node configure`` and ``... activate``.
+``hac lifecycle /hac_node configure`` and ``... activate`` (:mod:`hac_ros.ros.lifecycle_client`;
+``ros2 lifecycle set`` does the same), or ``-p autostart:=true``.
 """
 from __future__ import annotations
 
@@ -27,6 +30,7 @@ from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackRet
 
 from hac_ros.core.errors import ParameterError
 from hac_ros.core.params import NODE_NAME
+from hac_ros.core.printable import printable
 from hac_ros.ros.arguments import run
 from hac_ros.ros.node import HacShell
 
@@ -46,12 +50,26 @@ class HacLifecycleNode(HacShell, LifecycleNode):
                  **kwargs: Any) -> None:
         super().__init__(node_name, **kwargs)
         self._declare(params_files)
+        if self.get_parameter('autostart').value:
+            self._autostart()
+
+    def _autostart(self) -> None:
+        """``autostart``: configure, then activate, as a lifecycle manager would; a transition
+        that fails leaves the node in the state it reached, said in the log."""
+        if self.trigger_configure() != SUCCESS:
+            self.get_logger().error('autostart: configure failed (the reason above): the node '
+                                    'stays unconfigured')
+            return
+        if self.trigger_activate() != SUCCESS:
+            self.get_logger().error('autostart: activate failed: the node stays inactive')
+            return
+        self.get_logger().info('autostart: configured and activated')
 
     def on_configure(self, state: LifecycleState) -> TransitionCallbackReturn:
         try:
             self._configure()
         except ParameterError as exc:
-            self.get_logger().error(f'configure failed: invalid parameter: {exc}')
+            self.get_logger().error(f'configure failed: invalid parameter: {printable(exc)}')
             self.calibrator = None
             return FAILURE
         self.get_logger().info('configured')
@@ -91,9 +109,9 @@ class HacLifecycleNode(HacShell, LifecycleNode):
 
 
 def main(args: list[str] | None = None) -> int:
-    """``hac_lifecycle_node``: unconfigured until a manager or ``ros2 lifecycle set`` moves it;
-    clean shutdown on SIGINT/SIGTERM (exit code 0), 2 on an invalid parameter value at start-up
-    (hac_ros.ros.node.run)."""
+    """``hac_lifecycle_node``: unconfigured until a manager, ``hac lifecycle`` or ``autostart``
+    moves it; clean shutdown on SIGINT/SIGTERM (exit code 0), 2 on an invalid parameter value at
+    start-up (hac_ros.ros.node.run)."""
     return run(HacLifecycleNode, args)
 
 

@@ -31,7 +31,7 @@ from hac_ros.core.outputs import Status
 from hac_ros.core.params import NODE_NAME
 from hac_ros.core.status_shares import StatusShares
 from hac_ros.files.params_file import check_params_file
-from hac_ros.ros.intake import STEADY_CLOCK_REASONS
+from hac_ros.ros.liveness import STEADY_CLOCK_REASONS
 
 log = logging.getLogger(__name__)
 

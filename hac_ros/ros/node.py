@@ -10,18 +10,20 @@ Threads. The executor's thread receives: every input message goes at once into t
 inbox (:mod:`hac_ros.ros.intake`), and services, parameters and timers run there. One processing
 thread takes the inbox in arrival order and feeds the calibrator; everything that touches the
 calibrator holds one lock, so the calibrator sees one caller at a time. When input comes faster
-than it is processed, the inbox drops the oldest joints frames beyond ``joints_backlog_max``
-(``frames_dropped``), never poses: no backlog builds, and without drops the calibrator sees what
-the replay's feed gives it. Map clouds are decoded and indexed on a thread of their own
+than it is processed, the inbox drops the oldest joints frames (``frames_dropped``) and coalesces
+poses that wait (``poses_coalesced``): no backlog builds, and without either the calibrator sees
+what the replay's feed gives it. Map clouds are decoded and indexed on a thread of their own
 (:mod:`hac_ros.ros.map_intake`); **while a map is being built, frames use the latest map already
-handed over**, the one place where the node may differ from ``hac replay``, which always has the
-map at its stamp.
+handed over**, the other place where the node may differ from ``hac replay``, which always has
+the map at its stamp. Output serializers are made at configure (:mod:`hac_ros.ros.warm`).
 
 Status. ``/diagnostics`` follows stamp time as in the replay (:mod:`hac_ros.core.health`), with
-what only the node knows added: the latency and backlog of its frames, and warnings when one kind
-of input stopped coming. A timer on the steady clock (it runs under ``use_sim_time`` without
-``/clock`` too, as the input-type check does) publishes STALE when no input at all has come for
-``stale_after_s``: a last OK never stands for a live status.
+what only the node knows added (:mod:`hac_ros.ros.liveness`): how far behind it is, its backlog,
+and warnings when one kind of input stopped coming. A timer on the steady clock (it runs under
+``use_sim_time`` without ``/clock`` too, as the input-type check does) publishes STALE when no
+input at all has come for ``stale_after_s``: a last OK never stands for a live status. The log
+tells the story of the run at INFO (:mod:`hac_ros.ros.story`); services and runtime parameter
+changes are :mod:`hac_ros.ros.control`'s.
 
 Names. Topics are relative (``slam/pose`` in, ``hac/pose`` out: a namespace moves them all),
 ``/diagnostics`` and ``/tf`` absolute, the services private: ``~/reset``, ``~/freeze``.
@@ -32,6 +34,8 @@ Run: ``ros2 run hac_ros hac_node --ros-args --params-file config/hac.yaml`` or
 """
 from __future__ import annotations
 
+import contextlib
+import dataclasses
 import functools
 import sys
 import threading
@@ -39,37 +43,46 @@ import time
 import traceback
 from collections import Counter
 from collections.abc import Callable, Sequence
-from typing import TYPE_CHECKING, Any
+from typing import Any, cast
 
-from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock, ClockType
-from rclpy.event_handler import SubscriptionEventCallbacks
+from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.node import Node
-from rclpy.parameter import Parameter
 from rclpy.serialization import deserialize_message
 
 from hac_ros.bridge.inputs import add_camera_info_msg, add_joints_msg, add_pose_msg
 from hac_ros.bridge.messages import DIAGNOSTICS, OUTPUT_TOPICS, OutputMessages, input_msgtype
 from hac_ros.core.calibrator import Calibrator
-from hac_ros.core.errors import ParameterError
 from hac_ros.core.health import Finding
-from hac_ros.core.outputs import DiagnosticsOut, NoticeOut, OdometryOut, Output, PoseOut, ResetOut
+from hac_ros.core.outputs import (
+    DiagnosticsOut,
+    NoticeOut,
+    OdometryOut,
+    Output,
+    PoseOut,
+    ResetOut,
+    ScaleOut,
+)
 from hac_ros.core.params import NODE_NAME, POSE_MSGTYPES, HacParams, names
+from hac_ros.core.printable import printable, printable_lines
+from hac_ros.core.reasons import REASONS
 from hac_ros.core.reference import MapIndex
 from hac_ros.ros.arguments import run
-from hac_ros.ros.graph_watch import GRAPH_CHECK_S, GraphWatch
-from hac_ros.ros.intake import Inbox, Item, Liveness, Processor
+from hac_ros.ros.control import RuntimeControl
+from hac_ros.ros.graph_watch import GRAPH_CHECK_S, NAME_CHECK_S, GraphWatch, NameWatch
+from hac_ros.ros.intake import Inbox, Item, Processor, arrival_s, header_stamp_ns
+from hac_ros.ros.liveness import Liveness
 from hac_ros.ros.map_intake import MapIntake
 from hac_ros.ros.parameters import (
     declare_parameters,
-    judge_change,
-    our_values,
     startup_warnings,
 )
 from hac_ros.ros.qos import cloud_qos, input_qos, output_qos
+from hac_ros.ros.story import Input, Story, WatchedHealth
 from hac_ros.ros.tf_broadcast import TfSender
-from hac_ros.ros.tf_input import TfPoseInput, transform_listener_class
-from msg_adapters import rclpy_types
+from hac_ros.ros.tf_input import TfPoseInput
+from hac_ros.ros.warm import warm_outputs
+from msg_adapters import MessageError, rclpy_types, stamp_to_ns
 
 TYPES = rclpy_types()  # rclpy's message classes by ROS name
 # Environment variables naming a Fast DDS XML profile (config/fastdds_large_data.xml): Fast DDS
@@ -78,16 +91,15 @@ DDS_PROFILE_VARIABLES = ('FASTRTPS_DEFAULT_PROFILES_FILE', 'FASTDDS_DEFAULT_PROF
 
 STALE_CHECK_S = 0.5  # wall seconds between looks at whether input stopped coming
 STEADY = Clock(clock_type=ClockType.STEADY_TIME)  # timers that must run without /clock
+# The outputs have no QoS event handlers (rclpy's default warns of an incompatible subscriber,
+# which that subscriber's own side says too): each is a waitable that the executor adds to its
+# wait set for every message it takes, and the 16 of the 8 outputs cost more than a third of the
+# executor thread's time at 1 kHz of poses (docs/node.md, "Performance").
+NO_EVENTS = PublisherEventCallbacks(use_default_callbacks=False)
 
 
 # ---------------------------------------------------------------------------------------- the shell
-if TYPE_CHECKING:  # HacShell is mixed into an rclpy Node (HacNode, HacLifecycleNode)
-    from rclpy.node import Node as _NodeMixinBase
-else:
-    _NodeMixinBase = object
-
-
-class HacShell(_NodeMixinBase):
+class HacShell(RuntimeControl):
     """Everything ``hac_node`` does, shared by :class:`HacNode` and the managed
     :class:`hac_ros.ros.lifecycle_node.HacLifecycleNode`; mixed into an rclpy ``Node``.
 
@@ -101,24 +113,18 @@ class HacShell(_NodeMixinBase):
     PROGRAM = 'hac_node'  # the command, and the first line of its --help
     SUMMARY = ('The ROS 2 node of hac_ros: a metric scale for monocular SLAM from the people in '
                'view.')
-    params: HacParams
     calibrator: Calibrator | None = None
     active = False
-
-    @property
-    def core(self) -> Calibrator:
-        """The calibrator; callbacks run only between configure and cleanup, when it exists."""
-        if self.calibrator is None:
-            raise RuntimeError('hac_node is not configured')
-        return self.calibrator
 
     # ------------------------------------------------------------------ life
     def _declare(self, params_files: Sequence[str] = ()) -> None:
         """Declares the parameters and warns about what ROS would ignore in silence: misspelt
         names, misspelt node sections of ``params_files`` (the node's ``--params-file`` paths)."""
         declare_parameters(self)
-        for warning in startup_warnings(self, params_files):
-            self.get_logger().warning(warning)
+        self.names = NameWatch(self)  # another node of this name (hac_ros.ros.graph_watch)
+        self._name_check = self.create_timer(NAME_CHECK_S, self.names.check, clock=STEADY)
+        for warning in startup_warnings(self, params_files):  # names from a file: escaped
+            self.get_logger().warning(printable(warning))
         self.add_on_set_parameters_callback(self._validate_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
 
@@ -128,6 +134,7 @@ class HacShell(_NodeMixinBase):
         self.params = HacParams().replace(**values)
         self.calibrator = Calibrator(self.params)
         self.outputs = OutputMessages(self.params)
+        warm_outputs(self.params)  # the serializers made now, not at the first frame's outputs
         self.notices: Counter[str] = Counter()  # causes of the NoticeOut logged (once each)
         self.graph = GraphWatch(self, self._reject)  # QoS, lost messages, wrong types
         self._camera_info: tuple[Any, int, int] | None = None  # (K, width, height) last valid
@@ -140,9 +147,12 @@ class HacShell(_NodeMixinBase):
         # the intake (hac_ros.ros.intake): every access to the calibrator holds the lock
         self.lock = threading.RLock()
         self.liveness = Liveness()
-        self._inbox = Inbox(self.params.joints_backlog_max)
-        self._processor = Processor(self._inbox, self._handle, self._on_dropped, self.lock,
-                                    self.liveness.load)
+        self._inbox = Inbox(self.params.joints_backlog_max, self.params.pose_coalesce_s)
+        self.story = Story(self.get_logger(), self._inbox)  # the log's story (hac_ros.ros.story)
+        self.outputs.health = WatchedHealth(self.outputs.health.gravity_wanted,
+                                            self.story.on_health)
+        self._processor = Processor(self._inbox, self._handle, self._on_dropped,
+                                    self._on_coalesced, self.lock, self.liveness.load)
         # map clouds built off the executor's thread (hac_ros.ros.map_intake)
         self._maps_ready = self.create_guard_condition(lambda: self.maps.ready())
         self.maps = MapIntake(self._build_index, self._inbox, lambda: self._maps_ready.trigger())
@@ -151,7 +161,7 @@ class HacShell(_NodeMixinBase):
     def _activate(self) -> None:
         for topic, msgtype in OUTPUT_TOPICS:
             self._output_publishers[topic] = self.create_publisher(
-                TYPES.get(msgtype), topic, output_qos(topic))
+                TYPES.get(msgtype), topic, output_qos(topic), event_callbacks=NO_EVENTS)
         for kind in ('pose', 'joints', 'camera_info', 'cloud'):
             self._subscribe(kind)
         self._hac_services = [self.create_service(TYPES.get('std_srvs/srv/Trigger'), '~/reset',
@@ -167,12 +177,12 @@ class HacShell(_NodeMixinBase):
         p = self.params
         poses = (f'TF {p.slam_map_frame} -> {p.slam_pose_frame}' if p.pose_source == 'tf' else
                  f'{self.resolve_topic_name(p.pose_topic)} ({p.pose_type})')
-        self.get_logger().info(
+        self.get_logger().info(printable(
             f'{self.get_name()}: {poses} + '
             f'{self.resolve_topic_name(p.joints_topic)} + {self.resolve_topic_name(p.cloud_topic)}'
             f' -> {self.resolve_topic_name("hac")}/* in {p.metric_frame!r} '
             f'({p.metric_frame_alignment}) and {p.odom_frame!r} (contact_mode {p.contact_mode}, '
-            f'input_qos {p.input_qos}, cloud_qos {p.cloud_qos})')
+            f'input_qos {p.input_qos}, cloud_qos {p.cloud_qos})'))
 
     def _deactivate(self) -> None:
         self.active = False
@@ -209,23 +219,31 @@ class HacShell(_NodeMixinBase):
         if kind == 'pose' and self.tf_input is not None:
             self.tf_input.close()
             self.tf_input = None
+        self.story.inputs.pop(kind, None)
         if kind == 'pose' and p.pose_source == 'tf':  # tf2_ros' listener instead of pose_topic
             self.tf_input = TfPoseInput(self, p, lambda: self.core, self._emit, self._queued)
+            self.story.inputs[kind] = Input(f'TF {p.slam_map_frame} -> {p.slam_pose_frame}',
+                                            'tf2_msgs/msg/TFMessage')
             return
         topic = {'pose': p.pose_topic, 'joints': p.joints_topic,
                  'camera_info': p.camera_info_topic, 'cloud': p.cloud_topic}[kind]
         msg_type = TYPES.get(input_msgtype(kind, p.pose_type))
-        qos = cloud_qos(p) if kind == 'cloud' else input_qos(p)
+        qos = cloud_qos(p) if kind == 'cloud' else input_qos(p, kind)
         raw = kind != 'camera_info'  # deserialized by rclpy only for CameraInfo
         if not topic:
             return  # camera_info_topic "" turns it off
+        self.story.inputs[kind] = Input(self.resolve_topic_name(topic),
+                                        input_msgtype(kind, p.pose_type))
         callback = {'pose': self._on_pose, 'joints': self._on_joints,
                     'camera_info': self._on_camera_info, 'cloud': self._on_cloud}[kind]
         events = SubscriptionEventCallbacks(
             incompatible_qos=functools.partial(self.graph.incompatible_qos, kind, topic),
-            message_lost=functools.partial(self.graph.message_lost, kind))
+            message_lost=functools.partial(self.graph.message_lost, kind),
+            use_default_callbacks=False)  # (the wrong type is graph_watch's)
         self._subscriptions_by_kind[kind] = self.create_subscription(
-            msg_type, topic, self._guarded(kind, callback), qos, event_callbacks=events, raw=raw)
+            # rclpy hands the message info to a callback of two arguments (its typing says one)
+            msg_type, topic, cast(Callable[[Any], None], self._guarded(kind, callback)), qos,
+            event_callbacks=events, raw=raw)
 
     def subscription(self, kind: str) -> Any:
         """The rclpy Subscription of input ``kind`` (``pose``, ``joints``, ``camera_info``,
@@ -242,11 +260,15 @@ class HacShell(_NodeMixinBase):
                 notice.text = text
         self._emit(outputs)
 
-    def _guarded(self, kind: str, callback: Callable[[Any], None]) -> Callable[[Any], None]:
-        """The node never dies on input: an unexpected error is logged once and counted."""
-        def run(msg: Any) -> None:
+    def _guarded(self, kind: str, callback: Callable[[Any, float], None]
+                 ) -> Callable[[Any, Any], None]:
+        """The subscription callback of input ``kind``: ``callback(msg, arrived_s)``, where
+        ``arrived_s`` (time.monotonic) is when the middleware received the message, so that the
+        time it waited for the executor counts in the node's lag (docs/node.md, Overload). The
+        node never dies on input: an unexpected error is logged once and counted."""
+        def run(msg: Any, info: Any) -> None:
             try:
-                callback(msg)
+                callback(msg, arrival_s(info))
             except Exception:
                 with self.lock:
                     self._internal_error(kind)
@@ -258,19 +280,21 @@ class HacShell(_NodeMixinBase):
     # Poses and joints arrive as CDR bytes (raw subscriptions) and are deserialized here by
     # rclpy, so that bytes that do not deserialize are a counted rejection too, never an
     # exception in the executor.
-    def _on_pose(self, data: bytes) -> None:
-        self._take('pose', data)
+    def _on_pose(self, data: bytes, arrived_s: float) -> None:
+        self._take('pose', data, arrived_s)
 
-    def _on_joints(self, data: bytes) -> None:
-        self._take('joints', data)
+    def _on_joints(self, data: bytes, arrived_s: float) -> None:
+        self._take('joints', data, arrived_s)
 
-    def _on_camera_info(self, msg: Any) -> None:
-        self._take('camera_info', msg)
+    def _on_camera_info(self, msg: Any, arrived_s: float) -> None:
+        self._take('camera_info', msg, arrived_s)
 
-    def _take(self, kind: str, data: Any) -> None:
-        """Executor thread: into the inbox, in arrival order (hac_ros.ros.intake)."""
+    def _take(self, kind: str, data: Any, arrived_s: float | None = None) -> None:
+        """Executor thread: into the inbox, in arrival order (hac_ros.ros.intake); a pose with
+        its header stamp, read from its bytes (for coalescing)."""
         self.liveness.arrival(kind)
-        self._inbox.put(kind, data)
+        self.story.seen(kind)
+        self._inbox.put(kind, data, header_stamp_ns(data) if kind == 'pose' else None, arrived_s)
 
     def _handle(self, item: Item) -> None:
         """Processing thread, holding the lock: one input to the calibrator, its outputs out.
@@ -282,12 +306,19 @@ class HacShell(_NodeMixinBase):
             elif item.kind == 'joints':
                 msg = _deserialize(item.data, TYPES.get('geometry_msgs/msg/PoseArray'))
                 self._emit(add_joints_msg(self.core, msg))
+                if msg is not None and self.story.first_joints_ns is None:
+                    with contextlib.suppress(MessageError):  # counted by add_joints_msg
+                        self.story.joints_frame(stamp_to_ns(msg.header.stamp))
             elif item.kind == 'camera_info':
                 outputs, intrinsics = add_camera_info_msg(self.core, item.data)
                 if intrinsics is not None:
                     self._camera_info = intrinsics
                 self._emit(outputs)
             elif item.kind == 'map':
+                index = item.data.index
+                if index is not None:
+                    self.story.first_map(len(index), index.frame_id, index.stamp_ns,
+                                         item.data.build_s)
                 self._emit(item.data.hand_to(self.core))
             elif item.kind == 'call':  # a transform of pose_source tf, in arrival order
                 item.data()
@@ -300,23 +331,50 @@ class HacShell(_NodeMixinBase):
         self._emit(self.core.reject('internal_error', -1))
         if kind not in self._failed_callbacks:
             self._failed_callbacks.add(kind)
-            self.get_logger().error(f'error handling a {kind} message (further ones are counted '
-                                    f'as rejected.internal_error):\n{traceback.format_exc()}')
+            self.get_logger().error(printable_lines(
+                f'error handling a {kind} message (further ones are counted as '
+                f'rejected.internal_error):\n{traceback.format_exc()}'))
 
     def _queued(self, kind: str, callback: Callable[[Any], None]) -> Callable[[Any], None]:
         """``callback`` run on the processing thread, in arrival order with the other inputs
         (the transforms of pose_source tf); an error in it is counted as any input's."""
         def take(msg: Any) -> None:
             self.liveness.arrival('pose')  # the SLAM poses come this way
+            self.story.seen('pose')
             self._inbox.put('call', lambda: callback(msg))
         return take
 
     def _on_dropped(self, item: Item) -> None:
-        """A joints frame the inbox dropped (input faster than processing), holding the lock."""
-        self._emit(self.core.reject('frames_dropped', -1))
+        """A joints frame the inbox dropped (input faster than processing), holding the lock;
+        the first notice says how long a frame takes against the input period."""
+        cost, period = self._inbox.frame_cost_s, self._inbox.input_period_s()
+        measured = (f'processing takes {1e3 * cost:.1f} ms per frame (the median of the recent '
+                    f'frames, with the poses between them) against an input period of '
+                    f'{1e3 * period:.1f} ms' if cost == cost and period == period else
+                    'frames came faster than the first ones were processed')
+        self._reject('frames_dropped', f'rejected input (frames_dropped): joints frames dropped, '
+                     f'the oldest waiting: {measured}; joints_backlog_max '
+                     f'{self.params.joints_backlog_max}; further ones are counted in /diagnostics')
 
-    def _on_cloud(self, data: bytes) -> None:
+    def _on_coalesced(self, item: Item) -> None:
+        """A SLAM pose the inbox coalesced into the next one (a stream faster than one pose per
+        pose_coalesce_s), holding the lock: counted; the first said once, at INFO."""
+        outputs = self.core.reject('poses_coalesced', -1)
+        for notice in outputs:
+            if isinstance(notice, NoticeOut):
+                notice.level = 'info'
+                notice.text = (
+                    'poses_coalesced: SLAM poses come more often than one per pose_coalesce_s '
+                    f'({1e3 * self.params.pose_coalesce_s:g} ms): the calibrator gets one at '
+                    f'least every {1e3 * self.params.pose_coalesce_s:g} ms of stamp time, the '
+                    'newest and the one before each joints frame, so the node keeps up; the '
+                    "others' /hac/odometry and /hac/pose are not published (counted as "
+                    'rejected.poses_coalesced; pose_coalesce_s 0 processes every pose)')
+        self._emit(outputs)
+
+    def _on_cloud(self, data: bytes, arrived_s: float) -> None:
         """Raw CDR bytes: the header read here, decoded and indexed on the builder's thread."""
+        self.story.seen('cloud')
         if not self.maps.receive(data, self.params.cloud_mode):
             with self.lock:
                 self._emit(self.core.reject('cloud_malformed', -1))
@@ -330,17 +388,13 @@ class HacShell(_NodeMixinBase):
         """Log notices, publish the messages of every other output (exactly OutputMessages')."""
         for output in outputs:
             if isinstance(output, NoticeOut):
-                self.notices[output.cause] += 1
-                # one call site per severity: rclpy refuses a call site whose severity changes
-                if output.level == 'info':
-                    self.get_logger().info(output.text)
-                elif output.level == 'error':
-                    self.get_logger().error(output.text)
-                else:
-                    self.get_logger().warning(output.text)
+                self._log_notice(output)
                 continue
             if isinstance(output, ResetOut):
-                continue  # announced by the NoticeOut that comes with it; counted in diagnostics
+                self.story.reset()  # its NoticeOut announces it; counted in diagnostics
+                continue
+            if isinstance(output, ScaleOut):
+                self.story.scale(output.stamp_ns, self.core.status)
             if self.tf is not None and isinstance(output, (OdometryOut, PoseOut)):
                 self.tf.send(output)
             if isinstance(output, DiagnosticsOut):
@@ -348,111 +402,56 @@ class HacShell(_NodeMixinBase):
             for message in self.outputs.convert(output):
                 self._output_publishers[message.topic].publish(message.msg)
 
+    def _log_notice(self, notice: NoticeOut) -> None:
+        """A notice at its level, escaped; a warning ends with what to do about its reason
+        (hac_ros.core.reasons) unless it already says so."""
+        self.notices[notice.cause] += 1
+        text = printable(notice.text)
+        remedy = REASONS[notice.cause].remedy if notice.cause in REASONS else ''
+        # one call site per severity: rclpy refuses a call site whose severity changes
+        if notice.level == 'info':
+            self.get_logger().info(text)
+        elif notice.level == 'error':
+            self.get_logger().error(text)
+        else:
+            if remedy and remedy != 'none' and remedy not in text:
+                text += f' (what to do: {remedy})'
+            self.get_logger().warning(text)
+
     # ------------------------------------------------------------------ status
     def _node_status(self) -> tuple[list[Finding], list[tuple[str, str]]]:
         """The node's own findings and key-values for each /diagnostics status (liveness, and
         the joints messages received: sent minus received is what DDS lost)."""
-        found, values = self.liveness.findings(self.params)
+        oldest = self._inbox.oldest_arrival_s()
+        lag = 0.0 if oldest is None else max(time.monotonic() - oldest, 0.0)
+        found, values = self.liveness.findings(self.params, lag)
+        duplicate = self.names.finding()
+        found += [duplicate] if duplicate is not None else []
         return found, [*values, ('joints_received', str(self._inbox.received.get('joints', 0)))]
 
     def _check_stale(self) -> None:
         """Steady-clock timer: when no stamp-time status has gone out for ``stale_after_s``,
         the last status goes out as STALE with the reason (a last OK never stands for a live
-        status)."""
+        status). It never waits for the processing thread, which may be in the calibrator for
+        long when the node is far behind (the executor would stop taking input): then the last
+        status assessed goes out again, with how far behind the node is."""
+        self.story.tick(self.params.log_period_s)
         stale = self.liveness.stale(self.params)
         if stale is None or not self.active:
             return
-        with self.lock:
-            status = self.core.status()
-            found, values = self._node_status()
-            status.stamp_ns = max(self.get_clock().now().nanoseconds, status.stamp_ns)
-            data = self.outputs.diagnostics(status, [*found, stale], values, take=False)
-        self._output_publishers[DIAGNOSTICS[0]].publish(data)
-
-    # ------------------------------------------------------------------ services
-    def _on_reset(self, request: Any, response: Any) -> Any:
-        """``~/reset`` (Trigger): a new segment at the next SLAM pose (docs/node.md, Services)."""
-        with self.lock:
-            self.core.request_reset()
-        response.success = True
-        response.message = 'a new segment starts at the next SLAM pose (map and ground normal kept)'
-        return response
-
-    def _on_freeze(self, request: Any, response: Any) -> Any:
-        """``~/freeze`` (SetBool): hold the scale (true) or resume with a fresh window (false)."""
-        with self.lock:
-            self.core.request_freeze(bool(request.data))
-        response.success = True
-        response.message = ('the scale is held from the next SLAM pose' if request.data else
-                            'the scale is released at the next SLAM pose: a fresh window converges')
-        return response
-
-    # ------------------------------------------------------------------ parameters
-    def _validate_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
-        """All or nothing: the whole set is checked by HacParams.replace before anything changes
-        (before configure, against the defaults: configure reads and checks them all)."""
-        try:
-            change = judge_change(self.params if self.calibrator is not None else HacParams(),
-                                  our_values(parameters))
-            if change.params.pose_source == 'tf':
-                transform_listener_class()  # ParameterError naming what to install
-        except ParameterError as exc:
-            return SetParametersResult(successful=False, reason=str(exc))
-        return SetParametersResult(successful=True)
-
-    def _apply_parameters(self, parameters: list[Parameter]) -> None:
-        """A runtime change (ros.parameters.judge_change: re-subscribes, takes effect at once or
-        rebuilds the estimator). Unconfigured, nothing: configure reads the parameters; inactive,
-        the new subscriptions and TF wait for activate."""
-        values = our_values(parameters)
-        if not values or self.calibrator is None:
+        if self.lock.acquire(blocking=False):
+            try:
+                status = self.core.status()
+            finally:
+                self.lock.release()
+        elif self.story.status is not None:
+            status = dataclasses.replace(self.story.status)
+        else:
             return
-        with self.lock:
-            change = judge_change(self.params, values)  # validated in _validate_parameters
-            if not change.changed:
-                return
-            self.params = self.outputs.params = change.params
-            self._inbox.backlog_max = change.params.joints_backlog_max
-            if self.active:
-                for kind in change.resubscribe:
-                    self._subscribe(kind)
-                if change.tf:
-                    self._update_tf()
-            if change.estimator:
-                self._rebuild_calibrator(change.estimator)
-            else:
-                self.core.params = change.params  # fields the calibrator does not read
-            self.get_logger().info('parameters changed: ' + ', '.join(
-                f'{k}={getattr(change.params, k)!r}' for k in sorted(change.changed)))
-
-    def _rebuild_calibrator(self, changed: list[str]) -> None:
-        """Estimator parameters: a new calibrator, given the current map and CameraInfo.
-
-        The map handed over is the old calibrator's map in use (in ``accumulate`` mode, everything
-        accumulated), else the last one the node handed to it. When the thinning
-        (``index_max_points``) changed, the last cloud received is indexed again as well.
-        """
-        old = self.core
-        self.calibrator = Calibrator(self.params)
-        if self._camera_info is not None:
-            self._emit(self.calibrator.add_camera_info(*self._camera_info))
-        current_map = old.map if old.map is not None else self.maps.last_index
-        if current_map is not None:
-            self._emit(self.calibrator.add_map_index(current_map))
-        if 'index_max_points' in changed and self.maps.last_cloud is not None:
-            self.maps.submit(self.maps.last_cloud, self.params.cloud_mode)
-        self.notices.clear()
-        self.get_logger().warning(
-            f'estimator parameter(s) {", ".join(changed)} changed: the estimator was rebuilt and '
-            f'its estimate restarts (metric outputs resume after {self.params.min_samples} '
-            'samples)')
-
-    def _update_tf(self) -> None:
-        """TF when publish_tf or publish_odom_tf is set and tf2_ros is importable (a warning
-        otherwise); hac_ros.ros.tf_broadcast keeps tf2_ros out of everything else."""
-        from hac_ros.ros.tf_broadcast import make_tf_sender
-
-        self.tf = make_tf_sender(self, self.params)
+        found, values = self._node_status()
+        status.stamp_ns = max(self.get_clock().now().nanoseconds, status.stamp_ns)
+        data = self.outputs.diagnostics(status, [*found, stale], values, take=False)
+        self._output_publishers[DIAGNOSTICS[0]].publish(data)
 
 
 class HacNode(HacShell, Node):

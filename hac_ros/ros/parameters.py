@@ -39,12 +39,15 @@ RESUBSCRIBE: dict[str, tuple[str, ...]] = {
 SHELL_ONLY = frozenset({'metric_frame', 'odom_frame', 'publish_markers', 'publish_tf',
                         'publish_odom_tf', 'publish_obstacles', 'obstacle_min_height',
                         'obstacle_max_height', 'joints_backlog_max', 'latency_warn_s',
-                        'stale_after_s'})
+                        'stale_after_s', 'pose_coalesce_s', 'log_period_s', 'autostart'})
 TF_PARAMETERS = frozenset({'metric_frame', 'odom_frame', 'publish_tf', 'publish_odom_tf'})
 # - every other parameter is an estimator parameter: the calibrator is rebuilt with the new values
 #   (its estimate restarts; the current map and CameraInfo are handed to the new one).
+# - and these are read once, when the node starts.
+AT_START = frozenset({'autostart'})
 RUNTIME_NOTE = {**{name: 're-subscribes' for name in RESUBSCRIBE},
-                **{name: 'takes effect at once' for name in SHELL_ONLY}}
+                **{name: 'takes effect at once' for name in SHELL_ONLY},
+                **{name: 'read at start-up only' for name in AT_START}}
 ESTIMATOR_NOTE = 'rebuilds the estimator (estimate restarts)'
 
 

@@ -7,18 +7,21 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from hac_ros.bridge.messages import DIAGNOSTICS, LATCHED_TOPICS
 from hac_ros.core.params import HacParams
 
-INPUT_DEPTH = 100  # pose/joints/camera_info kept per subscription: > 3 s at 30 Hz, absorbs bursts
+INPUT_DEPTH = 100  # joints/camera_info kept per subscription: > 3 s at 30 Hz, absorbs bursts
+POSE_DEPTH = 1000  # SLAM poses: 1 s at 1 kHz (a message costs the executor ~0.1 ms to take)
 CLOUD_DEPTH = 2  # only the newest map matters; 2 lets one arrive while the previous is read
 OUTPUT_DEPTH = 100  # odometry/pose/joints/scale/markers: 3 s at 30 Hz for slow subscribers
 DIAGNOSTICS_DEPTH = 10
 
 
-def input_qos(params: HacParams) -> QoSProfile:
-    """Pose, joints and CameraInfo: best effort (matches every publisher) or reliable."""
+def input_qos(params: HacParams, kind: str = 'joints') -> QoSProfile:
+    """Pose, joints and CameraInfo (``kind``): best effort (matches every publisher) or
+    reliable; a pose stream may come at 1 kHz, so its queue is deeper."""
     reliability = (ReliabilityPolicy.RELIABLE if params.input_qos == 'reliable'
                    else ReliabilityPolicy.BEST_EFFORT)
-    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=INPUT_DEPTH, reliability=reliability,
-                      durability=DurabilityPolicy.VOLATILE)
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST,
+                      depth=POSE_DEPTH if kind == 'pose' else INPUT_DEPTH,
+                      reliability=reliability, durability=DurabilityPolicy.VOLATILE)
 
 
 def cloud_qos(params: HacParams) -> QoSProfile:

@@ -24,6 +24,7 @@ from hac_ros.core.calibrator import Calibrator
 from hac_ros.core.errors import ParameterError
 from hac_ros.core.outputs import Output
 from hac_ros.core.params import HacParams
+from hac_ros.core.printable import printable
 from hac_ros.core.tf_tree import TfPoses
 
 TF_MISSING = ('pose_source tf needs tf2_ros, which cannot be imported here ({reason}): install '
@@ -71,8 +72,8 @@ class TfPoseInput:
         for error in taken.errors:
             if error not in self._errors:
                 self._errors.add(error)
-                self._node.get_logger().error(f'{error} (further ones are counted as '
-                                              'rejected.tf_chain_dynamic)')
+                self._node.get_logger().error(f'{printable(error)} (further ones are counted '
+                                              'as rejected.tf_chain_dynamic)')
 
     def close(self) -> None:
         """Stop listening (the listener's subscriptions are destroyed)."""
