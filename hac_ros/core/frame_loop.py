@@ -22,7 +22,7 @@ from hac_ros.core.estimator import RollingScale
 from hac_ros.core.ground import GroundModel
 from hac_ros.core.human_filter import RootFilter
 from hac_ros.core.map_book import MapBook
-from hac_ros.core.map_shape import MapShape, plane_problem
+from hac_ros.core.map_shape import PLANE_JUDGE_BODIES, MapShape, plane_problem
 from hac_ros.core.metric_stage import MetricStage, ScaleAt, StageConfig, finite_scale
 from hac_ros.core.numeric import NS
 from hac_ros.core.outputs import NoticeOut, ResetOut, SampleOut, Status
@@ -287,7 +287,7 @@ class FrameLoop:
         cannot be the floor is refused (hac_ros.core.map_shape; the camera at ``c_map`` (3,),
         SLAM units), and a plane map in use is judged once the bodies give their axis. A new map
         that overlaps is checked against the old one (:meth:`_map_rescaled`)."""
-        axis = self.ground.body_axis()
+        axis = self.ground.body_axis(PLANE_JUDGE_BODIES)
 
         def problem(index: MapIndex, shape: MapShape) -> str:
             return plane_problem(shape, index.sample, c_map, axis)

@@ -210,11 +210,11 @@ class GroundModel:
             return self._body_normal()
         return None
 
-    def body_axis(self) -> np.ndarray | None:
-        """The bodies' axis (3,), unit, map frame, once BODY_MIN_FRAMES bodies give a clear one
+    def body_axis(self, min_frames: int = BODY_MIN_FRAMES) -> np.ndarray | None:
+        """The bodies' axis (3,), unit, map frame, once ``min_frames`` bodies give a clear one
         (else None); signed as most bodies' lower → upper joints point (up, unless most people
         are on their hands: :mod:`hac_ros.core.down_vote` says which way is down)."""
-        if self._body_frames < BODY_MIN_FRAMES:
+        if self._body_frames < max(min_frames, BODY_MIN_FRAMES):
             return None
         eigval, eigvec = np.linalg.eigh(self._scatter)
         if eigval[-1] < BODY_MIN_ANISOTROPY * max(eigval[-2], 1e-12):

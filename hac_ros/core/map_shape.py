@@ -15,8 +15,9 @@ the points' distance from the camera; ``line`` when the second is under FLAT_SPR
 largest; ``plane`` when the smallest is under FLAT_SPREAD_REL of the second; else ``solid``. A
 plane is then judged as a floor (:func:`plane_problem`): the camera path must not lie on it (a
 camera is above its floor by more than PLANE_CAMERA_MIN_REL of the points' median distance), and
-once the bodies give their axis, its normal must be within FLOOR_TILT_MAX_DEG of it (the map's
-floor, hac_ros.core.ground, allows the same tilt).
+once PLANE_JUDGE_BODIES bodies give their axis, its normal must be within PLANE_TILT_MAX_DEG of it:
+a wall is 90 degrees off, a floor a few (the first bodies alone, leaning and with HMR's noise, can
+be 30 degrees off: a tighter bound refused real floors).
 """
 from __future__ import annotations
 
@@ -28,7 +29,8 @@ import numpy as np
 POINT_SPREAD_REL = 1e-4  # largest spread / distance from the camera below this: a point
 FLAT_SPREAD_REL = 0.02  # a spread below this fraction of the next larger one: flat that way
 PLANE_CAMERA_MIN_REL = 0.02  # the camera above a plane map by at least this of the median depth
-FLOOR_TILT_MAX_DEG = 30.0  # a plane map's normal from the bodies' axis: beyond, not a floor
+PLANE_TILT_MAX_DEG = 60.0  # a plane map's normal from the bodies' axis: beyond, not a floor
+PLANE_JUDGE_BODIES = 30  # bodies whose axis judges a plane map's tilt (5 can be 30 degrees off)
 
 
 @dataclass(frozen=True)
@@ -77,6 +79,6 @@ def plane_problem(shape: MapShape, sample_map: np.ndarray, camera_map: np.ndarra
             return 'its plane passes through the camera'
     if body_axis_map is not None:
         tilt = math.degrees(math.acos(min(1.0, abs(float(shape.normal @ body_axis_map)))))
-        if tilt > FLOOR_TILT_MAX_DEG:
+        if tilt > PLANE_TILT_MAX_DEG:
             return f'its plane is tilted {tilt:.0f} degrees from the bodies\' up axis'
     return ''
