@@ -174,7 +174,7 @@ def figures(scene: Scene, params: HacParams, cal: Calibrator, literal: World,
         out.update(gravity_frame(scene, poses, frames))
     if online:
         out.update(_online(scene, params, offline_humans,
-                           {o.stamp_ns: o.position_metric for o in poses}))
+                           {o.stamp_ns: o.position_metric for o in poses}, out['scale_bias']))
     return out
 
 
@@ -217,11 +217,14 @@ def _signed_errors(scene: Scene, scales: list[ScaleOut]) -> np.ndarray:
 
 
 def _online(scene: Scene, params: HacParams, offline_humans: World,
-            offline_positions: dict[int, np.ndarray]) -> dict[str, float]:
+            offline_positions: dict[int, np.ndarray], offline_bias: float) -> dict[str, float]:
     """The online run's figures (what hac_node publishes; the world humans unfiltered, like the
     offline ones they are compared with): its scale error, its W-MPJPE and ATE-S on the frames
     after convergence beside the offline run's on the same frames, and the /diagnostics statuses
-    that said OK and converged while the scale was more than CONVERGED_REL off the truth."""
+    that said OK and converged while the scale was more than CONVERGED_REL off the truth; the
+    ``±``'s coverage of the truth, and of the truth times the run's own offline bias
+    (``offline_bias``, %: what the ``±`` leaves out by design, the contact height and the HMR's
+    bias, removed)."""
     outputs = feed(Calibrator(params.replace(human_filter='none')), scene)
     scales = [o for o in outputs if isinstance(o, ScaleOut)]
     signed = _signed_errors(scene, scales)
@@ -249,8 +252,9 @@ def _online(scene: Scene, params: HacParams, offline_humans: World,
                                                        for o in poses]), true)
     statuses = [o.status for o in outputs if isinstance(o, DiagnosticsOut)]
     true = scene.true_scale_at(np.array([st.stamp_ns for st in statuses], dtype=np.int64))
-    log_err = np.array([abs(math.log(st.scale / t)) if st.scale > 0 else math.inf
-                        for st, t in zip(statuses, true)])
+    log_err_signed = np.array([math.log(st.scale / t) if st.scale > 0 else math.inf
+                               for st, t in zip(statuses, true)])
+    log_err = np.abs(log_err_signed)
     off = [bool(abs(st.scale / t - 1.0) > CONVERGED_REL) and st.converged
            for st, t in zip(statuses, true)]
     # the level /diagnostics gives each status, in order (hac_ros.core.health, as the node)
@@ -259,11 +263,14 @@ def _online(scene: Scene, params: HacParams, offline_humans: World,
     # the ± (the estimate's own uncertainty) against the truth of the moment, where it exists
     rel_sigma = np.array([st.spread / st.scale if st.scale > 0 else math.nan for st in statuses])
     has = np.isfinite(rel_sigma)
+    own_err = np.abs(log_err_signed - math.log1p(offline_bias / 100.0))
     out.update(statuses=len(statuses), converged_wrong=int(sum(off)),
                ok_wrong=int(sum(w and k for w, k in zip(off, ok))), ok_statuses=int(sum(ok)),
                sigma_statuses=int(has.sum()),
                cover1=int(np.sum(log_err[has] <= rel_sigma[has])),
                cover2=int(np.sum(log_err[has] <= 2.0 * rel_sigma[has])),
+               cover1_own=int(np.sum(own_err[has] <= rel_sigma[has])),
+               cover2_own=int(np.sum(own_err[has] <= 2.0 * rel_sigma[has])),
                relocking=int(sum('relocking' in st.conditions for st in statuses)),
                window_samples=float(np.median([st.samples for st in statuses]))
                if statuses else math.nan)
