@@ -131,12 +131,16 @@ def test_node_process_driven_by_hac_play_converges_warns_and_exits_cleanly_on_si
         assert play.returncode == 0, play.stdout + play.stderr
         assert 'published /camera/camera_info' in play.stdout
         last_joints = int(walk.joints_stamps[-1])
-        assert wait_for(lambda: client.received['/hac/human_joints'] and
-                        client.received['/hac/human_joints'][-1].header.stamp.sec * 10**9 +
-                        client.received['/hac/human_joints'][-1].header.stamp.nanosec
-                        == last_joints, 60.0), 'the last frame produced no world joints'
+        answered = wait_for(lambda: client.received['/hac/human_joints'] and
+                            client.received['/hac/human_joints'][-1].header.stamp.sec * 10**9 +
+                            client.received['/hac/human_joints'][-1].header.stamp.nanosec
+                            == last_joints, 60.0)
     finally:
         code, log = stop(node, signal.SIGINT)
+    got = [m.header.stamp.sec * 10**9 + m.header.stamp.nanosec
+           for m in client.received['/hac/human_joints']]
+    assert answered, (f'the last frame ({last_joints}) produced no world joints (received '
+                      f'{len(got)}, the last {got[-3:]}); the node said:\n{log}')
     assert code == 0, log
     scale = client.received['/hac/scale'][-1].data
     assert abs(scale / walk.scale_at(int(walk.pose_stamps[-1])) - 1.0) < SCALE_TOL

@@ -57,6 +57,10 @@ TF_STATIC = '/tf_static'
 RELIABLE_DEPTH = 100  # messages a reliable publisher keeps for a slow subscriber (3 s at 30 Hz)
 STATIC_DEPTH = 100  # /tf_static messages kept for late subscribers (each holds some transforms)
 ACK_TIMEOUT_S = 5.0  # at the end, the longest wait for subscribers to acknowledge the last messages
+# ... and then how long the publishers stay up: a best-effort subscriber (hac_node's default
+# input_qos) acknowledges nothing, and a publisher destroyed at once loses what is still in
+# flight (seen on a loaded machine: the last joints frame of a recording never arrived)
+LINGER_S = 1.0
 WAIT_POLL_S = 0.05
 # the tie order of messages of one log time (hac_ros.replay.feeder.TIE_ORDER), by message type
 KIND_OF_TYPE = {'sensor_msgs/msg/CameraInfo': 'camera_info', CLOUD_MSGTYPE: 'cloud',
@@ -286,12 +290,13 @@ class Player:
                         printable(', '.join(lonely)))
 
     def _wait_for_acks(self) -> None:
-        """Reliable publishers: give subscribers a moment to acknowledge the last messages
-        (destroying a publisher drops what is still in flight)."""
+        """Give subscribers a moment to acknowledge the last messages, and best-effort ones
+        LINGER_S to receive them (destroying a publisher drops what is still in flight)."""
         from rclpy.duration import Duration
 
         for publisher in self._publishers.values():
             publisher.wait_for_all_acked(Duration(seconds=ACK_TIMEOUT_S))
+        time.sleep(LINGER_S)  # best-effort subscribers acknowledge nothing (LINGER_S)
 
     def close(self) -> None:
         self.node.destroy_node()
