@@ -21,6 +21,13 @@ DOWN_BODIES_MIN bodies, a way is down when at least DOWN_VALID_MIN of its rays m
 the other way's meet theirs less than DOWN_VALID_OTHER_MAX of the time, or scatter DOWN_SPREAD_RATIO
 times as much. People lying alone (their axis level) give no answer: both ways meet walls alike.
 Scale-free and roll-free. Down, once decided, stays for the segment.
+
+A map that is one plane (hac_ros.core.map_shape: a floor-only map) says it at once: its floor is
+below the camera, so down is the way along the bodies' axis towards the plane, once
+DOWN_BODIES_MIN bodies' axis lies within PLANE_TILT_MAX_DEG of its normal (a wall is refused).
+The vote cannot tell there: along an axis tilted by HMR's noise a plane's far parts lie above the
+camera, so both ways' rays meet "a floor" (seen on a real-motion composite: 5 bodies decided
+upside down, and the run calibrated nothing).
 """
 from __future__ import annotations
 
@@ -29,6 +36,7 @@ import math
 import numpy as np
 
 from hac_ros.core.layouts import JointLayout
+from hac_ros.core.map_shape import PLANE_TILT_MAX_DEG, MapShape
 from hac_ros.core.reference import MapIndex
 
 DOWN_BODIES_MIN = 5  # bodies before down is decided
@@ -50,6 +58,7 @@ class DownVote:
         self._ratios: tuple[list[float], list[float]] = ([], [])
         self._down: np.ndarray | None = None
         self._up_sum = np.zeros(3)  # the bodies' up axes (lower → upper joints), map frame
+        self._below: np.ndarray | None = None  # a plane map's normal towards it from the camera
         self.along_up = False  # once decided: down is along the bodies' up (on their hands)
 
     @property
@@ -58,12 +67,17 @@ class DownVote:
         return self._down is None
 
     def add(self, layout: JointLayout, joints_cam: np.ndarray, R_wc: np.ndarray,
-            c_map: np.ndarray, map_index: MapIndex, up_map: np.ndarray) -> None:
+            c_map: np.ndarray, map_index: MapIndex, up_map: np.ndarray,
+            shape: MapShape | None = None) -> None:
         """One body: joints_cam (K, 3) metres, camera optical frame, finite; R_wc (3, 3) camera to
         map; c_map (3,) camera centre, SLAM units; up_map (3,) this body's up axis (the layout's
         lower → upper joints), unit, map frame. The two ways are taken along it: against it (way
-        0: standing) and along it (way 1: on the hands)."""
+        0: standing) and along it (way 1: on the hands). ``shape``: the map's (a plane decides,
+        module docstring)."""
         self._up_sum += up_map
+        if shape is not None and shape.kind == 'plane':
+            side = shape.offset - float(shape.normal @ c_map)  # the plane from the camera, along n
+            self._below = shape.normal * math.copysign(1.0, side) if side != 0.0 else None
         floors = (map_index.floor_offset(-up_map), map_index.floor_offset(up_map))
         allowed = list(layout.contact) or list(range(len(joints_cam)))
         self._bodies += 1
@@ -88,6 +102,11 @@ class DownVote:
         if self._bodies < DOWN_BODIES_MIN or norm <= 0.0:
             return None
         up = self._up_sum / norm
+        if self._below is not None:
+            cosine = float(self._below @ up)
+            if abs(cosine) >= math.cos(math.radians(PLANE_TILT_MAX_DEG)):
+                self.along_up = cosine > 0.0
+                return up if self.along_up else -up
         share = [v / self._bodies for v in self._valid]
         spread = [_relative_spread(r) for r in self._ratios]
         for way, other in ((0, 1), (1, 0)):

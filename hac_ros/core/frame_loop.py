@@ -435,7 +435,8 @@ class FrameLoop:
         if not (self.ground.down.wanted and self.map is not None and math.isfinite(up_norm)
                 and up_norm > 0.0):
             return []
-        self.ground.down.add(self.layout, joints, R_wc, c_map, self.map, R_wc @ up_cam / up_norm)
+        self.ground.down.add(self.layout, joints, R_wc, c_map, self.map, R_wc @ up_cam / up_norm,
+                             self.maps.shape)
         if not (self.ground.down.along_up and self.estimator.samples):
             return []
         self.estimator.reset()
