@@ -1,6 +1,7 @@
-"""Shared by the benchmarks: the machine line, JSON results, their section of docs/benchmarks.md.
+"""Shared by the benchmarks: the machine line, JSON results, their section of docs/benchmarks.md
+(speed) or docs/accuracy.md (accuracy).
 
-Each benchmark owns one section of ``docs/benchmarks.md`` between ``<!-- NAME:start -->`` and
+Each benchmark owns one section of its page between ``<!-- NAME:start -->`` and
 ``<!-- NAME:end -->`` and leaves the others alone. A speed benchmark also lists its ratios as
 ``checks`` in its JSON; :func:`write_summary` renders every result's checks into the ``summary``
 section, so the page opens with the current verdicts.
@@ -21,7 +22,7 @@ from typing import Any
 REPO = Path(__file__).resolve().parents[1]
 RESULTS = REPO / 'bench' / 'results'
 DOC = REPO / 'docs' / 'benchmarks.md'
-DOC_HEADER = '# Benchmarks\n'
+ACCURACY_DOC = REPO / 'docs' / 'accuracy.md'
 VERSIONED = ('numpy', 'scipy', 'rosbags', 'rclpy')
 SPEED_RESULTS = ('core_speed', 'replay_throughput', 'node_latency', 'node_memory', 'people_speed')
 
@@ -99,9 +100,9 @@ def write_json(name: str, data: dict[str, Any]) -> Path:
     return path
 
 
-def write_section(name: str, markdown: str) -> None:
-    """Replace (or append) the section ``name`` of docs/benchmarks.md."""
-    text = DOC.read_text() if DOC.exists() else DOC_HEADER
+def write_section(name: str, markdown: str, doc: Path = DOC) -> None:
+    """Replace (or append) the section ``name`` of ``doc`` (docs/benchmarks.md by default)."""
+    text = doc.read_text() if doc.exists() else f'# {doc.stem.capitalize()}\n'
     start, end = f'<!-- {name}:start -->', f'<!-- {name}:end -->'
     block = f'{start}\n{markdown.rstrip()}\n{end}'
     pattern = re.compile(re.escape(start) + '.*?' + re.escape(end), re.S)
@@ -109,8 +110,8 @@ def write_section(name: str, markdown: str) -> None:
         text = pattern.sub(lambda _: block, text)
     else:
         text = text.rstrip() + '\n\n' + block + '\n'
-    DOC.parent.mkdir(parents=True, exist_ok=True)
-    DOC.write_text(text)
+    doc.parent.mkdir(parents=True, exist_ok=True)
+    doc.write_text(text)
 
 
 def publish(name: str, data: dict[str, Any], markdown: str) -> None:

@@ -22,7 +22,7 @@ Two HMR conditions: ``clean`` (no HMR depth bias; per-frame depth noise remains)
 (the simulator's default: a mean bias drawn up to +-4 % per recording, wandering; the composite
 5 %). Prints the tables and the targets (bench/_accuracy_targets.py), writes
 bench/results/accuracy.json, accuracy_runs.jsonl and the ``accuracy`` section of
-docs/benchmarks.md.
+docs/accuracy.md.
 """
 from __future__ import annotations
 
@@ -40,7 +40,16 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _accuracy_targets import pairs, targets_30, targets_37
-from _report import RESULTS, command_line, machine, machine_line, table, write_json, write_section
+from _report import (
+    ACCURACY_DOC,
+    RESULTS,
+    command_line,
+    machine,
+    machine_line,
+    table,
+    write_json,
+    write_section,
+)
 from paired import native
 
 REPO = Path(__file__).resolve().parents[1]
@@ -322,7 +331,7 @@ def _write(meta: dict[str, Any], summary: dict[str, Any], results: list[dict[str
     with (RESULTS / 'accuracy_runs.jsonl').open('w') as f:
         for r in results:
             f.write(json.dumps(_rounded(r), separators=(',', ':')) + '\n')
-    write_section('accuracy', '## Accuracy (`bench/accuracy.py`)\n\n' + text)
+    write_section('accuracy', '## Accuracy (`bench/accuracy.py`)\n\n' + text, ACCURACY_DOC)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -18,7 +18,7 @@ prior's 1.75 m) are lifted so, their joints given to the core at the node's real
 3-10 Hz, irregular: each interval uniform in 0.1-0.33 s), offline estimate (the replay's
 default): the scale error against the number of people and of frames, over ``--seeds`` draws.
 
-Writes bench/results/people_accuracy.json and its section of docs/benchmarks.md.
+Writes bench/results/people_accuracy.json and its section of docs/accuracy.md.
 """
 from __future__ import annotations
 
@@ -34,7 +34,15 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from _report import command_line, machine, machine_line, table, write_json, write_section
+from _report import (
+    ACCURACY_DOC,
+    command_line,
+    machine,
+    machine_line,
+    table,
+    write_json,
+    write_section,
+)
 
 NAME = 'people_accuracy'
 NOISE_PX = (0.0, 0.5, 1.0, 2.0, 4.0)
@@ -220,7 +228,7 @@ def main(argv: list[str] | None = None) -> int:
             'geometry_rows': geometry_rows, 'prior_rows': prior_rows, 'exact_mm': exact_mm}
     if not args.no_write:
         write_json(NAME, data)
-        write_section(NAME, markdown)
+        write_section(NAME, markdown, ACCURACY_DOC)
     print(markdown)
     return 0
 

@@ -20,7 +20,7 @@
 - **Stature**: each person's leg (thigh + shank) in the model's metric landmarks, in the stills
   and over the vtest tracks: does the model's size vary between people.
 
-Writes bench/results/people_real.json and its section of docs/benchmarks.md.
+Writes bench/results/people_real.json and its section of docs/accuracy.md.
 """
 from __future__ import annotations
 
@@ -35,7 +35,15 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from _people_scenes import STILLS, four_standing, grid_of_stills, still, video_frames
-from _report import command_line, machine, machine_line, table, write_json, write_section
+from _report import (
+    ACCURACY_DOC,
+    command_line,
+    machine,
+    machine_line,
+    table,
+    write_json,
+    write_section,
+)
 
 from hac_ros.core.contact import leg_length
 from hac_ros.core.layouts.blazepose33 import (
@@ -259,7 +267,7 @@ def main(argv: list[str] | None = None) -> int:
            'relative_heights': rel}
     if not args.no_write:
         write_json(NAME, out)
-        write_section(NAME, markdown)
+        write_section(NAME, markdown, ACCURACY_DOC)
     print(markdown)
     return 0
 

@@ -19,7 +19,7 @@ bench/composite.py) is run through the core's offline estimate (bench/_accuracy_
 Per variant: the median and p90 of the absolute scale error (%), the median signed error, and the
 median over the seeds of (variant error − SMPL-24 error) in points: issue 21's target is that
 no variant is worse than the SMPL-24 case by more than 0.5 point. Writes
-bench/results/variants.json and the ``variants`` section of docs/benchmarks.md.
+bench/results/variants.json and the ``variants`` section of docs/accuracy.md.
 """
 from __future__ import annotations
 
@@ -35,7 +35,15 @@ from typing import Any
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _report import command_line, machine, machine_line, table, write_json, write_section
+from _report import (
+    ACCURACY_DOC,
+    command_line,
+    machine,
+    machine_line,
+    table,
+    write_json,
+    write_section,
+)
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = REPO.parent / 'shared' / 'data'
@@ -212,7 +220,7 @@ def main(argv: list[str] | None = None) -> int:
     print(text)
     if not args.no_write:
         write_json('variants', {'meta': meta, 'summary': summary, 'scenes': results})
-        write_section('variants', '## Input variants (`bench/variants.py`)\n\n' + text)
+        write_section('variants', '## Input variants (`bench/variants.py`)\n\n' + text, ACCURACY_DOC)
     return 0
 
 
