@@ -40,60 +40,25 @@ another ``--map-points``: node_latency_<N>.json and section).
 """
 from __future__ import annotations
 
-import fcntl
 import os
-import tempfile
+import sys
 from pathlib import Path
 
-BENCH_DOMAINS = range(90, 100)  # tests take 10..89 (test/conftest.py)
-_domain_lock = None  # the open lock file of this process's domain, held until it exits
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _domain import claim_domain
 
-
-def claim_domain() -> int:
-    """A ROS domain of BENCH_DOMAINS no other benchmark on this machine holds (a lock file
-    each, kept until this process exits, as test/conftest.py does for the tests): a second
-    benchmark or another developer's node in the same domain answers this one's inputs and
-    publishes into its outputs (seen: another hac_node's /diagnostics and joints)."""
-    global _domain_lock
-    start = os.getpid() % len(BENCH_DOMAINS)
-    for k in range(len(BENCH_DOMAINS)):
-        domain = BENCH_DOMAINS[(start + k) % len(BENCH_DOMAINS)]
-        lock = open(Path(tempfile.gettempdir()) / f'hac_ros_bench_domain_{domain}.lock', 'w')  # noqa: SIM115
-        try:
-            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            lock.close()
-            continue
-        _domain_lock = lock
-        return domain
-    raise RuntimeError(f'every ROS domain in {BENCH_DOMAINS} is held by another benchmark')
-
-
-# before rclpy is imported: DDS stays on this machine, on a domain no test and no other benchmark
-# shares
-os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
-os.environ.pop('ROS_STATIC_PEERS', None)
+claim_domain()  # before rclpy is imported: DDS on this machine, a domain no other benchmark holds
 
 import argparse
 import signal
 import subprocess
-import sys
+import tempfile
 import threading
 import time
 from typing import Any
 
-os.environ['ROS_DOMAIN_ID'] = str(claim_domain())
-
 import numpy as np
 import rclpy
-from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import PoseArray, PoseStamped, PoseWithCovarianceStamped
-from nav_msgs.msg import Odometry
-from rclpy.executors import SingleThreadedExecutor
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-from sensor_msgs.msg import PointCloud2
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _report import check, command_line, machine, measured_tree, publish, section, table
 from _scene import (
     CLOUD_TOPIC,
@@ -107,6 +72,12 @@ from _scene import (
     room_scene,
     set_cdr_stamp,
 )
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import PoseArray, PoseStamped, PoseWithCovarianceStamped
+from nav_msgs.msg import Odometry
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import PointCloud2
 
 from hac_ros.ros.spin_thread import SpinThread
 

@@ -27,9 +27,9 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from _people_domain import claim_domain
+from _domain import claim_domain
 
-claim_domain()  # before rclpy: LOCALHOST and a domain of 90..99 no other run holds
+claim_domain()  # before rclpy: LOCALHOST and a domain of 90..99 no other benchmark holds
 
 import argparse
 import signal
