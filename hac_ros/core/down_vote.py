@@ -36,7 +36,7 @@ import math
 import numpy as np
 
 from hac_ros.core.layouts import JointLayout
-from hac_ros.core.map_shape import PLANE_TILT_MAX_DEG, MapShape
+from hac_ros.core.map_shape import PLANE_TILT_MAX_DEG, MapShape, tilt_deg
 from hac_ros.core.reference import MapIndex
 
 DOWN_BODIES_MIN = 5  # bodies before down is decided
@@ -102,11 +102,9 @@ class DownVote:
         if self._bodies < DOWN_BODIES_MIN or norm <= 0.0:
             return None
         up = self._up_sum / norm
-        if self._below is not None:
-            cosine = float(self._below @ up)
-            if abs(cosine) >= math.cos(math.radians(PLANE_TILT_MAX_DEG)):
-                self.along_up = cosine > 0.0
-                return up if self.along_up else -up
+        if self._below is not None and tilt_deg(self._below, up) <= PLANE_TILT_MAX_DEG:
+            self.along_up = float(self._below @ up) > 0.0
+            return up if self.along_up else -up
         share = [v / self._bodies for v in self._valid]
         spread = [_relative_spread(r) for r in self._ratios]
         for way, other in ((0, 1), (1, 0)):

@@ -78,7 +78,13 @@ def plane_problem(shape: MapShape, sample_map: np.ndarray, camera_map: np.ndarra
         if height < PLANE_CAMERA_MIN_REL * depth:
             return 'its plane passes through the camera'
     if body_axis_map is not None:
-        tilt = math.degrees(math.acos(min(1.0, abs(float(shape.normal @ body_axis_map)))))
+        tilt = tilt_deg(shape.normal, body_axis_map)
         if tilt > PLANE_TILT_MAX_DEG:
             return f'its plane is tilted {tilt:.0f} degrees from the bodies\' up axis'
     return ''
+
+
+def tilt_deg(normal: np.ndarray, axis: np.ndarray) -> float:
+    """The angle between a plane's ``normal`` and an ``axis`` (both (3,), unit, one frame; either
+    sign), degrees: 0 when the axis is perpendicular to the plane."""
+    return math.degrees(math.acos(min(1.0, abs(float(normal @ axis)))))
