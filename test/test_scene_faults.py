@@ -269,21 +269,17 @@ def test_a_real_floor_only_map_says_which_way_is_down(shared_data, motion, seed,
 
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'bench'))
     try:
+        from _accuracy_runs import scene_from_composite
         from composite import build
     finally:
         sys.path.pop(0)
     data = build(shared_data, seed, 0.0, 'fr2_desk', motion, rate=rate)
+    scene = scene_from_composite(data, seed)  # as bench/accuracy.py feeds it
     cal = Calibrator(HacParams(), offline=True)
-    cal.add_camera_info(data.K, 640, 480)
-    cal.add_map(int(data.stamps_ns[0]), data.points_slam)
-    frames = 0
-    for k, stamp in enumerate(data.stamps_ns):
-        cal.add_pose(int(stamp), data.R_wc_slam[k], data.c_slam[k])
-        frame = np.flatnonzero(data.frame_stamps_ns == stamp)
-        if frame.size:
-            cal.add_joints(int(stamp), data.joints_cam[frame[0]][None])
-            frames += 1
+    cal.add_camera_info(scene.K, scene.width, scene.height)
+    feed_events(cal, scene.events)
     cal.flush()
+    frames = len(data.frame_stamps_ns)
     assert not cal.ground.down.along_up
     assert cal.rejected.get('no_reference', 0) < 0.05 * frames
     assert abs(cal.scale / data.scale_fit - 1.0) < 0.03
