@@ -198,3 +198,35 @@ def test_exit_3_names_the_setting_that_kept_the_scale_from_converging(walk, tmp_
                       encoding='utf-8')
     why = _why(hac('replay', str(walk), '-o', str(tmp_path / 'out'), '--params', str(params)))
     assert said in why and 'rejected most' not in why, why
+
+
+def test_maps_refused_for_their_frame_are_named_as_the_cause_with_both_frames(walk, tmp_path):
+    """The map published in 'odom', the SLAM poses in 'map' (a user's first hour): not only
+    'rejected most: no_map', but the refusal behind it, its remedy, and both frames."""
+    from injected import CLOUD
+
+    def in_odom(msg):
+        msg = copy.deepcopy(msg)
+        msg.header.frame_id = 'odom'
+        return msg
+
+    path = rewrite(walk, tmp_path / 'odom', _nth(CLOUD, None, in_odom))
+    result = hac('replay', str(path), '-o', str(tmp_path / 'out'))
+    why = _why(result)
+    assert 'rejected most: no_map' in why
+    assert re.search(r'the maps were refused: cloud_wrong_frame \d+ \(map cloud in a frame other '
+                     r'than the SLAM pose frame; remedy: publish the map in the frame_id of the '
+                     r'SLAM poses\)', why), why
+    assert "map cloud in frame 'odom', the SLAM poses in 'map': refused" in result.stderr
+
+
+def test_every_input_a_waiting_reason_names_is_refused_under_a_reason_of_the_table():
+    from hac_ros.core.reasons import REASONS, WAITS_FOR, refusals_behind
+
+    for waiting, (_, refusing) in WAITS_FOR.items():
+        assert waiting in REASONS and set(refusing) <= set(REASONS), waiting
+    assert refusals_behind('no_map', {'no_map': 9}) == ''
+    assert refusals_behind('gated', {'cloud_empty': 3}) == ''
+    two = refusals_behind('no_pose', {'pose_nonfinite': 2, 'pose_out_of_order': 5})
+    assert two.startswith('the SLAM poses were refused: pose_out_of_order 5 (')
+    assert ', pose_nonfinite 2 (' in two

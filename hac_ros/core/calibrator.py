@@ -53,6 +53,12 @@ def _public(method: Callable[Concatenate[Calibrator, _P], list[Record]]
     return call
 
 
+def _wrong_frame(what: str, frame_id: str, others: str, expected: str | None) -> str:
+    """The notice of an input refused for its frame, naming both frames (repr: escaped, and
+    cut at 200 characters)."""
+    return f'{what} in frame {frame_id[:200]!r}, {others} in {(expected or "")[:200]!r}: refused'
+
+
 class Calibrator(FrameLoop):
     """Feed it inputs with ``add_*``; each call returns the outputs it produced, in order.
 
@@ -122,7 +128,8 @@ class Calibrator(FrameLoop):
         if self._map_frame is None:
             self._map_frame = frame_id
             out += [o for m in self.maps.refuse_foreign(frame_id)
-                    for o in self._reject('cloud_wrong_frame', m.stamp_ns)]
+                    for o in self._reject('cloud_wrong_frame', m.stamp_ns, _wrong_frame(
+                        'map cloud', m.frame_id, 'the SLAM poses', frame_id))]
         elif frame_id != self._map_frame:
             out += self._reset(pose, 'map_frame', f'SLAM map frame changed {self._map_frame!r} -> '
                                f'{frame_id!r}: SLAM re-initialised')
@@ -185,7 +192,9 @@ class Calibrator(FrameLoop):
             return self._reject('cloud_empty', index.stamp_ns)
         if self._map_frame is not None and index.frame_id != self._map_frame:
             self.maps.foreign = index
-            return self._reject('cloud_wrong_frame', index.stamp_ns)
+            return self._reject('cloud_wrong_frame', index.stamp_ns,
+                                _wrong_frame('map cloud', index.frame_id, 'the SLAM poses',
+                                             self._map_frame))
         judged, reason, why = self.maps.judge(index, None if self.track.last is None
                                               else self.track.last.c_map)
         if judged is None:  # values no SLAM produces, or no surface (plausibility, map_shape)
@@ -219,7 +228,9 @@ class Calibrator(FrameLoop):
                 if not self._child_frame:
                     self._child_frame = frame_id
             elif frame_id != self._camera_frame:
-                return self._reject('joints_wrong_frame', stamp_ns)
+                return self._reject('joints_wrong_frame', stamp_ns,
+                                    _wrong_frame('joints', frame_id, 'the first joints',
+                                                 self._camera_frame))
         stream_ns = max(self._last_frame_ns, self.track.newest_stamp_ns or -1)
         back = self.timeline.is_before(stamp_ns, stream_ns)
         if stamp_ns <= self._last_frame_ns and not back:

@@ -247,6 +247,33 @@ REASONS: dict[str, Reason] = {
 }
 
 
+# A frame that waits for an input (no map, no pose) may wait because every one that came was
+# refused: the waiting reason -> (the input's name, the reasons that refuse it). The replay's
+# "nothing calibrated" line names those refusals, which are the cause the user can act on.
+WAITS_FOR: dict[str, tuple[str, tuple[str, ...]]] = {
+    'no_map': ('maps', ('cloud_empty', 'cloud_malformed', 'cloud_wrong_frame',
+                        'cloud_implausible', 'map_degenerate', 'map_superseded',
+                        'map_old_segment', 'cloud_wrong_type', 'cloud_lost')),
+    'no_pose': ('SLAM poses', ('pose_nonfinite', 'pose_out_of_order', 'pose_outlier',
+                               'pose_stamp_outlier', 'pose_wrong_type', 'pose_lost')),
+}
+WAITS_FOR['pending_overflow'] = WAITS_FOR['no_pose']
+
+
+def refusals_behind(key: str, counts: dict[str, int]) -> str:
+    """Why the input the reason ``key`` waits for never came (:data:`WAITS_FOR`): ``the maps
+    were refused: cloud_wrong_frame 15 (its text; remedy: ...)``, the most counted first, or ''
+    when none was refused (or ``key`` waits for nothing)."""
+    if key not in WAITS_FOR:
+        return ''
+    name, refusing = WAITS_FOR[key]
+    found = sorted(((counts[r], r) for r in refusing if counts.get(r, 0) > 0), reverse=True)
+    if not found:
+        return ''
+    return f'the {name} were refused: ' + ', '.join(
+        f'{r} {n} ({text(r)}; remedy: {REASONS[r].remedy})' for n, r in found)
+
+
 def text(key: str) -> str:
     """The reason's text, or the key itself for a reason not in the table."""
     reason = REASONS.get(key)

@@ -60,6 +60,7 @@ from hac_ros.core.outputs import (
     Status,
 )
 from hac_ros.core.params import HacParams
+from hac_ros.core.reasons import refusals_behind
 from hac_ros.core.reasons import text as reason_text
 from hac_ros.core.status_shares import StatusShares
 from hac_ros.files.tum import write_tum_exports
@@ -232,11 +233,15 @@ class ReplaySummary:
                 f'{self.max_samples} samples (min_samples {p.min_samples})')
 
     def _rejected_most(self) -> str:
-        """``; rejected most: no_map 901 (its text)``, or '' when nothing was rejected."""
+        """``; rejected most: no_map 901 (its text)``, and the refusals of the input it waited
+        for (``; the maps were refused: cloud_wrong_frame 15 (...)``), or '' when nothing was
+        rejected."""
         if not self.status.rejected:
             return ''
         reason, count = max(self.status.rejected.items(), key=lambda item: item[1])
-        return f'; rejected most: {reason} {count} ({reason_text(reason)})'
+        behind = refusals_behind(reason, self.status.rejected)
+        return (f'; rejected most: {reason} {count} ({reason_text(reason)})'
+                + (f'; {behind}' if behind else ''))
 
     @property
     def frames_per_s(self) -> float:
