@@ -19,9 +19,11 @@ import os
 import shutil
 import signal
 import tempfile
-from collections.abc import Iterator
+import threading
+from collections.abc import Callable, Iterator
 from pathlib import Path
-from types import TracebackType
+from types import FrameType, TracebackType
+from typing import Any
 
 from hac_ros.core.errors import HacError
 
@@ -103,10 +105,35 @@ class Interrupted(KeyboardInterrupt):
 @contextlib.contextmanager
 def signals_held() -> Iterator[None]:
     """Hold SIGINT, SIGTERM and SIGHUP back for a few statements that must not be cut in two
-    (a temporary file created and its name kept for the clean-up): they are delivered when the
-    block ends, where the caller's clean-up sees them."""
-    previous = signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
+    (a temporary file created and its name kept for the clean-up): the first one that came is
+    handed to the handler that was in place when the block ends, where the caller's clean-up sees
+    it.
+
+    The signals are held in Python, not masked: ``pthread_sigmask`` masks the calling thread
+    only, and the kernel then hands the signal to another thread (numpy's OpenBLAS workers), after
+    which Python runs its handler in the main thread inside the block all the same. Python runs
+    signal handlers in the main thread only, so off it there is nothing to hold."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    came: list[int] = []
+    previous = {each: signal.signal(each, lambda signum, _frame: came.append(signum))
+                for each in STOP_SIGNALS}
     try:
         yield
     finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+        for each, handler in previous.items():
+            signal.signal(each, handler if handler is not None else signal.SIG_DFL)
+        if came:
+            first = signal.Signals(came[0])
+            _deliver(first, previous[first])
+
+
+def _deliver(signum: int, handler: signal.Handlers | Callable[[int, FrameType | None], Any] | int
+             | None) -> None:
+    """Signal ``signum``, held back, to ``handler`` (the one in place before the block): called
+    now when it is Python's, else sent to this process again (its default action, or nothing)."""
+    if callable(handler):
+        handler(signum, None)
+    elif handler != signal.SIG_IGN:
+        os.kill(os.getpid(), signum)
