@@ -270,6 +270,7 @@ class FrameLoop:
         self.track.clear()
         if cause not in KEEPS_MAP:
             self.maps.drop(first_pose.stamp_ns)
+            self.check.new_map_frame()
         # frames before the reset belong to the old map: their poses are gone
         stale = [f for f in self._pending if f.stamp_ns < first_pose.stamp_ns]
         self._pending = [f for f in self._pending if f.stamp_ns >= first_pose.stamp_ns]
@@ -383,7 +384,8 @@ class FrameLoop:
         up_cam = self.layout.up_axis(joints)
         notes = self._vote_down(stamp, R_wc, c_map, joints, up_cam)
         down = self.ground.rough_down()
-        self.check.add_person(self.layout, R_wc, joints, up_cam, down, self._K, self._image_size)
+        self.check.add_person(stamp, self.layout, R_wc, joints, up_cam, down, self._K,
+                              self._image_size)
         if posture_problem(self.layout, joints, up_cam, None if down is None else R_wc.T @ down):
             # only standing people measure (hac_ros.core.posture)
             return notes + self._rejected_sample(stamp, person, 'not_standing')

@@ -216,9 +216,9 @@ REASONS: dict[str, Reason] = {
                'visible, the floor in the map'),
     'inputs_suspect': Reason(
         STATUS, 'an input convention is suspect (suspect.<check>: pose_convention, '
-        'joint_layout, joints_frame)',
-        remedy='check the parameter the warning names: pose_to_optical, joint_layout, or the '
-               'joints\' frame (docs/inputs.md)'),
+        'pose_inverted, joint_layout, joints_frame)',
+        remedy='check what the warning names: pose_to_optical, the SLAM pose\'s direction '
+               '(T_wc, not T_cw), joint_layout, or the joints\' frame (docs/inputs.md)'),
     'alignment_slam': Reason(
         STATUS, 'metric frame: SLAM axes (no usable ground normal)',
         remedy='keep people standing or walking in view, so that the floor\'s normal is found; '
