@@ -116,6 +116,14 @@ class Calibrator(FrameLoop):
             out += self._stream_pose(each)
         return out
 
+    def _wrong_frame_poses(self) -> list[Record]:
+        """The poses of a run in another frame that no new map confirmed: refused."""
+        run, self._frame_run = self._frame_run, []
+        return [o for held in run for o in self._reject(
+            'pose_wrong_frame', held.pose.stamp_ns, _wrong_frame(
+                'SLAM pose', held.frame_id, 'the poses before and after it', self._map_frame)
+            + ' (two SLAMs on pose_topic?)')]
+
     def _stream_pose(self, item: Stamped) -> list[Record]:
         """A pose whose stamp belongs to the current stream: the map frame, the stream's first
         poses, jumps and outliers, a frozen SLAM (hac_ros.core.pose_stream)."""
@@ -131,12 +139,23 @@ class Calibrator(FrameLoop):
                     for o in self._reject('cloud_wrong_frame', m.stamp_ns, _wrong_frame(
                         'map cloud', m.frame_id, 'the SLAM poses', frame_id))]
         elif frame_id != self._map_frame:
-            out += self._reset(pose, 'map_frame', f'SLAM map frame changed {self._map_frame!r} -> '
-                               f'{frame_id!r}: SLAM re-initialised')
+            run = self._frame_run
+            if run and run[0].frame_id != frame_id:  # a third frame: the run was no new map's
+                out += self._wrong_frame_poses()
+            run.append(item)
+            if len(run) <= self.params.reset_confirm_poses:
+                return out  # held until confirmed (or refused)
+            self._frame_run = []
+            out += self._reset(run[0].pose, 'map_frame', f'SLAM map frame changed '
+                               f'{self._map_frame!r} -> {frame_id!r}: SLAM re-initialised')
             self._map_frame = frame_id
             foreign, self.maps.foreign = self.maps.foreign, None
             if foreign is not None and foreign.frame_id == frame_id:  # it came first: adopted
                 out += self._add_map_index(foreign)
+            for held in run[:-1]:
+                out += self._stream_pose(held)
+        elif self._frame_run:  # back in the map's frame: the run was another publisher's
+            out += self._wrong_frame_poses()
         if track.vetting:  # nothing is anchored on the stream's first poses until judged
             accepted = track.start(pose, self.maps.extent)
             if accepted is None:

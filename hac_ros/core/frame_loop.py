@@ -44,7 +44,7 @@ from hac_ros.core.reference import MapIndex
 from hac_ros.core.sample import Scene, person_sample
 from hac_ros.core.services import ServiceRequests
 from hac_ros.core.stamp_reach import UNMATCHED, StampReach
-from hac_ros.core.timeline import Timeline
+from hac_ros.core.timeline import Stamped, Timeline
 
 GROUND_SHARE_SAMPLES = 30  # recent samples whose sources say whether the ground plane carries
 # resets that keep the map in use, and the ground model: the same SLAM map goes on
@@ -102,6 +102,9 @@ class FrameLoop:
                                       p.gate_k, p.gate_min_rel, p.converged_max_rel_sigma)
         self.ground = GroundModel(p.ground_mode, p.ground_inlier_m, p.ground_ransac_iters, p.seed)
         self._map_frame: str | None = None
+        # poses in another frame than the map's, in a row: a SLAM re-initialised in a new frame
+        # once reset_confirm_poses more follow, else another publisher's (hac_ros.core.calibrator)
+        self._frame_run: list[Stamped] = []
         self.track = PoseTrack(p.pose_buffer, p.reset_jump_factor, p.reset_jump_min_rel,
                                p.reset_confirm_poses, int(p.sync_slop_s * NS),
                                p.interp_max_gap_s * NS)

@@ -50,6 +50,11 @@ REASONS: dict[str, Reason] = {
         REJECTED, 'SLAM pose with NaN/inf, an invalid rotation or an invalid stamp',
         remedy='none when the SLAM publishes NaN while it is lost; otherwise publish unit '
                'quaternions, finite positions and valid stamps'),
+    'pose_wrong_frame': Reason(
+        REJECTED, 'SLAM pose in another frame than the map\'s, not followed by '
+        'reset_confirm_poses more in it (a re-initialisation would be): another publisher on '
+        'pose_topic?', warns=True,
+        remedy='one SLAM per pose_topic: give each robot its own namespace, or remap the topics'),
     'pose_out_of_order': Reason(
         REJECTED, 'SLAM pose stamp not after the previous one (out of order or repeated)',
         remedy='none for a few; many: one publisher on pose_topic, stamped from one clock'),

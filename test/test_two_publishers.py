@@ -1,0 +1,74 @@
+"""Two SLAMs on one pose topic (two robots in one domain without namespaces): poses whose frame
+flips back and forth are another publisher's, not a re-initialisation every 33 ms. A new frame is
+a re-initialisation once ``reset_confirm_poses`` more poses follow in it (docs/method.md)."""
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+
+import pytest
+from faultkit import run_online
+from injected import POSE, _nth, _stamp_ns, rewrite, simulate, truth_scale
+
+from hac_ros.core.health import OK, HealthMonitor
+from hac_ros.recording.reader import Recording
+from hac_ros.replay.replayer import replay
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def in_frame(frame_id: str):
+    def change(msg):
+        msg = copy.deepcopy(msg)
+        msg.header.frame_id = frame_id
+        return msg
+    return change
+
+
+@pytest.fixture(scope='module')
+def walk(tmp_path_factory) -> Path:
+    return simulate(tmp_path_factory.mktemp('walk') / 'walk', 'walk', seed=0, duration=12.0)
+
+
+def test_poses_that_flip_between_two_frames_are_refused_not_taken_for_resets(walk, tmp_path):
+    """Every other pose in 'map2': counted pose_wrong_frame, no reset, every status WARN with
+    the reason, and the log says it once, not once per pose."""
+    path = rewrite(walk, tmp_path / 'flip', _nth(POSE, set(range(1, 400, 2)), in_frame('map2')))
+    run = run_online(path)
+    cal = run.calibrator
+    assert cal.resets == 0
+    assert cal.rejected['pose_wrong_frame'] == 180  # the odd poses (the recording has 361)
+    monitor = HealthMonitor()
+    flipping = [s for s in run.statuses if s.stamp_ns < _stamp_ns_of_pose(walk, 359)]
+    assert flipping and all(monitor.assess(s).level != OK for s in flipping)
+    notices = [o for o in run.outputs if getattr(o, 'cause', '') == 'pose_wrong_frame']
+    assert len(notices) == 1
+    assert "SLAM pose in frame 'map2', the poses before and after it in 'map'" in notices[0].text
+    summary = replay(path, tmp_path / 'out')
+    assert not summary.resets and summary.calibrated
+    assert abs(summary.final_scale / truth_scale(walk) - 1.0) < 0.02
+
+
+def test_one_pose_in_another_frame_is_refused_and_the_run_goes_on(walk, tmp_path):
+    path = rewrite(walk, tmp_path / 'one', _nth(POSE, {100}, in_frame('odom')))
+    run = run_online(path)
+    assert run.calibrator.resets == 0 and run.calibrator.rejected['pose_wrong_frame'] == 1
+    clean = run_online(walk)
+    assert run.scales[-1] == pytest.approx(clean.scales[-1], rel=1e-3)
+
+
+def test_a_slam_that_restarts_in_a_new_frame_resets_once_at_its_first_pose(tmp_path):
+    """bags/reset_short: the SLAM re-initialises at 6 s in a new frame; the segment starts at
+    the first pose in it, as before the confirmation, and that pose is not lost."""
+    source = REPO / 'bags' / 'reset_short'
+    with Recording(source) as recording:
+        poses = [msg for _, msg in recording.read('/slam/pose')]
+    first = next(_stamp_ns(m) for m in poses if m.header.frame_id != poses[0].header.frame_id)
+    summary = replay(source, tmp_path / 'out')
+    assert [(r.cause, r.stamp_ns) for r in summary.resets] == [('map_frame', first)]
+    assert not summary.status.rejected.get('pose_wrong_frame')
+
+
+def _stamp_ns_of_pose(path: Path, index: int) -> int:
+    with Recording(path) as recording:
+        return _stamp_ns(recording.read('/slam/pose')[index][1])
