@@ -187,6 +187,32 @@ def test_a_second_node_of_the_same_name_is_warned_about_by_both(harness, capfd):
     assert log.wait_for(lambda t: 'no other node named /hac_node in the graph' in t, PATIENCE_S)
 
 
+def test_a_second_publisher_on_the_pose_topic_is_warned_about_while_it_is_there(harness,
+                                                                                 capfd):
+    """Two SLAMs on /slam/pose (two robots in one domain without namespaces): their poses would
+    interleave. The node warns once naming both publishers, /diagnostics says WARN
+    many_publishers while the second is there, and the log says when it left."""
+    from test_node import INPUTS, RELIABLE, TYPES
+
+    h = harness(stale_after_s=0.5)
+    topic, msgtype = INPUTS['pose']
+    other = rclpy.create_node('second_slam', context=h.context)
+    try:
+        other.create_publisher(TYPES.get(msgtype), topic.lstrip('/'), RELIABLE)
+        assert wait_for(lambda: '/slam/pose' in h.node.graph.crowded, PATIENCE_S)
+        assert sorted(h.node.graph.crowded['/slam/pose']) == ['/hac_test_io', '/second_slam']
+        assert wait_for(lambda: any(
+            'many_publishers' in {kv.key: kv.value for kv in m.status[0].values}['reasons']
+            for _, m in list(h.received['/diagnostics'])), PATIENCE_S)
+        log = _Log(capfd)
+        assert log.wait_for(lambda t: '2 publishers on /slam/pose' in t and 'namespace' in t,
+                            PATIENCE_S), log.text
+    finally:
+        other.destroy_node()
+    assert wait_for(lambda: not h.node.graph.crowded, PATIENCE_S)
+    assert log.wait_for(lambda t: 'one publisher on /slam/pose again' in t, PATIENCE_S), log.text
+
+
 # ================================================================================ escaping
 def test_strings_from_topics_reach_the_log_escaped(harness, capfd):
     """A frame id with ESC and BEL (clear the screen, ring) in a map and in the SLAM poses: the

@@ -246,6 +246,11 @@ REASONS: dict[str, Reason] = {
         'output comes twice',
         remedy='give each node its own name (--ros-args -r __node:=NAME) or namespace, or stop '
                'one of them'),
+    'many_publishers': Reason(
+        NODE, 'more than one publisher on the pose, joints or map topic: their messages '
+        'interleave (two SLAMs, or two robots in one domain without namespaces?)',
+        remedy='one publisher per input topic: give each robot its own namespace (-r __ns:=/NAME '
+               'for every node of it), or remap the topics'),
     'no_status': Reason(NODE, 'input comes but makes no status (no SLAM pose, or the '
                         'processing far behind)',
         remedy='see no_poses (joints without SLAM poses) and latency (the node far behind)'),

@@ -11,7 +11,11 @@ Faults of the ROS graph that no message shows, each in ``/diagnostics`` and logg
   reports no event, so the graph is looked at every GRAPH_CHECK_S: ``<kind>_wrong_type``, logged
   naming the parameter to change;
 - another node with the same name and namespace (:class:`NameWatch`): WARN ``duplicate_name``
-  while it is there.
+  while it is there;
+- more than one publisher of the subscribed type on the pose, joints or map topic (two SLAMs on
+  one topic: two robots in one domain without namespaces), whose messages interleave: WARN
+  ``many_publishers`` while it lasts, logged when it starts and when it ends (looked at with the
+  types, every GRAPH_CHECK_S).
 """
 from __future__ import annotations
 
@@ -28,6 +32,7 @@ from hac_ros.core.printable import printable
 from hac_ros.ros.qos import qos_hint
 
 GRAPH_CHECK_S = 2.0  # wall seconds between checks of the input topics' publisher types
+SINGLE_PUBLISHER = ('pose', 'joints', 'cloud')  # the inputs one source each must publish
 # wall seconds between looks for another node of the same name: with DDS discovery on one host
 # (well under a second) both warn within 2 s of the second appearing
 NAME_CHECK_S = 0.25
@@ -45,6 +50,7 @@ class GraphWatch:
         self.reject = reject
         self.qos_incompatible: Counter[str] = Counter()  # topics with an incompatible publisher
         self._wrong_types: set[tuple[str, str, str, str]] = set()  # publishers reported
+        self.crowded: dict[str, list[str]] = {}  # input topic -> its publishers' nodes (>= 2)
 
     def incompatible_qos(self, kind: str, topic: str, info: Any) -> None:
         """rclpy's incompatible-QoS event of the ``kind`` subscription to ``topic``."""
@@ -63,9 +69,15 @@ class GraphWatch:
     def check_types(self, subscriptions: dict[str, Any], pose_type: str) -> None:
         """Each publisher of another type on the topic of a subscription (kind -> rclpy
         Subscription) is counted once as ``<kind>_wrong_type``."""
+        crowded: dict[str, list[str]] = {}
         for kind, subscription in subscriptions.items():
             topic, expected = subscription.topic_name, input_msgtype(kind, pose_type)
-            for info in self.node.get_publishers_info_by_topic(topic):
+            publishers = self.node.get_publishers_info_by_topic(topic)
+            nodes = [f'{info.node_namespace.rstrip("/")}/{info.node_name}' for info in publishers
+                     if info.topic_type == expected]
+            if kind in SINGLE_PUBLISHER and len(nodes) > 1:
+                crowded[topic] = nodes
+            for info in publishers:
                 key = (topic, info.node_namespace, info.node_name, info.topic_type)
                 if info.topic_type == expected or key in self._wrong_types:
                     continue
@@ -77,6 +89,29 @@ class GraphWatch:
                             f'type mismatch on {topic}: {info.node_name} publishes '
                             f'{info.topic_type}, the node subscribes {expected}, so none of its '
                             f'messages arrive; {hint}')
+        self._say_crowded(crowded)
+
+    def _say_crowded(self, crowded: dict[str, list[str]]) -> None:
+        """Log each input topic that gained a second publisher, or lost it."""
+        log = self.node.get_logger()
+        for topic, nodes in crowded.items():
+            if topic not in self.crowded:
+                log.warning(f'{len(nodes)} publishers on {printable(topic)} '
+                            f'({printable(", ".join(nodes))}): their messages interleave as if '
+                            'one source jumped back and forth (two SLAMs or two robots in one '
+                            'domain without namespaces?); give each robot its own namespace, '
+                            'or remap the topics')
+        for topic in self.crowded.keys() - crowded.keys():
+            log.info(f'one publisher on {printable(topic)} again')
+        self.crowded = crowded
+
+    def finding(self) -> Finding | None:
+        """The /diagnostics finding while an input topic has several publishers."""
+        if not self.crowded:
+            return None
+        return Finding('many_publishers', '; '.join(
+            f'{len(nodes)} publishers on {printable(topic)}' for topic, nodes in
+            sorted(self.crowded.items())))
 
 
 class NameWatch:

@@ -425,8 +425,7 @@ class HacShell(RuntimeControl):
         oldest = self._inbox.oldest_arrival_s()
         lag = 0.0 if oldest is None else max(time.monotonic() - oldest, 0.0)
         found, values = self.liveness.findings(self.params, lag)
-        duplicate = self.names.finding()
-        found += [duplicate] if duplicate is not None else []
+        found += [f for f in (self.names.finding(), self.graph.finding()) if f is not None]
         return found, [*values, ('joints_received', str(self._inbox.received.get('joints', 0)))]
 
     def _check_stale(self) -> None:
