@@ -132,7 +132,8 @@ def _bad_recordings(directory: Path) -> dict[str, Path]:
     return out
 
 
-@pytest.mark.parametrize('command', ['replay', 'eval', 'eval --gt', 'plot', 'export', 'demo'])
+@pytest.mark.parametrize('command', ['replay', 'eval', 'eval --gt', 'plot', 'export', 'demo',
+                                     'recover'])
 def test_a_bad_recording_is_one_line_in_every_command(walk, tmp_path, capsys, command):
     for name, recording in _bad_recordings(tmp_path / 'in').items():
         out = tmp_path / 'out' / name.replace(' ', '_')
@@ -141,7 +142,8 @@ def test_a_bad_recording_is_one_line_in_every_command(walk, tmp_path, capsys, co
                 'eval --gt': ['eval', str(walk), '--gt', str(recording), '--no-references'],
                 'plot': ['plot', str(recording), '-o', str(out)],
                 'export': ['export', str(recording), '-o', str(out) + '.npz'],
-                'demo': ['demo', '--recording', str(recording), '-o', str(out)]}[command]
+                'demo': ['demo', '--recording', str(recording), '-o', str(out)],
+                'recover': ['recover', str(recording), '-o', str(out)]}[command]
         line = one_line_error(main(argv), capsys.readouterr().err, f'hac {command.split()[0]}')
         assert str(recording) in line, (name, line)
         assert not out.exists() and not Path(str(out) + '.npz').exists(), name

@@ -54,6 +54,7 @@ COMMANDS = {
     'demo': ('demo', 'replay, evaluate and plot the bundled sample recording'),
     'import': ('import_files', 'make a recording from SLAM and HMR files (TUM, PLY, npz)'),
     'export': ('export', 'a replayed recording as numpy arrays (.npz)'),
+    'recover': ('recover', 'the complete part of a recording cut off while it was written'),
     'play': ('play', 'publish a recording\'s input topics over DDS (drives hac_node)'),
     'lifecycle': ('lifecycle', 'take a lifecycle transition of a managed node (configure, ...)'),
     'people': ('people', 'metric people from a video or images (the [people] extra), for hac '

@@ -61,7 +61,7 @@ class Recording:
             self.reader.open()
         except Exception as exc:  # rosbags raises several types for unreadable files
             raise HacError(f'cannot read {self.path} as a recording (rosbag2 sqlite3/mcap or ROS 1 '
-                           f'bag): {_reason(exc)}') from exc
+                           f'bag): {_reason(exc).rstrip(".")}{_cut_off_hint(self.path)}') from exc
         self.is_ros2 = self.reader.is2
         self.jazzy = get_typestore(Stores.ROS2_JAZZY)
         self.topics: dict[str, str] = {name: info.msgtype or ''
@@ -211,6 +211,20 @@ class Recording:
         return HacError(f'{printable(self.path)} is corrupt: a {printable(topic)} message (log '
                         f'time {log_ns} ns) does not decode as {printable(self.topics[topic])}: '
                         f'{_reason(exc)}')
+
+
+def _cut_off_hint(path: Path) -> str:
+    """What to do with a recording whose recorder died (hac_ros.recording.recover), or ''."""
+    from hac_ros.recording.recover import is_cut_off, storage_file
+
+    single = storage_file(path)
+    if is_cut_off(single or path):
+        return (f'; {printable(single or path)} ends short (cut off while it was recorded?): '
+                'hac recover keeps every complete message before the cut')
+    if single is not None and not (path / 'metadata.yaml').exists():
+        return (f'; no metadata.yaml (a recorder that did not close?): read its storage file '
+                f'{printable(single)} itself')
+    return ''
 
 
 def _reason(exc: BaseException) -> str:
