@@ -1,16 +1,20 @@
 """Two SLAMs on one pose topic (two robots in one domain without namespaces): poses whose frame
-flips back and forth are another publisher's, not a re-initialisation every 33 ms. A new frame is
-a re-initialisation once ``reset_confirm_poses`` more poses follow in it (docs/method.md)."""
+flips back and forth are another publisher's, not a re-initialisation every 33 ms (a new frame is
+a re-initialisation once ``reset_confirm_poses`` more poses follow in it, docs/method.md); in one
+frame, their poses zigzag between the two robots (``pose_zigzag``). The node also sees the second
+publisher in the graph (test_node_story.py)."""
 from __future__ import annotations
 
 import copy
 from pathlib import Path
 
+import numpy as np
 import pytest
 from faultkit import run_online
 from injected import POSE, _nth, _stamp_ns, rewrite, simulate, truth_scale
 
 from hac_ros.core.health import OK, HealthMonitor
+from hac_ros.core.pose_stream import ZIGZAG_POSES, ZigzagWatch
 from hac_ros.recording.reader import Recording
 from hac_ros.replay.replayer import replay
 
@@ -72,3 +76,36 @@ def test_a_slam_that_restarts_in_a_new_frame_resets_once_at_its_first_pose(tmp_p
 def _stamp_ns_of_pose(path: Path, index: int) -> int:
     with Recording(path) as recording:
         return _stamp_ns(recording.read('/slam/pose')[index][1])
+
+
+def test_two_robots_in_one_frame_zigzag_and_the_status_says_so(walk, tmp_path):
+    """Every other pose is another robot's, 5 m away in the same frame: from the 30th pose on,
+    every status WARNs pose_zigzag; the clean run never does."""
+    def elsewhere(msg):
+        msg = copy.deepcopy(msg)
+        msg.pose.position.x += 5.0
+        msg.pose.position.y += 2.0
+        return msg
+
+    path = rewrite(walk, tmp_path / 'two', _nth(POSE, set(range(1, 400, 2)), elsewhere))
+    statuses = run_online(path).statuses
+    monitor = HealthMonitor()
+    later = [s for s in statuses if s.stamp_ns >= _stamp_ns_of_pose(walk, ZIGZAG_POSES + 2)]
+    assert later and all('pose_zigzag' in s.conditions and monitor.assess(s).level != OK
+                         for s in later)
+    assert not any('pose_zigzag' in s.conditions for s in run_online(walk).statuses)
+
+
+@pytest.mark.parametrize('motion', ['still and noisy', 'frozen', 'walking', 'circling'])
+def test_one_camera_never_zigzags(motion):
+    rng = np.random.default_rng(0)
+    t = np.arange(300) / 30.0
+    centres = {'still and noisy': rng.normal(0.0, 1e-3, (300, 3)),
+               'frozen': np.zeros((300, 3)),
+               'walking': np.c_[0.04 * np.arange(300), 0.01 * np.sin(7 * t), 0.005 * rng.normal(
+                   size=300)],
+               'circling': np.c_[np.cos(t), np.sin(t), np.zeros(300)]}[motion]
+    watch = ZigzagWatch()
+    for c in centres:
+        watch.pose(c)
+        assert not watch.holds

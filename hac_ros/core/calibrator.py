@@ -156,6 +156,7 @@ class Calibrator(FrameLoop):
                 out += self._stream_pose(held)
         elif self._frame_run:  # back in the map's frame: the run was another publisher's
             out += self._wrong_frame_poses()
+        self.zigzag.pose(pose.c_map)
         if track.vetting:  # nothing is anchored on the stream's first poses until judged
             accepted = track.start(pose, self.maps.extent)
             if accepted is None:

@@ -37,7 +37,7 @@ from hac_ros.core.pending import (
     Record,
 )
 from hac_ros.core.plausibility import body_unit_problem
-from hac_ros.core.pose_stream import FreezeWatch, Pose, PoseTrack
+from hac_ros.core.pose_stream import FreezeWatch, Pose, PoseTrack, ZigzagWatch
 from hac_ros.core.posture import posture_problem
 from hac_ros.core.reasons import text as reason_text
 from hac_ros.core.reference import MapIndex
@@ -118,6 +118,7 @@ class FrameLoop:
         self._segment_starts: str | None = ''  # the cause of a segment starting at the next pose
         self._sources: deque[bool] = deque(maxlen=GROUND_SHARE_SAMPLES)  # True: a ground sample
         self.freeze = FreezeWatch()
+        self.zigzag = ZigzagWatch()  # two sources interleaved on the pose topic
 
     # ================================================================== state
     @property
@@ -171,6 +172,8 @@ class FrameLoop:
         out = {}
         if self.freeze.holds:
             out['slam_frozen'] = reason_text('slam_frozen')
+        if self.zigzag.holds:
+            out['pose_zigzag'] = reason_text('pose_zigzag')
         if self.maps.degenerate:
             out['map_degenerate'] = self.maps.degenerate
         if self.estimator.relocking:

@@ -12,7 +12,9 @@ The first poses of a stream have no history to be judged by, so nothing is ancho
 they are judged together (:meth:`PoseTrack.start`): a glitched first pose, or first two, is refused
 like a glitch mid-run. A SLAM that lost tracking repeats its last pose bit for bit (a *freeze*);
 the pose it resumes with is its true pose in the same map, not a jump
-(:meth:`PoseTrack.repetition`).
+(:meth:`PoseTrack.repetition`). Two SLAMs on one topic in one frame (two robots in one domain
+without namespaces) interleave their poses: each near the one two before it, far from the one
+before (:class:`ZigzagWatch`).
 
 Poses are camera-to-map (docs/interface.md, "Conventions"): ``R_wc`` (3, 3) rotates the camera
 optical frame into the SLAM map frame, ``c_map`` (3,) is the camera centre in SLAM units, map frame.
@@ -21,6 +23,7 @@ from __future__ import annotations
 
 import bisect
 import itertools
+import math
 from collections import Counter, deque
 from dataclasses import dataclass
 
@@ -283,3 +286,32 @@ class FreezeWatch:
             if moved.size and np.mean(moved > PEOPLE_MOVED_M) >= PEOPLE_MOVED_SHARE:
                 self.holds = True
         return self.holds
+
+
+ZIGZAG_POSES = 30  # the last poses judged ...
+ZIGZAG_SHARE = 0.8  # ... this share of them back near the pose two before ...
+ZIGZAG_BACK_REL = 0.25  # ... closer to it than this fraction of the step from the one before
+
+
+class ZigzagWatch:
+    """``pose_zigzag``: the SLAM pose goes back and forth, pose after pose: each closer to the
+    pose two before it than ZIGZAG_BACK_REL of its step from the one before, for ZIGZAG_SHARE of
+    the last ZIGZAG_POSES poses. Ratios of steps: no unit, no speed. A camera that moves goes on
+    (the pose two before is about two steps away), a still one's noise is as far from either,
+    and a freeze does not step; two interleaved sources step back every time."""
+
+    def __init__(self) -> None:
+        self._last: deque[tuple[float, float, float]] = deque(maxlen=2)  # two before, one before
+        self._backs: deque[bool] = deque(maxlen=ZIGZAG_POSES)
+        self.holds = False
+
+    def pose(self, c_map: np.ndarray) -> None:
+        """The next pose's centre (3,) SLAM units, as it came (judged or not)."""
+        here = (float(c_map[0]), float(c_map[1]), float(c_map[2]))
+        if len(self._last) == 2:
+            step = math.dist(here, self._last[1])
+            self._backs.append(step > 0.0 and math.dist(here, self._last[0])
+                               < ZIGZAG_BACK_REL * step)
+            self.holds = (len(self._backs) == ZIGZAG_POSES
+                          and sum(self._backs) >= ZIGZAG_SHARE * ZIGZAG_POSES)
+        self._last.append(here)

@@ -205,6 +205,10 @@ REASONS: dict[str, Reason] = {
         CONDITION, 'the SLAM pose repeats bit for bit while the people move: tracking lost? '
         '(frames not sampled)', counted=True,
         remedy='check the SLAM\'s tracking (relocalise it); none once it moves again'),
+    'pose_zigzag': Reason(
+        CONDITION, 'the SLAM pose goes back and forth between two places, pose after pose: two '
+        'SLAMs on pose_topic in one frame (two robots in one domain without namespaces?)',
+        remedy='one SLAM per pose_topic: give each robot its own namespace, or remap the topics'),
     'floor_unknown': Reason(
         CONDITION, 'no floor found in the map: the contacts\' map hits are not checked against '
         'it (a table top or a step could pass for it)',
