@@ -3,9 +3,10 @@ robust state-space filter on the log scale that says whether, and how fast, the 
 (docs/method.md, "The estimator").
 
 **The window.** The per-frame scales of the last ``window_s`` stamp seconds (at most
-``window_max_samples``) in arrival order; their median and median absolute deviation (MAD) are
-computed when the window has changed and kept until it changes again. The median is the robust
-level while the scale holds still, and the gate's reference: once the window holds
+``window_max_samples``) in arrival order, and the same kept sorted
+(:class:`hac_ros.core.sorted_window.SortedWindow`): their median and median absolute deviation
+(MAD) are read from it when the window has changed, and kept until it changes again. The median
+is the robust level while the scale holds still, and the gate's reference: once the window holds
 ``min_samples``, a sample further than ``gate_k`` robust sigmas from the median (and than
 ``gate_min_rel`` of it) is gated out.
 
@@ -41,6 +42,7 @@ import numpy as np
 
 from hac_ros.core.numeric import MAD_TO_SIGMA, MEDIAN_STD_ERROR, NS
 from hac_ros.core.scale_filter import LogScaleFilter
+from hac_ros.core.sorted_window import SortedWindow
 
 DRIFT_EVIDENCE = 0.999  # the drift probability above which the scale is said to drift
 RELOCK_WARN_SAMPLES = 2  # gated samples in a row that WARN (one could be an outlier) ...
@@ -73,6 +75,7 @@ class RollingScale:
         self.gate_min_rel = float(gate_min_rel)
         self.max_rel_sigma = float(converged_max_rel_sigma)
         self._fifo: deque[tuple[int, float]] = deque()  # (stamp_ns, scale) in arrival order
+        self._sorted = SortedWindow()  # the same scales, sorted: the streaming median
         self._gated_run: list[tuple[int, float]] = []
         self._accepted_ns = -1  # the stamp of the last accepted sample
         self._map_rescaled = False  # a new map says it has another scale (map_changed)
@@ -102,6 +105,7 @@ class RollingScale:
         self._map_rescaled = False
         self._accepted_ns = int(stamp_ns)
         self._fifo.append((int(stamp_ns), scale))
+        self._sorted.add(scale)
         self._stats = None
         self._version += 1
         if len(self._fifo) > self.max_samples:
@@ -130,6 +134,7 @@ class RollingScale:
     def reset(self) -> None:
         """Forget everything (SLAM re-initialisation: the new map has a new scale)."""
         self._fifo.clear()
+        self._sorted.clear()
         self._gated_run.clear()
         self._map_rescaled = False
         self._stats = None
@@ -217,9 +222,7 @@ class RollingScale:
         if self._stats is None:
             if not self._fifo:
                 return math.nan, math.nan
-            values = self.values()
-            median = float(np.median(values))
-            self._stats = median, float(np.median(np.abs(values - median)))
+            self._stats = self._sorted.median(), self._sorted.mad()
         return self._stats
 
     def _within_gate(self, scale: float) -> bool:
@@ -251,7 +254,7 @@ class RollingScale:
             self._gated_run.pop(0)
 
     def _drop_oldest(self) -> None:
-        self._fifo.popleft()
+        self._sorted.remove(self._fifo.popleft()[1])
         self._stats = None
         self._version += 1
 
@@ -260,6 +263,8 @@ class RollingScale:
         self.reset()
         self.relocks += 1
         self._fifo.extend(run)
+        for _, scale in run:
+            self._sorted.add(scale)
         if len(run) >= self.min_samples:
             self.filter.start([s for s, _ in run], [math.log(v) for _, v in run])
 
