@@ -152,7 +152,9 @@ def _short(value: Any) -> str:
 def row(entry: dict[str, Any]) -> list[Any]:
     return [entry['name'], entry['probe'], f"`{entry['base']}` → `{entry['candidate']}`",
             len(entry['pairs']), f"{entry['median']:.2f}", f"{entry['worse']:.2f}",
-            f"{entry['agree']} of {len(entry['pairs'])}", 'keep' if entry['keep'] else 'remove',
+            f"{entry['agree']} of {len(entry['pairs'])}",
+            (f"keep: without it {entry['guard']}" if entry.get('guard') else 'keep')
+            if entry['keep'] else 'remove',
             entry['machine'].get('cpu', '?'), entry['date']]
 
 
@@ -193,6 +195,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--duration', type=float,
                         help='replay: recording seconds (120); node: measured seconds (20)')
     parser.add_argument('--name', help="what the candidate removes (default: its commit subject)")
+    parser.add_argument('--guard-broken', metavar='TEXT',
+                        help='the speed guard the candidate breaks, measured by its bench (e.g. '
+                             '"replay offline 30.40x > 30x at 2e057cd"): kept whatever the ratio')
     parser.add_argument('--record', action='store_true',
                         help='append to bench/results/ab.json and re-render its section')
     parser.add_argument('--render', action='store_true',
@@ -214,6 +219,10 @@ def main(argv: list[str] | None = None) -> int:
     print(f'{name}: A = {base}, B = {candidate}, {args.pairs} pairs', flush=True)
     result = measure(base, candidate, probe_args, args.pairs)
     result.update(verdict([p['B/A'] for p in result['pairs']]))
+    if args.guard_broken:  # the rule's other half: removing it breaks a speed guard
+        result.update(keep=True, guard=args.guard_broken,
+                      verdict=f"{result['verdict'].split(':')[0]}, but removing it breaks a speed "
+                              f'guard ({args.guard_broken}): keep')
     entry = {'name': args.name or git('log', '-1', '--format=%s', candidate)[:60],
              'base': base, 'candidate': candidate, 'probe': name, **result,
              'machine': {k: v for k, v in machine().items() if k != 'commit'},
