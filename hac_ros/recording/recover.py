@@ -95,8 +95,6 @@ def recover(source: str | Path, target: str | Path) -> Recovered:
     directory holding one .mcap file) to the MCAP file ``target`` (which must not exist),
     closed without a summary (module docstring). HacError when ``source`` is not a cut-off MCAP
     file, or holds no complete message."""
-    from hac_ros.recording.reader import Recording
-
     source, target = Path(source), Path(target)
     mcap = storage_file(source) or source
     if not mcap.is_file() or mcap.suffix != '.mcap':
@@ -120,11 +118,21 @@ def recover(source: str | Path, target: str | Path) -> Recovered:
                     left -= len(block)
                 out.write(bytes([OP_DATA_END]) + struct.pack('<QI', 4, 0))
                 out.write(bytes([OP_FOOTER]) + struct.pack('<QQQI', 20, 0, 0, 0) + MAGIC)
-            try:
-                with Recording(staged) as recording:
-                    messages = {t: n for t, n in recording.counts.items() if n}
-            except HacError as exc:
-                raise HacError(f'{mcap}: its complete part cannot be read either: {exc}') from exc
+            messages = _messages(staged, mcap)
             if not messages:
                 raise HacError(f'{mcap}: no complete message before the cut: nothing to recover')
     return Recovered(source, target, kept, size, messages)
+
+
+def _messages(path: Path, source: Path) -> dict[str, int]:
+    """Messages per topic of the recovered file ``path`` (read as any reader would: by a scan),
+    HacError naming ``source`` when it cannot be read."""
+    from rosbags.highlevel import AnyReader
+    from rosbags.typesys import Stores, get_typestore
+
+    try:
+        with AnyReader([path], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:
+            return {name: info.msgcount for name, info in reader.topics.items() if info.msgcount}
+    except Exception as exc:  # rosbags raises several types for unreadable files
+        first = (str(exc).strip() or type(exc).__name__).splitlines()[0]
+        raise HacError(f'{source}: its complete part cannot be read either: {first}') from exc
