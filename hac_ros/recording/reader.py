@@ -134,6 +134,12 @@ class Recording:
         return ', '.join(f'{printable(t)} ({printable(self.topics[t])}, {self.counts[t]})'
                          for t in sorted(self.topics))
 
+    def publishers(self, topic: str) -> int:
+        """How many publishers of ``topic`` the recorder saw: the offered QoS profiles rosbag2
+        records, one per publisher (0 when the recording says nothing, as rosbags' writer)."""
+        return sum(len(getattr(getattr(c, 'ext', None), 'offered_qos_profiles', None) or [])
+                   for c in self.reader.connections if c.topic == topic)
+
     def has(self, topic: str, msgtype: str | None = None) -> bool:
         return topic in self.topics and self.counts.get(topic, 0) > 0 and (
             msgtype is None or self.topics[topic] == msgtype)

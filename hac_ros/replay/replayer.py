@@ -60,6 +60,7 @@ from hac_ros.core.outputs import (
     Status,
 )
 from hac_ros.core.params import HacParams
+from hac_ros.core.printable import printable
 from hac_ros.core.reasons import refusals_behind
 from hac_ros.core.reasons import text as reason_text
 from hac_ros.core.status_shares import StatusShares
@@ -314,6 +315,12 @@ def replay(input_path: str | Path, output_path: str | Path, params: HacParams | 
         topics = InputTopics.check(recording, params, pose_type)
         start_ns = recording.start_ns
         notices = NoticeLog(start_ns)
+        for topic in (topics.pose, topics.joints, topics.cloud):
+            if topic and recording.publishers(topic) > 1:
+                log.warning('the recording says %d publishers offered %s: their messages '
+                            'interleave as if one source jumped back and forth (two SLAMs, or '
+                            'two robots in one domain without namespaces?)',
+                            recording.publishers(topic), printable(topic))
         if params.camera_info_topic and not topics.camera_info:
             log.info('no %s in the recording: joints are judged in view by the map cone alone',
                      params.camera_info_topic)
