@@ -34,6 +34,13 @@ def printable_lines(text: object) -> str:
     return '\n'.join(printable(line) for line in s.split('\n'))
 
 
+def first_line(exc: BaseException) -> str:
+    """The first line of an exception's text, escaped (a library's messages, rosbags' among
+    them, can run to many lines); its type's name when it has no text."""
+    text = str(exc).strip() or type(exc).__name__
+    return printable(text.splitlines()[0])
+
+
 def _escaped(char: str) -> str:
     if char in _NAMED:
         return _NAMED[char]

@@ -13,7 +13,7 @@ from rosbags.typesys import Stores, get_typestore
 
 from hac_ros.core.errors import ArgumentError, HacError
 from hac_ros.core.layouts import BUILT_IN, SMPL24, JointLayout
-from hac_ros.core.printable import printable
+from hac_ros.core.printable import first_line, printable
 
 GT_CAMERA = ('/gt/camera_pose', 'geometry_msgs/msg/PoseStamped')
 
@@ -60,8 +60,9 @@ class Recording:
                                     default_typestore=get_typestore(Stores.ROS2_JAZZY))
             self.reader.open()
         except Exception as exc:  # rosbags raises several types for unreadable files
+            reason = first_line(exc).rstrip('.')
             raise HacError(f'cannot read {self.path} as a recording (rosbag2 sqlite3/mcap or ROS 1 '
-                           f'bag): {_reason(exc).rstrip(".")}{_cut_off_hint(self.path)}') from exc
+                           f'bag): {reason}{_cut_off_hint(self.path)}') from exc
         self.is_ros2 = self.reader.is2
         self.jazzy = get_typestore(Stores.ROS2_JAZZY)
         self.topics: dict[str, str] = {name: info.msgtype or ''
@@ -170,7 +171,7 @@ class Recording:
             for connection, log_ns, raw in self.reader.messages(connections=connections):
                 yield connection.topic, log_ns, raw
         except Exception as exc:  # a truncated or corrupt storage file
-            raise HacError(f'{self.path} is corrupt: {_reason(exc)}') from exc
+            raise HacError(f'{self.path} is corrupt: {first_line(exc)}') from exc
 
     def to_cdr(self, raw: Any, topic: str, log_ns: int = -1) -> Any:
         """The message bytes as ROS 2 CDR (a ROS 1 message becomes its ROS 2 Jazzy type).
@@ -216,7 +217,7 @@ class Recording:
     def _corrupt(self, topic: str, log_ns: int, exc: BaseException) -> HacError:
         return HacError(f'{printable(self.path)} is corrupt: a {printable(topic)} message (log '
                         f'time {log_ns} ns) does not decode as {printable(self.topics[topic])}: '
-                        f'{_reason(exc)}')
+                        f'{first_line(exc)}')
 
 
 def _cut_off_hint(path: Path) -> str:
@@ -232,8 +233,3 @@ def _cut_off_hint(path: Path) -> str:
                 f'{printable(single)} itself')
     return ''
 
-
-def _reason(exc: BaseException) -> str:
-    """The first line of an exception's text (rosbags' messages can run to many lines)."""
-    text = str(exc).strip() or type(exc).__name__
-    return printable(text.splitlines()[0])

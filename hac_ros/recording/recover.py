@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import BinaryIO
 
 from hac_ros.core.errors import HacError
+from hac_ros.core.printable import first_line
 from hac_ros.recording.atomic import staged_output
 
 MAGIC = b'\x89MCAP0\r\n'
@@ -134,5 +135,5 @@ def _messages(path: Path, source: Path) -> dict[str, int]:
         with AnyReader([path], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:
             return {name: info.msgcount for name, info in reader.topics.items() if info.msgcount}
     except Exception as exc:  # rosbags raises several types for unreadable files
-        first = (str(exc).strip() or type(exc).__name__).splitlines()[0]
-        raise HacError(f'{source}: its complete part cannot be read either: {first}') from exc
+        raise HacError(f'{source}: its complete part cannot be read either: '
+                       f'{first_line(exc)}') from exc

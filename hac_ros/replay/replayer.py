@@ -316,11 +316,12 @@ def replay(input_path: str | Path, output_path: str | Path, params: HacParams | 
         start_ns = recording.start_ns
         notices = NoticeLog(start_ns)
         for topic in (topics.pose, topics.joints, topics.cloud):
-            if topic and recording.publishers(topic) > 1:
+            publishers = recording.publishers(topic) if topic else 0
+            if publishers > 1:
                 log.warning('the recording says %d publishers offered %s: their messages '
                             'interleave as if one source jumped back and forth (two SLAMs, or '
                             'two robots in one domain without namespaces?)',
-                            recording.publishers(topic), printable(topic))
+                            publishers, printable(topic))
         if params.camera_info_topic and not topics.camera_info:
             log.info('no %s in the recording: joints are judged in view by the map cone alone',
                      params.camera_info_topic)
