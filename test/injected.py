@@ -31,12 +31,27 @@ def simulate(path: Path, scenario: str = 'walk', seed: int = 1, duration: float 
     return write_recording(sc, path)
 
 
-def rewrite(source: Path, target: Path, edit: Edit) -> Path:
-    """A copy of ``source`` at ``target`` with ``edit`` applied to its messages (in log order)."""
+def rewrite(source: Path, target: Path, edit: Edit,
+            publishers: dict[str, int] | None = None) -> Path:
+    """A copy of ``source`` at ``target`` with ``edit`` applied to its messages (in log order);
+    ``publishers``: topic -> how many publishers the metadata says offered it (rosbag2 records
+    one offered QoS profile per publisher it saw; none by default)."""
     from rosbags.highlevel import AnyReader
+    from rosbags.interfaces import (
+        Qos,
+        QosDurability,
+        QosHistory,
+        QosLiveliness,
+        QosReliability,
+        QosTime,
+    )
     from rosbags.rosbag2 import StoragePlugin, Writer
     from rosbags.typesys import Stores, get_typestore
 
+    never = QosTime(0, 0)
+    qos = Qos(QosHistory.KEEP_LAST, 10, QosReliability.RELIABLE, QosDurability.VOLATILE, never,
+              never, QosLiveliness.AUTOMATIC, never, False)
+    offered = publishers or {}
     store = get_typestore(Stores.ROS2_JAZZY)
     with AnyReader([source], default_typestore=store) as reader:
         types = {c.topic: c.msgtype for c in reader.connections}
@@ -47,7 +62,8 @@ def rewrite(source: Path, target: Path, edit: Edit) -> Path:
 
         writer = Writer(target, version=9, storage_plugin=StoragePlugin.MCAP)
         writer.open()
-        conns = {topic: writer.add_connection(topic, msgtype, typestore=store)
+        conns = {topic: writer.add_connection(topic, msgtype, typestore=store,
+                                              offered_qos_profiles=[qos] * offered.get(topic, 0))
                  for topic, msgtype in types.items()}
         for topic, log_ns, msg in edit(messages()):
             writer.write(conns[topic], log_ns, store.serialize_cdr(msg, types[topic]))

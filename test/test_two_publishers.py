@@ -111,46 +111,14 @@ def test_one_camera_never_zigzags(motion):
         assert not watch.holds
 
 
-def _recorded_with_publishers(source: Path, target: Path, topic: str, count: int) -> Path:
-    """A copy of ``source`` whose metadata says ``count`` publishers offered ``topic`` (rosbag2
-    records one offered QoS profile per publisher it saw)."""
-    from rosbags.highlevel import AnyReader
-    from rosbags.interfaces import (
-        Qos,
-        QosDurability,
-        QosHistory,
-        QosLiveliness,
-        QosReliability,
-        QosTime,
-    )
-    from rosbags.rosbag2 import StoragePlugin, Writer
-    from rosbags.typesys import Stores, get_typestore
-
-    never = QosTime(0, 0)
-    qos = Qos(QosHistory.KEEP_LAST, 10, QosReliability.RELIABLE, QosDurability.VOLATILE, never,
-              never, QosLiveliness.AUTOMATIC, never, False)
-    store = get_typestore(Stores.ROS2_JAZZY)
-    with AnyReader([source], default_typestore=store) as reader:
-        writer = Writer(target, version=9, storage_plugin=StoragePlugin.MCAP)
-        writer.open()
-        conns = {c.id: writer.add_connection(
-            c.topic, c.msgtype, typestore=store,
-            offered_qos_profiles=[qos] * (count if c.topic == topic else 1))
-            for c in reader.connections}
-        for conn, log_ns, raw in reader.messages():
-            writer.write(conns[conn.id], log_ns, raw)
-        writer.close()
-    return target
-
-
 def test_a_recording_of_two_publishers_on_the_pose_topic_says_so_at_replay(walk, tmp_path,
                                                                            capsys):
     from hac_ros.cli import main
 
-    two = _recorded_with_publishers(walk, tmp_path / 'two', '/slam/pose', 2)
+    two = rewrite(walk, tmp_path / 'two', lambda messages: messages, {'/slam/pose': 2})
     assert main(['replay', str(two), '-o', str(tmp_path / 'out')]) == 0
     said = 'the recording says 2 publishers offered /slam/pose: their messages interleave'
     assert said in capsys.readouterr().err
-    one = _recorded_with_publishers(walk, tmp_path / 'one', '/slam/pose', 1)
+    one = rewrite(walk, tmp_path / 'one', lambda messages: messages, {'/slam/pose': 1})
     assert main(['replay', str(one), '-o', str(tmp_path / 'out1')]) == 0
     assert 'publishers offered' not in capsys.readouterr().err
