@@ -101,7 +101,7 @@ class ConventionCheck:
         # rotation as given, [1] by its transpose; and how many people they hold
         self._axes = np.zeros((2, 3, 3))
         self._axes_people = 0
-        self._axes_frame_ns = self._next_axes_frame_ns = self._next_axes_check_ns = -1
+        self._axes_frame_ns = self._next_axes_check_ns = -1  # the last frame taken, the check
         self.suspects: dict[str, str] = {}  # check -> warning text, for /diagnostics
 
     # ------------------------------------------------------------------ evidence
@@ -157,9 +157,9 @@ class ConventionCheck:
         """Whether the people of the frame at ``stamp_ns`` add their axes: one frame per
         AXES_PERIOD_NS of stamp time (the evidence needs the camera to turn, not many frames)."""
         if stamp_ns != self._axes_frame_ns:
-            if self._axes_frame_ns < stamp_ns < self._next_axes_frame_ns:
+            if self._axes_frame_ns < stamp_ns < self._axes_frame_ns + AXES_PERIOD_NS:
                 return False  # (a stamp before the last frame taken: time went back, taken)
-            self._axes_frame_ns, self._next_axes_frame_ns = stamp_ns, stamp_ns + AXES_PERIOD_NS
+            self._axes_frame_ns = stamp_ns
         return True
 
     def _add_axis(self, layout: JointLayout, R_wc: np.ndarray, joints_cam: np.ndarray,
