@@ -9,9 +9,9 @@ bench/results/accuracy_runs.jsonl; ``--commit`` reads the baseline as it was at 
 For each scene and figure (the offline scale error, the online one, and the share of statuses OK
 while more than 5 % off), on the seeds both have: the medians, their difference, and the paired
 standard error of the per-seed differences (std / sqrt(n)); beside them, never judged, the
-signed offline error's (``bias %``: a bias removed shows as a move towards zero). A scene is *worse* when its median
-grew by more than max(0.1 point, 2 x that standard error), the rule of issue 35; ``OK>5%`` must
-stay at or under 1 % everywhere. Exit 1 when a scene is worse or OK>5% is over 1 %.
+signed offline error's (``bias %``: a bias removed shows as a move towards zero). A scene is
+*worse* when its median grew by more than max(0.1 point, 2 x that standard error), the rule of
+issue 35; ``OK>5%`` must stay at or under 1 % everywhere. Exit 1 when a scene is worse or OK>5% is over 1 %.
 """
 from __future__ import annotations
 
