@@ -41,11 +41,14 @@ from hac_ros.core.offline import resolve_offline
 from hac_ros.core.outputs import (
     DiagnosticsOut,
     HumanJointsOut,
+    OdometryOut,
     PoseOut,
+    ResetOut,
     SampleOut,
     ScaleOut,
 )
 from hac_ros.core.params import HacParams
+from hac_ros.core.segment import FEW_SAMPLES_MIN
 from hac_ros.evaluation import metrics
 from hac_ros.simulate.feed import feed_events
 
@@ -97,7 +100,7 @@ def scene_from_composite(data: Any, seed: int, hmr_bias: float = 0.0) -> Scene:
     from composite import HEIGHT, WIDTH, events
 
     return Scene(f'composite:{data.name}', seed, events(data), data.K, WIDTH, HEIGHT,
-                 np.asarray(data.stamps_ns), np.full(len(data.stamps_ns), data.scale_fit),
+                 np.asarray(data.stamps_ns), np.asarray(data.true_scale, dtype=float),
                  [j[None] for j in data.joints_world], [np.array([0])] * len(data.joints_world),
                  data.R_gt, data.c_gt, hmr_bias)
 
@@ -149,7 +152,7 @@ def figures(scene: Scene, params: HacParams, cal: Calibrator, literal: World,
     however they were fed."""
     samples = [o for o in cal.journal or [] if isinstance(o, SampleOut) and o.accepted]
     out: dict[str, float] = {'samples': len(samples)}
-    if len(samples) < params.min_samples:
+    if len(samples) < FEW_SAMPLES_MIN:  # fewer: offline has no estimate either
         return {**out, 'scale_err': math.nan, 'scale_bias': math.nan, 'w_mpjpe': math.nan}
     # as the replay, the humans smoothed below (W-MPJPE is measured on both)
     resolved = resolve_offline(cal, smooth_humans=False).outputs
@@ -165,6 +168,7 @@ def figures(scene: Scene, params: HacParams, cal: Calibrator, literal: World,
     out['sample_sigma'] = 100.0 * MAD_TO_SIGMA * float(np.median(np.abs(accepted - np.median(
         accepted))))  # a sample's own spread, %
     out.update(scale_bias=float(np.median(signed)), scale_err=float(np.median(np.abs(signed))),
+               scale_err_max=float(np.max(np.abs(signed))),
                w_mpjpe=raw, w_mpjpe_filtered=w_mpjpe(scene, *common),
                w_mpjpe_literal=w_mpjpe(scene, common[0], [literal[t] for t in common[0]]),
                fallback_pct=100.0 * cal.status().fallback_rate,
@@ -260,20 +264,69 @@ def _online(scene: Scene, params: HacParams, offline_humans: World,
     # the level /diagnostics gives each status, in order (hac_ros.core.health, as the node)
     monitor = HealthMonitor(params.metric_frame_alignment == 'gravity')
     ok = [monitor.assess(st).level == OK for st in statuses]
-    # the ± (the estimate's own uncertainty) against the truth of the moment, where it exists
-    rel_sigma = np.array([st.spread / st.scale if st.scale > 0 else math.nan for st in statuses])
-    has = np.isfinite(rel_sigma)
+    # the ± a user reads (published) against the truth of the moment, and the estimate's own
+    # (σ_stat) against the truth times the run's own offline bias, on the published statuses
+    published = np.array([st.publishing and st.scale > 0 for st in statuses], dtype=bool)
+    rel_pub = np.array([st.spread / st.scale if st.scale > 0 else math.nan for st in statuses])
+    rel_stat = np.array([st.spread_stat / st.scale if st.scale > 0 else math.nan
+                         for st in statuses])
     own_err = np.abs(log_err_signed - math.log1p(offline_bias / 100.0))
     out.update(statuses=len(statuses), converged_wrong=int(sum(off)),
                ok_wrong=int(sum(w and k for w, k in zip(off, ok))), ok_statuses=int(sum(ok)),
-               sigma_statuses=int(has.sum()),
-               cover1=int(np.sum(log_err[has] <= rel_sigma[has])),
-               cover2=int(np.sum(log_err[has] <= 2.0 * rel_sigma[has])),
-               cover1_own=int(np.sum(own_err[has] <= rel_sigma[has])),
-               cover2_own=int(np.sum(own_err[has] <= 2.0 * rel_sigma[has])),
+               sigma_statuses=int(published.sum()),
+               cover1=int(np.sum(log_err[published] <= rel_pub[published])),
+               cover2=int(np.sum(log_err[published] <= 2.0 * rel_pub[published])),
+               cover1_own=int(np.sum(own_err[published] <= rel_stat[published])),
+               cover2_own=int(np.sum(own_err[published] <= 2.0 * rel_stat[published])),
                relocking=int(sum('relocking' in st.conditions for st in statuses)),
                window_samples=float(np.median([st.samples for st in statuses]))
                if statuses else math.nan)
+    out.update(availability(scene, outputs, statuses, ok, params.min_samples))
+    return out
+
+
+def availability(scene: Scene, outputs: list[Any], statuses: list[Any], ok: list[bool],
+                 min_samples: int) -> dict[str, float]:
+    """How soon and how much an online run speaks (issue 43): the stamp time (s) and the accepted
+    samples from the first accepted sample to the first OK status (``first_ok_s``,
+    ``first_ok_samples``); the statuses after it and those of them OK (``after_ok``,
+    ``after_ok_ok``); whether a scale was published; and, from each segment's first published
+    pose to the segment's end, its SLAM poses and those with odometry (``flow_poses``,
+    ``flow_odometry``), its joints frames with someone in them and those published
+    (``flow_frames``, ``flow_joints``)."""
+    accepted = np.array(sorted(o.stamp_ns for o in outputs
+                               if isinstance(o, SampleOut) and o.accepted), dtype=np.int64)
+    published = any(isinstance(o, ScaleOut) for o in outputs)
+    enough = accepted.size >= min_samples
+    out: dict[str, float] = {'published': float(published), 'runs_enough': float(enough),
+                             'published_enough': float(enough and published)}
+    first = next((k for k, good in enumerate(ok) if good), None)
+    if first is not None and accepted.size:
+        stamp = statuses[first].stamp_ns
+        out['first_ok_s'] = (stamp - int(accepted[0])) / 1e9
+        out['first_ok_samples'] = float(np.searchsorted(accepted, stamp, side='right'))
+        out['after_ok'] = float(len(ok) - first)
+        out['after_ok_ok'] = float(sum(ok[first:]))
+    resets = sorted(o.stamp_ns for o in outputs if isinstance(o, ResetOut))
+    bounds = [*resets, 2 ** 62]
+    segment_of = lambda stamp: int(np.searchsorted(bounds, stamp, side='right'))  # noqa: E731
+    first_pose: dict[int, int] = {}
+    for o in outputs:
+        if isinstance(o, PoseOut):
+            first_pose.setdefault(segment_of(o.stamp_ns), o.stamp_ns)
+    odometry = {o.stamp_ns for o in outputs if isinstance(o, OdometryOut)}
+    joints = {o.stamp_ns for o in outputs if isinstance(o, HumanJointsOut)}
+    poses = [s for s, kind, _ in scene.events if kind == 'pose']
+    frames = [s for s, kind, p in scene.events if kind == 'joints' and len(p[0])]
+
+    def flowing(stamps: list[int]) -> list[int]:
+        return [t for t in stamps if segment_of(t) in first_pose
+                and t >= first_pose[segment_of(t)]]
+    flow_poses, flow_frames = flowing(poses), flowing(frames)
+    out.update(flow_poses=float(len(flow_poses)),
+               flow_odometry=float(sum(t in odometry for t in flow_poses)),
+               flow_frames=float(len(flow_frames)),
+               flow_joints=float(sum(t in joints for t in flow_frames)))
     return out
 
 

@@ -38,6 +38,12 @@ MAP_NOISE_M = 0.005
 # freiburg1_xyz (the camera 1.6 m high, pitched about 48 degrees down) a steep view of a person
 # 1-2 m away
 WALKER_DISTANCE_M = {'fr2_desk': (2.0, 3.5), 'freiburg1_xyz': (1.2, 2.0)}
+# a drifting composite: the SLAM's scale (metres per SLAM unit) grows by ``drift`` over this much
+# stamp time, linearly, as the simulator's drift scenario; its map is republished this often,
+# placed about the camera of that moment at the scale of that moment (tracking keeps the local map
+# consistent with the current pose)
+DRIFT_SPAN_S = 90.0
+DRIFT_MAP_PERIOD_S = 2.0
 
 
 @dataclass
@@ -63,6 +69,8 @@ class Composite:
     joints_cam: np.ndarray
     joints_world: np.ndarray
     points_slam: np.ndarray
+    true_scale: np.ndarray
+    maps: list[tuple[int, np.ndarray]]
 
 
 def _y_up_to_z_up(joints: np.ndarray) -> np.ndarray:
@@ -84,7 +92,7 @@ def hand_eye(R_gt: np.ndarray, R_slam_world: np.ndarray) -> np.ndarray:
 
 def build(shared: Path, seed: int = 0, hmr_bias: float = 0.0, sequence: str | None = None,
           motion: int | None = None, rate: float | None = None,
-          poses: str = 'orb') -> Composite:
+          poses: str = 'orb', drift: float = 0.0) -> Composite:
     """The composite of ``seed``: sequence (fr2_desk for even seeds, freiburg1_xyz for every
     fourth odd one, unless given), motion (an index into MOTIONS, unless given), placement and
     noise drawn from the seed; ``hmr_bias``: the mean relative HMR depth bias (0: clean, no bias
@@ -176,9 +184,29 @@ def build(shared: Path, seed: int = 0, hmr_bias: float = 0.0, sequence: str | No
             joints_cam.append(prediction)
             joints_world.append(walk[k])
             frame_stamps.append(int(t))
+    growth = 1.0 + drift * (stamps - stamps[0]) / 1e9 / DRIFT_SPAN_S
+    maps: list[tuple[int, np.ndarray]] = []
+    if drift:
+        c_slam, maps = drifted(stamps, c_slam, points_slam, growth)
     return Composite(sequence, K, stamps, R_slam, c_slam, R_gt, c_gt, float(s_fit),
                      np.array(frame_stamps, dtype=np.int64), np.array(joints_cam),
-                     np.array(joints_world), points_slam)
+                     np.array(joints_world), points_slam, float(s_fit) * growth, maps)
+
+
+def drifted(stamps: np.ndarray, c_slam: np.ndarray, points_slam: np.ndarray, growth: np.ndarray
+            ) -> tuple[np.ndarray, list[tuple[int, np.ndarray]]]:
+    """A SLAM whose scale is ``growth`` (T,) times its first one at each pose: its positions
+    (T, 3), SLAM units, integrate each step at the scale of the moment; its maps, every
+    DRIFT_MAP_PERIOD_S, are the points placed about the camera of that moment at that moment's
+    scale: (stamp ns, (N, 3) SLAM units)."""
+    steps = np.diff(c_slam, axis=0) / growth[1:, None]
+    c_out = np.vstack([c_slam[:1], c_slam[0] + np.cumsum(steps, axis=0)])
+    maps, next_ns = [], int(stamps[0])
+    for i, stamp in enumerate(stamps):
+        if stamp >= next_ns:
+            maps.append((int(stamp), c_out[i] + (points_slam - c_slam[i]) / growth[i]))
+            next_ns = int(stamp) + int(DRIFT_MAP_PERIOD_S * 1e9)
+    return c_out, maps
 
 
 def _in_view(joints_world: np.ndarray, R_gt: np.ndarray, c_gt: np.ndarray, K: np.ndarray) -> bool:
@@ -230,8 +258,10 @@ def dense_poses(key_ns: np.ndarray, R_slam: np.ndarray, c_slam: np.ndarray, R_gt
 
 def events(data: Composite) -> list[tuple[int, str, tuple]]:
     """The composite as calibrator inputs in SPEC order: (stamp, kind, payload) like
-    ``hac_ros.simulate.feed.scenario_events`` (the map once, at the first stamp)."""
-    out: list[tuple[int, str, tuple]] = [(int(data.stamps_ns[0]), 'map', (data.points_slam, 'map'))]
+    ``hac_ros.simulate.feed.scenario_events`` (the map once, at the first stamp, unless the SLAM
+    drifts)."""
+    maps = data.maps or [(int(data.stamps_ns[0]), data.points_slam)]
+    out: list[tuple[int, str, tuple]] = [(stamp, 'map', (points, 'map')) for stamp, points in maps]
     out += [(int(s), 'pose', (data.R_wc_slam[i], data.c_slam[i], 'map'))
             for i, s in enumerate(data.stamps_ns)]
     out += [(int(s), 'joints', (data.joints_cam[k][None], 'camera'))

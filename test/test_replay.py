@@ -9,6 +9,7 @@ import contextlib
 import fcntl
 import hashlib
 import logging
+import math
 import os
 import pty
 import signal
@@ -166,7 +167,18 @@ def test_offline_constant_scale_is_the_sequence_median_and_no_drift_is_seen_in_n
     schedule = offline_scale(stamps, samples, [], window_s=30.0, min_samples=10)
     (segment,) = schedule.segments
     assert not segment.drift
-    assert segment.median == pytest.approx(float(np.median(samples[samples > 0])))
+    # the median of the samples, each weighing the stamp time since the previous one kept, to a
+    # tenth of a millisecond (the two whose noise made them negative are left out: their
+    # neighbours weigh twice as much)
+    kept = samples > 0
+    weights = np.round(np.diff(stamps[kept], prepend=stamps[kept][0] - NS // 30) / 1e5) / 1e4
+    order = np.argsort(samples[kept])
+    cumulative = np.cumsum(weights[order])
+    k = int(np.searchsorted(cumulative, 0.5 * cumulative[-1] * (1 - 1e-9)))
+    middle = samples[kept][order]
+    expected = (middle[k] + middle[k + 1]) / 2 if np.isclose(cumulative[k], 0.5 * cumulative[-1],
+                                                             rtol=1e-9) else middle[k]
+    assert segment.median == pytest.approx(float(expected), rel=1e-12)
     assert np.all(schedule.at(stamps) == segment.median)
     assert schedule(int(stamps[0]) - NS) == segment.median  # before and after the samples too
     assert schedule(int(stamps[-1]) + 100 * NS) == segment.median
@@ -213,14 +225,17 @@ def test_offline_each_segment_between_resets_has_its_own_scale():
     assert schedule(resets[0]) == pytest.approx(0.4, rel=0.005)  # the reset stamp is the new map's
 
 
-def test_offline_segment_with_too_few_samples_has_no_scale():
+def test_offline_segment_with_few_samples_has_its_scale_flagged_and_fewer_than_3_none():
+    """Fewer than min_samples but at least 3 samples: the segment gets its scale, flagged
+    ``few`` (issue 43); fewer than 3: none."""
     stamps = _stamps(10.0)
-    reset = int(stamps[-5])
-    schedule = offline_scale(stamps, np.full(len(stamps), 2.0), [reset], window_s=30.0,
-                             min_samples=10)
-    assert schedule(int(stamps[0])) == 2.0
-    assert np.isnan(schedule(reset))
-    assert schedule.segments[1].samples == 5
+    for last, scale in ((5, 2.0), (2, math.nan)):
+        reset = int(stamps[-last])
+        schedule = offline_scale(stamps, np.full(len(stamps), 2.0), [reset], window_s=30.0,
+                                 min_samples=10)
+        assert schedule(int(stamps[0])) == 2.0 and not schedule.segments[0].few
+        assert schedule.segments[1].samples == last and schedule.segments[1].few
+        assert schedule(reset) == scale or (math.isnan(scale) and math.isnan(schedule(reset)))
 
 
 # ============================================================================ round trips and modes

@@ -192,12 +192,16 @@ def test_a_slam_that_starts_late_is_not_taken_for_another_clock(walk, tmp_path):
     (1000, 'min_samples 1000 was never reached: the window of window_s 30 s held at most ')])
 def test_exit_3_names_the_setting_that_kept_the_scale_from_converging(walk, tmp_path,
                                                                      min_samples, said):
-    """Not 'rejected most: no_map 9' (the few frames before the first map), but the reason."""
+    """Online: not 'rejected most: no_map 9' (the few frames before the first map), but the
+    reason. Offline the same run gets its scale, flagged "few samples" (issue 43)."""
     params = tmp_path / 'params.yaml'
     params.write_text(f'hac_node:\n  ros__parameters:\n    min_samples: {min_samples}\n',
                       encoding='utf-8')
-    why = _why(hac('replay', str(walk), '-o', str(tmp_path / 'out'), '--params', str(params)))
+    why = _why(hac('replay', str(walk), '-o', str(tmp_path / 'out'), '--params', str(params),
+                   '--mode', 'online'))
     assert said in why and 'rejected most' not in why, why
+    offline = hac('replay', str(walk), '-o', str(tmp_path / 'offline'), '--params', str(params))
+    assert offline.returncode == 0 and 'few samples' in offline.stdout, offline.stderr
 
 
 def test_maps_refused_for_their_frame_are_named_as_the_cause_with_both_frames(walk, tmp_path):

@@ -198,8 +198,10 @@ class OutputMessages:
         timer), whose counts must not be taken as seen."""
         values = [
             ('converged', str(status.converged).lower()),
+            ('publishing', str(status.publishing).lower()),
             ('scale', f'{status.scale:.9g}'),
             ('spread', f'{status.spread:.9g}'),
+            ('spread_stat', f'{status.spread_stat:.9g}'),
             ('samples', str(status.samples)),
             ('frames', str(status.frames)),
             ('people', str(status.people)),

@@ -25,7 +25,7 @@ from hac_ros.core.map_book import MapBook
 from hac_ros.core.map_shape import PLANE_JUDGE_BODIES, MapShape, plane_problem
 from hac_ros.core.metric_stage import MetricStage, ScaleAt, StageConfig, finite_scale
 from hac_ros.core.numeric import NS
-from hac_ros.core.outputs import NoticeOut, ResetOut, SampleOut, Status
+from hac_ros.core.outputs import MapRescaleOut, NoticeOut, ResetOut, SampleOut, Status
 from hac_ros.core.params import HacParams
 from hac_ros.core.pending import (
     Pending,
@@ -98,8 +98,7 @@ class FrameLoop:
         """The state of one stream of header time, as at start-up (a jump back in time starts
         a new one: hac_ros.core.timeline); the counters, the camera and the conventions stay."""
         p = self.params
-        self.estimator = RollingScale(p.window_s, p.window_max_samples, p.min_samples,
-                                      p.gate_k, p.gate_min_rel, p.converged_max_rel_sigma)
+        self.estimator = RollingScale.from_params(p)
         self.ground = GroundModel(p.ground_mode, p.ground_inlier_m, p.ground_ransac_iters, p.seed)
         self._map_frame: str | None = None
         # poses in another frame than the map's, in a row: a SLAM re-initialised in a new frame
@@ -113,7 +112,6 @@ class FrameLoop:
         self._pending: list[Frame] = []  # sorted by stamp
         self.maps = MapBook(p)  # waiting, in use (hac_ros.core.map_book)
         self._last_frame_ns = -1
-        self._camera_height: float | None = None  # above the floor of the map in use, SLAM units
         self._diag_second: int | None = None
         self._segment_starts: str | None = ''  # the cause of a segment starting at the next pose
         self._sources: deque[bool] = deque(maxlen=GROUND_SHARE_SAMPLES)  # True: a ground sample
@@ -140,9 +138,16 @@ class FrameLoop:
 
     def online_scale(self) -> float | None:
         """The online scale, which the samples use (the map distance bound, the contacts' ground):
-        the estimate once converged, the held one while frozen (and after, until the fresh window
-        converges)."""
-        return self.services.scale(self.scale if self.converged else None)
+        the estimate from the segment's first convergence on (RollingScale.publishing), the held
+        one while frozen (and after, until the fresh window converges)."""
+        return self.services.scale(self.scale if self.estimator.publishing else None)
+
+    def published_spread(self) -> float:
+        """The ``±`` a user reads, metres per SLAM unit: the estimator's own uncertainty and the
+        joint layout's prior for the biases no sample shows, in quadrature (docs/method.md, "The
+        two parts of the ±")."""
+        return self.scale * math.hypot(self.estimator.estimate().rel_sigma,
+                                       self.layout.sys_rel_sigma)
 
     def status(self, stamp_ns: int | None = None) -> Status:
         """A snapshot of the estimator at ``stamp_ns`` (default: the last frame's stamp)."""
@@ -154,7 +159,8 @@ class FrameLoop:
         plane = self.ground.plane(self.map)
         status = Status(
             stamp_ns=int(self._last_frame_ns if stamp_ns is None else stamp_ns),
-            converged=self.converged, scale=self.scale, spread=self.estimator.spread(),
+            converged=self.converged, scale=self.scale, spread=self.published_spread(),
+            spread_stat=self.estimator.spread(), publishing=self.estimator.publishing,
             samples=self.estimator.samples, frames=self.frames, people=self.people,
             map_hits=self.map_hits, ground_fallbacks=self.ground_fallbacks, resets=self.resets,
             rejected=dict(self.rejected), map_points=len(self.map) if self.map is not None else 0,
@@ -176,8 +182,12 @@ class FrameLoop:
             out['pose_zigzag'] = reason_text('pose_zigzag')
         if self.maps.degenerate:
             out['map_degenerate'] = self.maps.degenerate
-        if self.estimator.relocking:
-            out['relocking'] = reason_text('relocking')
+        estimator = self.estimator
+        for reason, holds in (('relocking', estimator.relocking),
+                              ('map_rescaled', estimator.map_rescaled),
+                              ('lagging', estimator.lagging), ('unverified', estimator.unverified)):
+            if holds:
+                out[reason] = reason_text(reason)
         if self.ground.floor_missing:
             out['floor_unknown'] = reason_text('floor_unknown')
         return out
@@ -236,7 +246,7 @@ class FrameLoop:
         # this stamp (a map is in use from its stamp on: its odometry and status see it too)
         while self._pending and self._pending[0].stamp_ns < pose.stamp_ns:
             out += self._process(self._pending.pop(0))
-        out += self._activate_map(pose.stamp_ns, pose.c_map)
+        out += self._activate_map(pose.stamp_ns, pose.R_wc, pose.c_map)
         out += self._odometry(pose)
         while self._pending and self._pending[0].stamp_ns <= pose.stamp_ns:
             out += self._process(self._pending.pop(0))
@@ -288,13 +298,15 @@ class FrameLoop:
         return out
 
     # ================================================================== frames
-    def _activate_map(self, stamp_ns: int, c_map: np.ndarray) -> list[Record]:
+    def _activate_map(self, stamp_ns: int, R_wc: np.ndarray, c_map: np.ndarray) -> list[Record]:
         """Make the latest map not after ``stamp_ns`` the current one (the processing order); a
         map that does not overlap the previous one is a SLAM re-initialisation; a plane map that
-        cannot be the floor is refused (hac_ros.core.map_shape; the camera at ``c_map`` (3,),
-        SLAM units), and a plane map in use is judged once the bodies give their axis. A new map
-        that overlaps is checked against the old one (:meth:`_map_rescaled`)."""
+        cannot be the floor is refused (hac_ros.core.map_shape; the camera ``R_wc`` (3, 3),
+        at ``c_map`` (3,), SLAM units), and a plane map in use is judged once the bodies give
+        their axis. A new map that overlaps is measured against the old one along the camera's
+        view (MapIndex.rescale_against): the estimator follows a map that changed its scale."""
         axis = self.ground.body_axis(PLANE_JUDGE_BODIES)
+        previous = self.map
 
         def problem(index: MapIndex, shape: MapShape) -> str:
             return plane_problem(shape, index.sample, c_map, axis)
@@ -305,40 +317,36 @@ class FrameLoop:
             why = plane_problem(self.maps.shape, self.map.sample, c_map, axis)
             if why:  # its samples measured a wall or the camera's own plane: dropped too
                 self.maps.refuse_in_use(why)
-                self.estimator.reset()
+                self.estimator.restart()
                 return self._reject('map_degenerate', stamp_ns, self.maps.degenerate +
                                     ' (refused)')
             if axis is not None:
                 self.maps.plane_judged()
+            else:  # until judged, converge only on a plane the first bodies take for the floor
+                rough = self.ground.body_axis()
+                self.estimator.may_converge = rough is not None and not plane_problem(
+                    self.maps.shape, self.map.sample, c_map, rough)
+        if not self.maps.plane_unjudged:
+            self.estimator.may_converge = True
         pose = self.track.last
-        if chosen is not None and not lost:
-            self.estimator.map_changed(self._map_rescaled(c_map))
+        current = self.map
+        if (chosen is not None and not lost and previous is not None and current is not None
+                and current is not previous):
+            measured = current.rescale_against(previous, c_map, R_wc[:, 2], self._cos_min,
+                                               self.params.cone_min_points)
+            factor = self.estimator.map_changed(stamp_ns, *(measured or (None,)))
+            if factor is not None:  # the samples before it were in the old unit (offline too)
+                self.services.rescale(factor)
+                notice = NoticeOut(stamp_ns, 'map_rescaled', f'the new map has another scale: '
+                                   f'the scale is now {factor:.4g} times what it was (the '
+                                   'estimate follows it)', 'info')
+                return [MapRescaleOut(stamp_ns, factor, previous.stamp_ns), notice]
         if chosen is None or not lost or pose is None:
             return []
         out = self._reset(pose, 'map_overlap', 'the new map does not overlap the previous one: '
                           'SLAM re-initialised')
         self.track.append(pose, None)  # the new segment starts at the last pose
         return out
-
-    def _map_rescaled(self, c_map: np.ndarray) -> bool:
-        """Whether the map just come into use has another scale than the one before it: the
-        camera's height above the map's floor (SLAM units) against its height above the old
-        map's floor at the last frame, off by more than the gate's relative floor (a SLAM that
-        re-initialised quietly: same frame, no pose jump). False without a floor in both."""
-        before, self._camera_height = self._camera_height, self._height_above_floor(c_map)
-        after = self._camera_height
-        if before is None or after is None:
-            return False
-        return abs(math.log(after / before)) > math.log1p(self.params.gate_min_rel)
-
-    def _height_above_floor(self, c_map: np.ndarray) -> float | None:
-        """The camera's height above the floor of the map in use, SLAM units (None: no floor, or
-        not below the camera)."""
-        plane = self.ground.plane(self.map) if self.ground.trusted else None
-        if plane is None:
-            return None
-        height = float(plane.offset - plane.normal @ c_map)
-        return height if height > 0.0 else None
 
     def _hand_map(self, stamp_ns: int) -> list[Record]:
         """The map in use to the metric stage (for /hac/cloud), at most once per
@@ -353,7 +361,7 @@ class FrameLoop:
         pose = self.track.at(stamp)
         if pose is None:
             return self._reject('no_pose', stamp)
-        out += self._activate_map(stamp, pose[1])
+        out += self._activate_map(stamp, *pose)
         out += self._hand_map(stamp)
         self._map_seen = self._map_seen or self.map is not None
         R_wc, c_map = pose
@@ -362,7 +370,6 @@ class FrameLoop:
         if not self.services.holding:  # frozen: nothing expires
             self.estimator.advance(stamp)
         self.check.view_map(stamp, self.map, R_wc, c_map, self._K, self._image_size)
-        self._camera_height = self._height_above_floor(c_map)
         if self.freeze.frame(self.track.frozen(stamp), frame.joints_cam):
             out += self._reject('slam_frozen', stamp)  # its pose is not the camera's
         else:
@@ -372,7 +379,7 @@ class FrameLoop:
         if self.journal is not None or self.published_scale(stamp) is not None:
             plane = self.ground.plane(self.map)
             out += self._metric(PendingFrame(stamp, self.segment, R_wc, c_map, frame.joints_cam,
-                                             self.estimator.spread(), plane))
+                                             self.published_spread(), plane))
         return out
 
     def _person(self, stamp: int, person: int, R_wc: np.ndarray, c_map: np.ndarray,
@@ -406,7 +413,7 @@ class FrameLoop:
         relock: list[Record] = notes
         if self.ground.judge_window(sample.floor_scale, scale_now, self.estimator.samples,
                                     self.params.min_samples, self.params.plausibility_rel_tol):
-            self.estimator.reset()  # it locked on what the floor now refuses: judged afresh
+            self.estimator.restart()  # it locked on what the floor now refuses: judged afresh
             relock.append(NoticeOut(stamp, 'floor_relock', 'the floor found in the map disagrees '
                                     'with the estimate (an occluder taken for the contact?): '
                                     'estimate restarted', 'warn'))
@@ -447,7 +454,7 @@ class FrameLoop:
                              self.maps.shape)
         if not (self.ground.down.along_up and self.estimator.samples):
             return []
-        self.estimator.reset()
+        self.estimator.restart()
         return [NoticeOut(stamp, 'down_found', 'down is along the bodies\' up axis (people on '
                           'their hands): the estimate restarted', 'info')]
 
@@ -460,8 +467,10 @@ class FrameLoop:
     def _odometry(self, pose: Pose) -> list[Record]:
         """Every accepted pose (the odometry integrates them all, also while a segment
         converges)."""
-        # the position's uncertainty comes from the estimate's own (MetricStage)
-        sigma_scale = self.estimator.spread()
+        # the position's uncertainty comes from the published ± (MetricStage); the evidence ages
+        if not self.services.holding:
+            self.estimator.advance(pose.stamp_ns)
+        sigma_scale = self.published_spread()
         share = sum(self._sources) / len(self._sources) if self._sources else 0.0
         plane = self.ground.plane(self.map)
         return self._metric(PendingOdometry(pose.stamp_ns, self.child_frame_id, self.segment,

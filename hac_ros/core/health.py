@@ -62,13 +62,17 @@ class Health:
 
 
 def headline(status: Status) -> str:
-    """The estimate in a few words: the scale and its spread, or how far convergence is."""
+    """The estimate in a few words: the scale and its ``±``, whether it converged and whether it
+    is published, or how far convergence is."""
     if status.converged:
         text = f'converged: scale {status.scale:.6g} +- {status.spread:.2g}'
+    elif status.publishing:
+        text = f'published, not converged: scale {status.scale:.6g} +- {status.spread:.2g}'
     else:
         text = f'not converged: {status.samples} samples'
-        if status.scale > 0.0 and math.isfinite(status.spread):  # its uncertainty, relative
-            text += f', scale {status.scale:.6g} +- {100.0 * status.spread / status.scale:.2g} %'
+        if status.scale > 0.0 and math.isfinite(status.spread_stat):  # its own, relative
+            text += (f', scale {status.scale:.6g} +- '
+                     f'{100.0 * status.spread_stat / status.scale:.2g} %')
     return text + (' (frozen)' if status.frozen else '')
 
 

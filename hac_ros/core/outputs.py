@@ -95,7 +95,9 @@ class Status:
     stamp_ns: int
     converged: bool
     scale: float  # NaN before any sample
-    spread: float  # the estimate's own standard deviation (its ±), metres per SLAM unit; inf early
+    # the ± a user reads: the estimate's own standard deviation and the layout's prior for the
+    # biases no sample shows, in quadrature, metres per SLAM unit; inf early
+    spread: float
     samples: int
     frames: int
     people: int
@@ -119,6 +121,8 @@ class Status:
     conditions: dict[str, str] = field(default_factory=dict)
     # how frames found their SLAM pose: 'exact' (within sync_slop_s), 'interpolated'
     pose_matches: dict[str, int] = field(default_factory=dict)
+    spread_stat: float = float('nan')  # the estimate's own standard deviation (σ_stat), same unit
+    publishing: bool = False  # metric outputs flow: from the segment's first convergence on
 
     @property
     def fallback_rate(self) -> float:
@@ -144,6 +148,18 @@ class ResetOut:
 
 
 @dataclass(slots=True)
+class MapRescaleOut:
+    """A new map came into use with another scale than the map before it (the map's own word:
+    hac_ros.core.reference.MapIndex.rescale_against): the scale is ``factor`` times what it was
+    (new over old, metres per SLAM unit); the samples before it were measured in the old unit.
+    ``since_ns``: the stamp of the map it replaced (the change came about in between)."""
+
+    stamp_ns: int
+    factor: float
+    since_ns: int
+
+
+@dataclass(slots=True)
 class NoticeOut:
     """Something a human should read once: the first rejection of each cause, a reset, a relock.
 
@@ -158,4 +174,4 @@ class NoticeOut:
 
 
 Output = (OdometryOut | PoseOut | CloudOut | HumanJointsOut | ScaleOut | SampleOut | DiagnosticsOut
-          | ResetOut | NoticeOut)
+          | ResetOut | MapRescaleOut | NoticeOut)

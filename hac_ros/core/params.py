@@ -103,12 +103,14 @@ class HacParams:
     # --- estimator
     window_s: float = _p(30.0, 'rolling window length, stamp seconds', low=0.1, high=1e6)
     window_max_samples: int = _p(2000, 'cap of samples in the window', low=1, high=10_000_000)
-    min_samples: int = _p(10, 'samples in the window before anything metric is published',
-                          low=1, high=100_000)
-    converged_max_rel_sigma: float = _p(0.01, 'converged once the estimate\'s own relative '
+    min_samples: int = _p(10, 'samples a segment needs to converge online (nothing metric is '
+                          'published before); offline a segment with fewer but at least 3 gets '
+                          'its estimate, flagged "few samples"', low=1, high=100_000)
+    converged_max_rel_sigma: float = _p(0.02, 'converged once the estimate\'s own relative '
                                         'uncertainty (1 sigma, the unobservable HMR and '
                                         'contact-height biases excluded) is under this, with '
-                                        'min_samples samples', low=1e-6, high=10.0)
+                                        'min_samples samples; no longer above twice this',
+                                        low=1e-6, high=10.0)
 
     # --- synchronisation
     sync_slop_s: float = _p(0.005, 'joints/pose stamp match tolerance, seconds', low=0.0, high=10.0)

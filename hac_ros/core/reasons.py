@@ -214,10 +214,24 @@ REASONS: dict[str, Reason] = {
         'it (a table top or a step could pass for it)',
         remedy='keep some of the floor in the SLAM\'s map; none while it is being mapped'),
     'relocking': Reason(
-        CONDITION, 'gated samples in a row disagree with the estimate, or a new map\'s floor says '
-        'it has another scale (a SLAM that re-initialised without a pose jump?): re-locking on '
-        'the samples once they hold', remedy='none: it re-locks by itself (docs/method.md, '
-        '"The estimator")'),
+        CONDITION, 'gated samples in a row say the scale changed (they began after a new map '
+        'changed its scale, while the estimate was unverified or lagging, or they last '
+        'seconds): re-locking on them once they hold; the ± covers the gap',
+        remedy='none: it re-locks by itself (docs/method.md, "The estimator")'),
+    'map_rescaled': Reason(
+        CONDITION, 'the SLAM\'s last new map has another scale than the one before (a quiet '
+        're-initialisation, a scale that slips): the estimate follows it; the ± covers the step '
+        'until a map holds still', remedy='none: the estimate follows the map by itself; if it '
+        'lasts, the SLAM\'s scale is unstable (relocalise it, or map slower)'),
+    'lagging': Reason(
+        CONDITION, 'the latest samples disagree with the estimate: the scale changes faster than '
+        'the estimate follows; the ± covers the gap',
+        remedy='none: it catches up by itself; if it lasts, the SLAM\'s scale is unstable'),
+    'unverified': Reason(
+        CONDITION, 'no sample has checked the estimate for a while (nobody measuring in view, '
+        'empty joints frames, a joints gap): it is carried on and its ± grows with the drift '
+        'the estimator allows', remedy='people standing in full view, feet visible; check that '
+        'the joints reach the node (joints_topic)'),
     # ------------------------------------------------------------ the core's findings
     'not_converged': Reason(STATUS, 'not converged: fewer than min_samples samples, or the '
                             'estimate\'s own uncertainty above converged_max_rel_sigma',

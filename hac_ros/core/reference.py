@@ -45,6 +45,13 @@ PLANE_RADIUS_REL = 0.08  # ... within this fraction of the hit's distance from t
 PLANE_MIN_POINTS = 6
 PLANE_MAX_SHIFT_REL = 0.25  # the plane's intersection is used within this fraction of the median
 OVERLAP_DISTANCE_REL = 0.02  # a point overlaps when this close (fraction of the old map's extent)
+# a new map's scale against the previous one's (MapIndex.rescale_against): rays from the camera
+# through RESCALE_RAYS of its points in view (within RESCALE_VIEW_DEG of the optical axis), each
+# queried in both maps within RESCALE_WINDOW times the new map's distance; RESCALE_MIN_RAYS hits
+RESCALE_RAYS = 32
+RESCALE_VIEW_DEG = 30.0
+RESCALE_WINDOW = 3.0
+RESCALE_MIN_RAYS = 16
 
 
 @dataclass
@@ -133,6 +140,48 @@ class MapIndex:
         radius = OVERLAP_DISTANCE_REL * old.extent
         dist, _ = old.tree.query(sample, k=1, distance_upper_bound=radius)
         return float(np.mean(np.isfinite(dist)))
+
+    def rescale_against(self, old: MapIndex, camera_map: np.ndarray, axis_map: np.ndarray,
+                        cos_min: float, min_points: int) -> tuple[float, float] | None:
+        """How much larger this map is than ``old`` about the camera at ``camera_map`` (3,),
+        SLAM units, looking along the unit ``axis_map`` (3,) (its optical axis, map frame): the
+        median over rays of the ratio of the cone medians (``cos_min``,
+        ``min_points``, as the samples query them) of this map and of ``old`` along each ray, and
+        its standard error (relative, 1.2533 × 1.4826 MAD / sqrt(rays)); None with fewer than
+        RESCALE_MIN_RAYS rays that hit both. A SLAM that rescaled its map (a quiet
+        re-initialisation, a scale that slips) by ρ makes the same metric distance ρ times as
+        many SLAM units: its scale (metres per SLAM unit) is the old one divided by ρ.
+
+        The rays go through RESCALE_RAYS points (evenly strided) of this map's sample within
+        RESCALE_VIEW_DEG of the axis: the map the camera sees, which its tracking keeps at the
+        scale of the moment and its people are measured against; each is queried within
+        RESCALE_WINDOW times its distance either way."""
+        if old.tree is None or self.tree is None or len(self.sample) == 0:
+            return None
+        c = np.asarray(camera_map, dtype=np.float64)
+        offsets = self.sample - c
+        distance = np.sqrt(np.einsum('ij,ij->i', offsets, offsets))
+        with np.errstate(invalid='ignore', divide='ignore'):
+            in_view = offsets @ np.asarray(axis_map, dtype=np.float64) > (
+                math.cos(math.radians(RESCALE_VIEW_DEG)) * distance)
+        seen = np.flatnonzero(in_view & (distance > 0.0))
+        picked = seen[::max(1, len(seen) // RESCALE_RAYS)][:RESCALE_RAYS]
+        ratios = []
+        for i in picked:
+            d = offsets[i] / distance[i]
+            window = (distance[i] / RESCALE_WINDOW, distance[i] * RESCALE_WINDOW)
+            new = self.query(c, d, mode='cone_median', cos_min=cos_min, min_points=min_points,
+                             window=window)
+            was = old.query(c, d, mode='cone_median', cos_min=cos_min, min_points=min_points,
+                            window=window)
+            if new is not None and was is not None and was.distance > 0.0:
+                ratios.append(new.distance / was.distance)
+        if len(ratios) < RESCALE_MIN_RAYS:
+            return None
+        logs = np.log(ratios)
+        centre = float(np.median(logs))
+        error = 1.2533 * 1.4826 * float(np.median(np.abs(logs - centre))) / math.sqrt(len(logs))
+        return math.exp(centre), error
 
     def floor_offset(self, normal: np.ndarray) -> float:
         """The floor's offset along the down-pointing unit ``normal`` (map frame), SLAM units:

@@ -156,17 +156,25 @@ class LogScaleFilter:
         self.p_lr, self.rate, self.p_rr = 0.0, 0.0, DRIFT_RATE_PRIOR ** 2
         self._frame_ns = int(stamps[-1])
 
-    def mean_variance(self, count: int, span_s: float) -> float:
-        """The variance of the mean of ``count`` samples over ``span_s`` seconds about a constant
-        level, under the noise measured about one (``level_noise``): max(σ² / n, N² / span)
-        (log²; σ² for samples of one stamp, ∞ without a noise). A drift the constant level
-        ignores shows in that noise, so a window that drifts is not said to be precise."""
+    def mean_variance(self, count: float, span_s: float) -> float:
+        """The variance of the mean of ``count`` samples covering ``span_s`` seconds of stamp
+        time about a constant level, under the noise measured about one (``level_noise``):
+        max(σ² / n, N² / span) (log²; σ² for samples of one stamp, ∞ without a noise). A drift
+        the constant level ignores shows in that noise, so a window that drifts is not said to be
+        precise."""
         noise = self.level_noise
         if noise is None or count <= 0:
             return math.inf
         if span_s <= 0.0:
             return noise.sigma2
         return max(noise.sigma2 / count, noise.density / span_s)
+
+    def shift(self, log_factor: float) -> None:
+        """The level and every sample of the history moved by ``log_factor`` (natural log: the
+        map the samples were measured against changed its scale)."""
+        self.level += log_factor
+        self._history = deque(((s, y + log_factor) for s, y in self._history),
+                              maxlen=self._history.maxlen)
 
     def predict(self, stamp_ns: int) -> None:
         """Carry the state to ``stamp_ns`` (no-op for an older stamp)."""
@@ -181,9 +189,13 @@ class LogScaleFilter:
         self.p_rr += q_rr
         self.stamp_ns = int(stamp_ns)
 
-    def update(self, stamp_ns: int, log_scale: float, centre: float) -> None:
-        """One sample (stamp ns, natural log of the scale) after :meth:`start`; ``centre``: the
-        constant level the ``level_noise`` is measured about (the window's median, log)."""
+    def noise_due(self, stamp_ns: int) -> bool:
+        """Whether the noise is due to be measured again at ``stamp_ns`` (NOISE_REFRESH_NS of
+        stamp time after the last time): the caller then calls :meth:`measure_noise`."""
+        return self._noise_ns is not None and stamp_ns - self._noise_ns >= NOISE_REFRESH_NS
+
+    def update(self, stamp_ns: int, log_scale: float) -> None:
+        """One sample (stamp ns, natural log of the scale) after :meth:`start`."""
         if self.stamp_ns is None or self.noise is None:
             raise RuntimeError('LogScaleFilter.update before start')
         if stamp_ns != self._frame_ns:  # a new frame: the stamp time since the previous one
@@ -191,8 +203,6 @@ class LogScaleFilter:
             self._frame_ns = int(stamp_ns)
         self._history.append((int(stamp_ns), float(log_scale)))
         self.predict(stamp_ns)
-        if stamp_ns - (self._noise_ns or stamp_ns) >= NOISE_REFRESH_NS:
-            self._measure_noise(stamp_ns, centre)
         noise = self.noise
         r = noise.sigma2 if self._frame_gap_s <= 0.0 else max(
             noise.sigma2, noise.density / self._frame_gap_s)
@@ -210,9 +220,9 @@ class LogScaleFilter:
         self.p_lr = p_lr - k_l * p_lr
         self.p_rr = p_rr - k_r * p_lr
 
-    def _measure_noise(self, stamp_ns: int, centre: float) -> None:
+    def measure_noise(self, stamp_ns: int, centre: float) -> None:
         """The noise of the history's samples about the filter's line (level and rate now), and
-        about the constant level ``centre`` (log)."""
+        about the constant level ``centre`` (log: the window's median)."""
         self._noise_ns = int(stamp_ns)
         while self._history and self._history[0][0] < stamp_ns - self.history_ns:
             self._history.popleft()

@@ -38,6 +38,11 @@ class ServiceRequests:
         frozen, or while a released window converges."""
         return self.held if self.holding or estimate is None else estimate
 
+    def rescale(self, factor: float) -> None:
+        """The map changed its scale: a held scale follows it (``factor``: new over old)."""
+        if self.held is not None:
+            self.held *= factor
+
     def clear(self) -> None:
         """A new segment: a held scale belongs to the old one."""
         self.held, self.holding = None, False

@@ -48,7 +48,7 @@ from hac_ros.bridge.messages import (
 from hac_ros.core.calibrator import Calibrator
 from hac_ros.core.errors import ArgumentError
 from hac_ros.core.numeric import NS
-from hac_ros.core.offline import OfflineScale, SegmentScale, resolve_offline
+from hac_ros.core.offline import OfflineScale, resolve_offline
 from hac_ros.core.outputs import (
     DiagnosticsOut,
     NoticeOut,
@@ -63,6 +63,7 @@ from hac_ros.core.params import HacParams
 from hac_ros.core.printable import printable
 from hac_ros.core.reasons import refusals_behind
 from hac_ros.core.reasons import text as reason_text
+from hac_ros.core.segment import SegmentScale, drift_text
 from hac_ros.core.status_shares import StatusShares
 from hac_ros.files.tum import write_tum_exports
 from hac_ros.recording.atomic import staged_output
@@ -154,16 +155,20 @@ class NoticeLog:
 
 
 def segment_text(segment: SegmentScale, min_samples: int) -> str:
-    """An offline segment for the summary: its samples, its scale and that scale's standard error,
-    and the drift test's probability (docs/replay.md, "The two modes")."""
+    """An offline segment for the summary: its samples (few: fewer than ``min_samples``), its
+    scale and that scale's standard error, its shape, and the drift test's probability (never
+    rounded up to 1: docs/replay.md, "The two modes")."""
     if not math.isfinite(segment.median):
-        return f'{segment.samples} samples: too few (min_samples {min_samples}), no estimate'
+        return f'{segment.samples} samples: too few (at least 3), no estimate'
+    few = f' (few samples: fewer than min_samples {min_samples})' if segment.few else ''
     kind = 'constant: median'
     if segment.drift:
         lo, hi = float(np.min(segment.knots_scale)), float(np.max(segment.knots_scale))
-        kind = f'drifting: smoothed {lo:.6g} .. {hi:.6g}'
-    return (f'{segment.samples} samples, median {segment.median:.6g} +- {segment.error:.2g}, '
-            f'{kind} (drift test: drift probability {segment.drift_probability:.2f})')
+        kind = (f'{"following its shape" if segment.shape else "drifting: smoothed"} '
+                f'{lo:.6g} .. {hi:.6g}')
+    return (f'{segment.samples} samples{few}, median {segment.median:.6g} +- '
+            f'{segment.error:.2g}, {kind} (drift test: drift probability '
+            f'{drift_text(segment.drift_probability)})')
 
 
 def _seconds(stamp_ns: int, start_ns: int) -> str:

@@ -109,7 +109,8 @@ def status_from_diagnostics(values: dict[str, str], stamp_ns: int) -> Status:
                   scale=number('scale'), spread=number('spread'), samples=count('samples'),
                   frames=count('frames'), people=count('people'), map_hits=count('map_hits'),
                   ground_fallbacks=count('ground_fallbacks'), resets=count('resets'),
-                  rejected=rejected, map_points=count('map_points'))
+                  rejected=rejected, map_points=count('map_points'),
+                  spread_stat=number('spread_stat'), publishing=values.get('publishing') == 'true')
 
 
 def stamp_time_status(msg: Any) -> bool:

@@ -132,8 +132,9 @@ class Story:
             state = 'no status yet (no SLAM pose processed)' if self._first else 'no input yet'
         else:
             level = LEVEL_NAMES.get(health.level, str(health.level))
-            estimate = (f'scale {s.scale:.6g} +- {s.spread:.2g}' if s.converged
-                        else 'not converged')
+            estimate = (f'scale {s.scale:.6g} +- {s.spread:.2g}'
+                        + ('' if s.converged else ' (published, not converged)')
+                        if s.publishing else 'not converged')
             reasons = f' ({", ".join(health.reasons)})' if health.reasons else ''
             state = f'{level}{reasons}: {estimate}, {s.samples} samples'
         return f'status {state}; {frames}{poses_text}'

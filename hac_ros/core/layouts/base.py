@@ -3,6 +3,7 @@ the check every built-in layout passes when it is registered. Pure Python and nu
 """
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
@@ -20,6 +21,18 @@ SMPL24_JOINTS = 24  # the simulator's bodies
 # (between SMPL's bare 7 cm and that). Used by the layouts whose contacts are ankles.
 SHOD_ANKLE_REL = 0.11
 
+# The biases no sample shows (docs/method.md, "The two parts of the ±"), each a relative standard
+# deviation of the scale, fixed from figures outside the bench:
+# - the person's size against the size the HMR model gives them: a model places a person too near
+#   or too far by as much as their stature differs from it, and adult stature varies by 4.3 %
+#   within a sex (NHANES 2015-2018: men 175.4 +- 7.6 cm, women 161.7 +- 7.1 cm);
+# - the contact joint's height above the sole: shoes and gait move it by about 1 cm between people
+#   (the CMU walks' lowest joints stand 3.8-5.6 cm above the floor at their medians), 0.6 % of the
+#   scale seen from a camera 1.5 m above the floor.
+STATURE_REL_SIGMA = 0.043
+CONTACT_HEIGHT_REL_SIGMA = 0.006
+SYS_REL_SIGMA = math.hypot(STATURE_REL_SIGMA, CONTACT_HEIGHT_REL_SIGMA)
+
 
 @dataclass(frozen=True)
 class JointLayout:
@@ -33,6 +46,10 @@ class JointLayout:
     ((hip, knee, ankle) triples: the leg length), ``sole_height_rel`` (a contact joint's height
     above the sole or palm as a fraction of the longer leg's thigh plus shank; joints not in it
     sit on the surface) and ``edges`` (the skeleton's bones, for markers).
+
+    ``sys_rel_sigma``: the prior relative standard deviation of the biases no sample shows for
+    a model that writes this layout (its size prior, its contact's height), part of the ``±`` a
+    user reads (:data:`SYS_REL_SIGMA` unless the layout says otherwise).
 
     Read elsewhere: ``joint_names`` (docs, files), ``written_by`` (docs/inputs.md's table of
     layouts: the models that write it) and ``sim_placement`` (one :data:`SimPlacement` per joint:
@@ -54,6 +71,7 @@ class JointLayout:
     joint_names: tuple[str, ...] = ()
     written_by: str = ''
     sim_placement: tuple[SimPlacement, ...] = ()
+    sys_rel_sigma: float = SYS_REL_SIGMA
 
     def fixed_joints(self, mode: str) -> tuple[int, ...] | None:
         """The joints of a fixed-joint contact mode (``feet``, ``pelvis``, ``head``), else None."""
