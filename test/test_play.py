@@ -238,16 +238,18 @@ def test_a_signal_stops_the_play_cleanly(walk_bag, sig):
 
 @pytest.mark.slow
 def test_demo_live_gives_the_online_replays_final_scale(tmp_path):
-    """``hac demo --live``: hac_node (a process) fed bags/demo_walk by hac play at 4x real time;
-    the final scale it prints equals ``hac replay --mode online``'s within 0.5 % (the node uses a
-    new map from the first frame after it is indexed, the replay at its stamp)."""
+    """``hac demo --live``: hac_node (a process) fed bags/demo_walk by hac play at real time (at
+    4x a loaded machine could not keep up: the node dropped frames, as it should, and the test
+    depended on the machine's speed); the final scale it prints equals ``hac replay --mode
+    online``'s within 0.5 % (the node uses a new map from the first frame after it is indexed,
+    the replay at its stamp)."""
     import re
 
     from hac_ros.replay.replayer import replay
 
     source = REPO / 'bags' / 'demo_walk'
     online = replay(source, tmp_path / 'online', mode='online')
-    process = hac('demo', '--live', '--rate', '4')
+    process = hac('demo', '--live', '--rate', '1')
     out, err = process.communicate(timeout=300)
     assert process.returncode == 0, out + err
     found = re.search(r'final scale ([0-9.eE+-]+) m/SLAM unit', out)

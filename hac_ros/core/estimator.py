@@ -3,8 +3,8 @@ state-space filter on the log scale that says whether, and how fast, the scale d
 checks that say whether the evidence still backs the estimate (docs/method.md, "The estimator").
 
 **The window.** The per-frame scales of the latest ``window_s`` stamp seconds of samples (at most
-``window_max_samples``), each weighing the stamp time it covers (since the previous sampled frame,
-at most WEIGHT_CAP_S: a burst of repeated frames counts for the time it spans), kept sorted
+``window_max_samples``), each weighing the stamp time it covers (hac_ros.core.stamp_weights: a
+burst of repeated frames counts for the time it spans), kept sorted
 (:class:`hac_ros.core.sorted_window.SortedWindow`): their weighted median is the robust level while
 the scale holds still, and the gate's reference: once the window holds ``min_samples``, a sample
 further than ``gate_k`` robust sigmas from it (and than ``gate_min_rel`` of it) is gated out. The
@@ -58,17 +58,15 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from hac_ros.core.numeric import MAD_TO_SIGMA, MEDIAN_STD_ERROR, NS
-from hac_ros.core.scale_filter import DRIFT_RATE_PRIOR, NOISE_CORRELATION_S, LogScaleFilter, Noise
+from hac_ros.core.scale_filter import DRIFT_RATE_PRIOR, LogScaleFilter, Noise
 from hac_ros.core.sorted_window import SortedWindow
+from hac_ros.core.stamp_weights import WEIGHT_MIN_S, sample_weight
 
 if TYPE_CHECKING:
     from hac_ros.core.params import HacParams
 
 DRIFT_EVIDENCE = 0.999  # the drift probability above which the scale is said to drift
 LOSE_FACTOR = 2.0  # converged below converged_max_rel_sigma, no longer above this many times it
-WEIGHT_CAP_S = NOISE_CORRELATION_S  # a sample weighs the stamp time it covers, at most this, ...
-WEIGHT_MIN_S = 1e-3  # ... at least this (a stream's first sample), ...
-WEIGHT_QUANTUM_S = 1e-4  # ... in steps of this (a stream's jitter of a nanosecond weighs alike)
 STALE_RATE = DRIFT_RATE_PRIOR  # the drift (log, per second) allowed while no sample checks it
 RELOCK_WARN_SAMPLES = 3  # a gated run this long ...
 RELOCK_WARN_S = 3.0  # ... and this long in stamp time says the scale changed (a stair is shorter)
@@ -460,12 +458,6 @@ class RollingScale:
         self._frame_ns = run[-1][0]
         self.filter.start([s for s, _, _ in run], [math.log(v) for _, v, _ in run])
         self._changed()
-
-
-def sample_weight(gap_s: float) -> float:
-    """The weight of a sample whose frame covers ``gap_s`` seconds of stamp time (module
-    docstring): clipped to [WEIGHT_MIN_S, WEIGHT_CAP_S], rounded to WEIGHT_QUANTUM_S."""
-    return round(min(max(gap_s, WEIGHT_MIN_S), WEIGHT_CAP_S) / WEIGHT_QUANTUM_S) * WEIGHT_QUANTUM_S
 
 
 def sequence_scale(samples: np.ndarray) -> float:

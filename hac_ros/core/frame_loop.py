@@ -332,8 +332,7 @@ class FrameLoop:
         current = self.map
         if (chosen is not None and not lost and previous is not None and current is not None
                 and current is not previous):
-            measured = current.rescale_against(previous, c_map, R_wc[:, 2], self._cos_min,
-                                               self.params.cone_min_points)
+            measured = current.rescale_against(previous, c_map, R_wc[:, 2])
             factor = self.estimator.map_changed(stamp_ns, *(measured or (None,)))
             if factor is not None:  # the samples before it were in the old unit (offline too)
                 self.services.rescale(factor)

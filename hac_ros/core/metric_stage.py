@@ -135,8 +135,8 @@ class MetricStage:
                 final_planes: dict[int, Plane | None] | None = None) -> list[Output]:
         """The outputs of ``records``, each metric record replaced by its output(s), in order.
 
-        error_at: stamp -> standard error of that scale (metres per SLAM unit), for the
-        covariances; None: the online estimate's, recorded in each pending odometry.
+        error_at: stamp -> the ``±`` of that scale (metres per SLAM unit), for the covariances
+        and /hac/scale's spread; None: the online one, recorded in each pending record.
         final_planes: segment -> its final ground plane (offline: one alignment per segment).
         """
         if final_planes is not None:
@@ -161,7 +161,8 @@ class MetricStage:
             sigma = pending.sigma_scale if error_at is None else error_at(pending.stamp_ns)
             return self._pose(pending, finite_scale(scale_at(pending.stamp_ns)), sigma)
         if isinstance(pending, PendingFrame):
-            return self._frame(pending, finite_scale(scale_at(pending.stamp_ns)))
+            spread = pending.spread if error_at is None else error_at(pending.stamp_ns)
+            return self._frame(pending, finite_scale(scale_at(pending.stamp_ns)), spread)
         if isinstance(pending, PendingSegment):
             self._new_segment(pending)
             return []
@@ -289,7 +290,7 @@ class MetricStage:
         return out
 
     # ------------------------------------------------------------------ frames
-    def _frame(self, pending: PendingFrame, scale: float | None) -> list[Output]:
+    def _frame(self, pending: PendingFrame, scale: float | None, spread: float) -> list[Output]:
         if scale is None or pending.segment not in self.segments:
             return []
         placed, notices = self.alignment(pending.segment, pending.plane)
@@ -299,7 +300,7 @@ class MetricStage:
         if self.humans is not None:
             joints = self.humans.update(pending.stamp_ns, joints)
         out += [HumanJointsOut(pending.stamp_ns, joints),
-                ScaleOut(pending.stamp_ns, scale, pending.spread)]
+                ScaleOut(pending.stamp_ns, scale, spread)]
         return out + self._cloud(pending.stamp_ns, scale, placed)
 
     def _cloud(self, stamp_ns: int, scale: float, placed: Alignment) -> list[Output]:

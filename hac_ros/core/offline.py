@@ -18,6 +18,7 @@ Pure numpy: no ROS. Stamps are int nanoseconds; scales are metres per SLAM unit.
 from __future__ import annotations
 
 import bisect
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
@@ -150,7 +151,11 @@ def resolve_offline(calibrator: Calibrator, scale_at: ScaleAt | None = None,
         schedule = offline_scale(np.array([s.stamp_ns for s in samples], dtype=np.int64),
                                  np.array([s.scale for s in samples]), resets, params.window_s,
                                  params.min_samples, rescales)
-        scale_at, error_at = schedule, schedule.error
+        sys_rel = calibrator.layout.sys_rel_sigma  # the published ±: the biases' prior too
+
+        def published_error(stamp_ns: int) -> float:
+            return math.hypot(schedule.error(stamp_ns), sys_rel * schedule(stamp_ns))
+        scale_at, error_at = schedule, published_error
     # a stage of its own, without the online filter of the humans (smoothed below instead)
     stage = MetricStage(calibrator.metric.config)
     outputs = stage.resolve(records, scale_at, error_at, final_planes(records))

@@ -45,13 +45,20 @@ PLANE_RADIUS_REL = 0.08  # ... within this fraction of the hit's distance from t
 PLANE_MIN_POINTS = 6
 PLANE_MAX_SHIFT_REL = 0.25  # the plane's intersection is used within this fraction of the median
 OVERLAP_DISTANCE_REL = 0.02  # a point overlaps when this close (fraction of the old map's extent)
-# a new map's scale against the previous one's (MapIndex.rescale_against): rays from the camera
-# through RESCALE_RAYS of its points in view (within RESCALE_VIEW_DEG of the optical axis), each
-# queried in both maps within RESCALE_WINDOW times the new map's distance; RESCALE_MIN_RAYS hits
-RESCALE_RAYS = 32
+# a new map's scale against the previous one's (MapIndex.rescale_against): RESCALE_POINTS of its
+# points in view (within RESCALE_VIEW_DEG of the optical axis) scaled about the camera until they
+# lie on the old map: the factor whose scaled points are nearest the old map's (their distance
+# relative to their range, capped at RESCALE_CAP_REL), searched on a log grid of RESCALE_STEPS
+# within RESCALE_RANGE either way, refined on RESCALE_STEPS about the best until RESCALE_LEVELS
+# grids, and a parabola through the last three; at least RESCALE_MIN_POINTS points, and a fit
+# that beats the unscaled points' (else no word)
+RESCALE_POINTS = 128
 RESCALE_VIEW_DEG = 30.0
-RESCALE_WINDOW = 3.0
-RESCALE_MIN_RAYS = 16
+RESCALE_CAP_REL = 0.02
+RESCALE_STEPS = 9
+RESCALE_LEVELS = 4  # the last grid's step: 0.4 %
+RESCALE_RANGE = 3.0
+RESCALE_MIN_POINTS = 32
 
 
 @dataclass
@@ -141,22 +148,23 @@ class MapIndex:
         dist, _ = old.tree.query(sample, k=1, distance_upper_bound=radius)
         return float(np.mean(np.isfinite(dist)))
 
-    def rescale_against(self, old: MapIndex, camera_map: np.ndarray, axis_map: np.ndarray,
-                        cos_min: float, min_points: int) -> tuple[float, float] | None:
-        """How much larger this map is than ``old`` about the camera at ``camera_map`` (3,),
-        SLAM units, looking along the unit ``axis_map`` (3,) (its optical axis, map frame): the
-        median over rays of the ratio of the cone medians (``cos_min``,
-        ``min_points``, as the samples query them) of this map and of ``old`` along each ray, and
-        its standard error (relative, 1.2533 × 1.4826 MAD / sqrt(rays)); None with fewer than
-        RESCALE_MIN_RAYS rays that hit both. A SLAM that rescaled its map (a quiet
-        re-initialisation, a scale that slips) by ρ makes the same metric distance ρ times as
-        many SLAM units: its scale (metres per SLAM unit) is the old one divided by ρ.
+    def rescale_against(self, old: MapIndex, camera_map: np.ndarray, axis_map: np.ndarray
+                        ) -> tuple[float, float] | None:
+        """How many times larger this map is than ``old`` about the camera at ``camera_map`` (3,),
+        SLAM units, looking along the unit ``axis_map`` (3,) (its optical axis, map frame), and
+        the standard error of that factor (relative); None when the maps do not say (too few
+        points in view, no overlap). A SLAM that rescaled its map (a quiet re-initialisation, a
+        scale that slips) by ρ makes the same metric distance ρ times as many SLAM units: its
+        scale (metres per SLAM unit) is the old one divided by ρ.
 
-        The rays go through RESCALE_RAYS points (evenly strided) of this map's sample within
-        RESCALE_VIEW_DEG of the axis: the map the camera sees, which its tracking keeps at the
-        scale of the moment and its people are measured against; each is queried within
-        RESCALE_WINDOW times its distance either way."""
-        if old.tree is None or self.tree is None or len(self.sample) == 0:
+        RESCALE_POINTS of this map's points in view (the map the camera sees, which its tracking
+        keeps at the scale of the moment and its people are measured against) are scaled about
+        the camera by 1/ρ for each ρ of a log grid, and each ρ scored by the points' distances to
+        ``old``'s nearest points, relative to their range and capped (a robust fit that a map
+        grown denser or wider does not bias); the grid is refined about the best. The error is
+        half the difference of the fits of the points' two halves (at least half the finest
+        grid's step), the factor the geometric mean of theirs."""
+        if old.tree is None or self.size == 0:
             return None
         c = np.asarray(camera_map, dtype=np.float64)
         offsets = self.sample - c
@@ -165,23 +173,39 @@ class MapIndex:
             in_view = offsets @ np.asarray(axis_map, dtype=np.float64) > (
                 math.cos(math.radians(RESCALE_VIEW_DEG)) * distance)
         seen = np.flatnonzero(in_view & (distance > 0.0))
-        picked = seen[::max(1, len(seen) // RESCALE_RAYS)][:RESCALE_RAYS]
-        ratios = []
-        for i in picked:
-            d = offsets[i] / distance[i]
-            window = (distance[i] / RESCALE_WINDOW, distance[i] * RESCALE_WINDOW)
-            new = self.query(c, d, mode='cone_median', cos_min=cos_min, min_points=min_points,
-                             window=window)
-            was = old.query(c, d, mode='cone_median', cos_min=cos_min, min_points=min_points,
-                            window=window)
-            if new is not None and was is not None and was.distance > 0.0:
-                ratios.append(new.distance / was.distance)
-        if len(ratios) < RESCALE_MIN_RAYS:
+        picked = seen[::max(1, len(seen) // RESCALE_POINTS)][:RESCALE_POINTS]
+        if len(picked) < RESCALE_MIN_POINTS:
             return None
-        logs = np.log(ratios)
-        centre = float(np.median(logs))
-        error = 1.2533 * 1.4826 * float(np.median(np.abs(logs - centre))) / math.sqrt(len(logs))
-        return math.exp(centre), error
+        rays, ranges = offsets[picked], distance[picked]
+
+        def cost(ratios: np.ndarray, which: slice = slice(None)) -> np.ndarray:
+            """(R,) the mean capped relative distance of the points scaled by 1 / each ratio."""
+            scaled = c + rays[which][None, :, :] / ratios[:, None, None]
+            gaps, _ = old.tree.query(scaled.reshape(-1, 3), k=1)  # type: ignore[union-attr]
+            relative = gaps.reshape(len(ratios), -1) * ratios[:, None] / ranges[which][None, :]
+            return np.minimum(relative, RESCALE_CAP_REL).mean(axis=1)
+
+        def fit(which: slice = slice(None)) -> tuple[float, float, float]:
+            """(ratio, its cost, the last grid's step in log)."""
+            centre, half = 0.0, math.log(RESCALE_RANGE)
+            for _ in range(RESCALE_LEVELS):  # the grid, then about its best
+                logs = centre + np.linspace(-half, half, RESCALE_STEPS)
+                scores = cost(np.exp(logs), which)
+                k = int(np.argmin(scores))
+                centre, half = float(logs[k]), 2.0 * half / (RESCALE_STEPS - 1)
+            step = half
+            if 0 < k < RESCALE_STEPS - 1:  # a parabola through the best and its neighbours
+                a, b, c3 = scores[k - 1], scores[k], scores[k + 1]
+                curvature = a - 2.0 * b + c3
+                if curvature > 0.0:
+                    centre += 0.5 * step * (a - c3) / curvature
+            return math.exp(centre), float(scores[k]), step
+        (even, even_cost, step), (odd, odd_cost, _) = fit(slice(0, None, 2)), fit(slice(1, None, 2))
+        ratio = math.sqrt(even * odd)
+        if not 0.5 * (even_cost + odd_cost) < float(cost(np.array([1.0]))[0]) and (
+                abs(math.log(ratio)) > step):
+            return None  # the scaled points fit no better than the points as they are
+        return ratio, max(0.5 * abs(math.log(even / odd)), 0.5 * step)
 
     def floor_offset(self, normal: np.ndarray) -> float:
         """The floor's offset along the down-pointing unit ``normal`` (map frame), SLAM units:

@@ -37,6 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from hac_ros.core.numeric import MAD_TO_SIGMA, NS
+from hac_ros.core.stamp_weights import stamp_weights, weighted_median
 
 # The prior on drift. A monocular SLAM's scale drifts as it maps new ground; 40 % in 90 s
 # (bench/accuracy.py's `drift`) is about the fastest worth following, ln(1.4) / 90 s per second.
@@ -69,7 +70,10 @@ class Noise:
 
 def noise_density(stamps_ns: np.ndarray, residuals: np.ndarray) -> Noise | None:
     """The noise of samples whose residuals about the level (natural log) are ``residuals`` at
-    ``stamps_ns`` (sorted int ns): σ² = (1.4826 MAD)², at least SAMPLE_SIGMA_FLOOR²; N² the
+    ``stamps_ns`` (sorted int ns): σ² = (1.4826 MAD)², the median absolute deviation weighing each
+    sample by the stamp time it covers up to the samples' typical spacing (hac_ros.core.
+    stamp_weights: a burst of repeated frames is not taken for the noise, nor one sample after a
+    gap for many), at least SAMPLE_SIGMA_FLOOR²; N² the
     largest of σ² over the sample rate (independent samples), σ² × NOISE_CORRELATION_S, and
     B × the variance of the means of blocks of B seconds, for B = 1/8, 1/4, 1/2, 1, 2, ... s
     while the samples span NOISE_BLOCKS_MIN blocks (two grids half a block apart, whole blocks
@@ -80,8 +84,10 @@ def noise_density(stamps_ns: np.ndarray, residuals: np.ndarray) -> Noise | None:
         return None
     t = (stamps_ns - stamps_ns[0]) / NS
     span = float(t[-1])
-    centre = float(np.median(residuals))
-    sigma2 = max(MAD_TO_SIGMA * float(np.median(np.abs(residuals - centre))),
+    weights = stamp_weights(stamps_ns)
+    weights = np.minimum(weights, np.median(weights))
+    centre = weighted_median(residuals, weights)
+    sigma2 = max(MAD_TO_SIGMA * weighted_median(np.abs(residuals - centre), weights),
                  SAMPLE_SIGMA_FLOOR) ** 2
     density = max(sigma2 * span / max(n - 1, 1), sigma2 * NOISE_CORRELATION_S)
     block = NOISE_BLOCK_MIN_S

@@ -9,9 +9,9 @@ a ramp from the map before to the map that said so, since the SLAM's scale chang
 while its poses went on (the samples, measured against the old map, could not see it). Then, in
 that unit:
 
-- **the level** is the median of the samples weighed by the stamp time each covers (since the
-  previous sampled frame, at most WEIGHT_CAP_S; the first frame as much as the second): a burst of
-  repeated frames counts for the time it spans, not for its number;
+- **the level** is the median of the samples weighed by the stamp time each covers
+  (hac_ros.core.stamp_weights): a burst of repeated frames counts for the time it spans, not for
+  its number;
 - **a straight drift** is decided by the evidence of the trend of all samples at once
   (:func:`segment_drift`: their least-squares slope against the online estimator's prior, with the
   noise measured about it); drifting when its probability is above DRIFT_EVIDENCE: then the
@@ -38,9 +38,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from hac_ros.core.estimator import DRIFT_EVIDENCE, WEIGHT_CAP_S, sample_weight
+from hac_ros.core.estimator import DRIFT_EVIDENCE
 from hac_ros.core.numeric import MEDIAN_STD_ERROR, NS
 from hac_ros.core.scale_filter import drift_probability, noise_density, smooth
+from hac_ros.core.stamp_weights import stamp_weights, weighted_median
 
 FEW_SAMPLES_MIN = 3  # a segment with fewer samples has no estimate
 KNOTS_PER_WINDOW = 10  # knots of the drifting schedule per window length (linear in between)
@@ -121,30 +122,6 @@ def unit_shift(stamps_ns: np.ndarray, rescales_ns: np.ndarray, rescales_log: np.
     after = np.r_[np.cumsum(rescales_log[::-1])[::-1], 0.0]
     return after[np.searchsorted(rescales_ns, np.asarray(stamps_ns, dtype=np.int64),
                                  side='right')]
-
-
-def stamp_weights(stamps_ns: np.ndarray) -> np.ndarray:
-    """Each sample's weight, seconds: the stamp time since the previous sampled frame (samples of
-    one frame share it) as the online estimator weighs it (:func:`sample_weight`); the first
-    frame weighs as much as the second. stamps_ns (n,) sorted int."""
-    stamps = np.asarray(stamps_ns, dtype=np.int64)
-    frames, inverse = np.unique(stamps, return_inverse=True)
-    gaps = np.diff(frames) / NS
-    gaps = np.r_[gaps[:1] if len(gaps) else [WEIGHT_CAP_S], gaps]
-    return np.array([sample_weight(float(g)) for g in gaps])[inverse]
-
-
-def weighted_median(values: np.ndarray, weights: np.ndarray) -> float:
-    """The value at which the cumulative weight of the sorted values reaches half the total (the
-    mean of two neighbours when half falls on their boundary: equal weights give the median)."""
-    order = np.argsort(values, kind='stable')
-    v, cumulative = values[order], np.cumsum(weights[order])
-    half = 0.5 * cumulative[-1]
-    tie = 1e-9 * cumulative[-1]
-    k = min(int(np.searchsorted(cumulative, half - tie)), len(v) - 1)
-    if k + 1 < len(v) and abs(cumulative[k] - half) <= tie:
-        return float((v[k] + v[k + 1]) / 2.0)
-    return float(v[k])
 
 
 def segment_scale(stamps_ns: np.ndarray, scales: np.ndarray, start_ns: int, window_s: float,

@@ -25,8 +25,9 @@ from __future__ import annotations
 import bisect
 import math
 
+from hac_ros.core.stamp_weights import TIE_REL
+
 REFRESH_CHANGES = 1024  # the running weight sums are summed afresh this often
-TIE_REL = 1e-9  # half the weight within this share of the total of a boundary: on it
 
 
 class SortedWindow:
