@@ -270,9 +270,16 @@ def test_the_first_drop_says_the_processing_time_against_the_input_period(harnes
         for event in walk.events[half:half + 120]:
             h.publishers[event.kind].publish(event.msg)
         assert wait_for(lambda: h.node._inbox.counts().dropped > 0, PATIENCE_S)
+    # the count goes up under the node's lock, the warning is logged just after it: wait for both
+    err: list[str] = []
+
+    def warned() -> bool:
+        err.extend(capfd.readouterr().err.splitlines())
+        return any('frames_dropped' in x for x in err)
+
     assert wait_for(lambda: h.node.core.rejected['frames_dropped'] > 0, PATIENCE_S)
-    err = capfd.readouterr().err
-    line = next(x for x in err.splitlines() if 'frames_dropped' in x)
+    assert wait_for(warned, PATIENCE_S)
+    line = next(x for x in err if 'frames_dropped' in x)
     assert line.startswith('[WARN]')
     assert re.search(r'processing takes [0-9.]+ ms per frame .* against an input period of '
                      r'[0-9.]+ ms', line), line

@@ -18,18 +18,24 @@ of its core ``V = (1 - p) V0 + p V1 + p (1 - p) (m1 - m0)²``, ``V0`` that of th
 (1.2533² × the mean's variance under the noise measured about a constant level, with the window's
 effective count of samples and the stamp time they cover), ``V1`` the filter's.
 
+**The map's word** (:meth:`RollingScale.map_changed`): a new map measured against the one before
+(hac_ros.core.reference.MapIndex.rescale_against) that says the scale changed beyond
+MAP_RESCALE_MIN and MAP_RESCALE_Z of its standard error rescales every sample kept, so the
+estimate follows the map at once; beyond ``converged_max_rel_sigma`` :attr:`map_rescaled` holds
+until a later map says the scale holds still.
+
 **The doubts.** The estimator's own relative uncertainty σ_stat (:attr:`Estimate.rel_sigma`) is the
 core's √V with three doubts added in quadrature, each also a reason the status names:
 
 - *age* (``unverified``): the drift the filter's prior allows since the newest accepted sample,
   STALE_RATE × its age: nobody in view, empty joints frames or a joints gap leave an estimate
   that nothing checks; ``unverified`` once that exceeds ``converged_max_rel_sigma``;
-- *gap* (``relocking``): while gated samples say the scale changed (below), the distance between
-  the estimate and their median;
-- *lag* (``lagging``): the recent samples (LAG_S of stamp time, covering at least LAG_MIN_COVER_S)
-  disagree
-  with the estimate beyond LAG_Z of their standard error and half of
-  ``converged_max_rel_sigma``: the scale changes faster than the window and the filter follow.
+- *gap* (``relocking``, ``map_rescaled``): while gated samples say the scale changed (below), the
+  distance between the estimate and their median; while a map said so, the size of its step;
+- *lag* (``lagging``): the recent samples (LAG_S of stamp time, covering at least
+  LAG_MIN_COVER_S) disagree with the estimate beyond LAG_Z of their standard error (under the
+  noise measured before them) and half of ``converged_max_rel_sigma``: the scale changes faster
+  than the window and the filter follow.
 
 **Converged** (with hysteresis, on the core alone): at least ``min_samples`` samples and √V under
 ``converged_max_rel_sigma``; it is lost above LOSE_FACTOR times that. **Publishing**: from a
@@ -38,8 +44,8 @@ the later doubts, which the uncertainty carries, or :meth:`RollingScale.restart`
 judged wrong). **Drifting** = ``p`` above DRIFT_EVIDENCE.
 
 **Re-lock.** Gated samples in a row (an accepted sample ends the run) say the scale changed only
-with evidence: a new map whose floor says it has another scale (:meth:`RollingScale.map_changed`),
-a run that began while the estimate was ``unverified`` (nobody checked it meanwhile) or
+with evidence: a run that began after a map said the scale changed (:meth:`map_changed`), or
+while the estimate was ``unverified`` (nobody checked it meanwhile) or
 ``lagging`` the same way (the samples were already moving), or a run that lasts RELOCK_WARN_S and
 RELOCK_WARN_SAMPLES samples: then :attr:`RollingScale.relocking` holds and the status WARNs. A
 passing disturbance (a walker on a flight of stairs, an occluder, one person of a crowd) is gated
