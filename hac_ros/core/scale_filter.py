@@ -133,8 +133,9 @@ class LogScaleFilter:
 
     def __init__(self, window_ns: int, max_samples: int) -> None:
         self.history_ns = int(NOISE_HISTORY_WINDOWS * window_ns)
-        self._history: deque[tuple[int, float]] = deque(maxlen=int(
-            NOISE_HISTORY_WINDOWS * max_samples))  # (stamp, log sample), for the noise
+        kept = int(NOISE_HISTORY_WINDOWS * max_samples)  # the samples the noise is measured on:
+        self._stamps: deque[int] = deque(maxlen=kept)  # their stamps, ns
+        self._values: deque[float] = deque(maxlen=kept)  # their natural log of the scale
         self.noise: Noise | None = None  # about the filter's line: its measurements' noise
         self.level_noise: Noise | None = None  # about a constant level (the window's median)
         self._noise_ns: int | None = None
@@ -154,7 +155,8 @@ class LogScaleFilter:
         the prior's."""
         stamps = np.asarray(stamps_ns, dtype=np.int64)
         values = np.asarray(log_scales, dtype=float)
-        self._history.extend(zip(stamps.tolist(), values.tolist()))
+        self._stamps.extend(stamps.tolist())
+        self._values.extend(values.tolist())
         self.level = float(np.median(values))
         self.noise = self.level_noise = noise_density(stamps, values - self.level)
         self.stamp_ns, self._noise_ns = int(stamps[-1]), int(stamps[-1])
@@ -179,8 +181,7 @@ class LogScaleFilter:
         """The level and every sample of the history moved by ``log_factor`` (natural log: the
         map the samples were measured against changed its scale)."""
         self.level += log_factor
-        self._history = deque(((s, y + log_factor) for s, y in self._history),
-                              maxlen=self._history.maxlen)
+        self._values = deque((y + log_factor for y in self._values), maxlen=self._values.maxlen)
 
     def predict(self, stamp_ns: int) -> None:
         """Carry the state to ``stamp_ns`` (no-op for an older stamp)."""
@@ -207,7 +208,8 @@ class LogScaleFilter:
         if stamp_ns != self._frame_ns:  # a new frame: the stamp time since the previous one
             self._frame_gap_s = (stamp_ns - (self._frame_ns or stamp_ns)) / NS
             self._frame_ns = int(stamp_ns)
-        self._history.append((int(stamp_ns), float(log_scale)))
+        self._stamps.append(int(stamp_ns))
+        self._values.append(float(log_scale))
         self.predict(stamp_ns)
         noise = self.noise
         r = noise.sigma2 if self._frame_gap_s <= 0.0 else max(
@@ -230,10 +232,11 @@ class LogScaleFilter:
         """The noise of the history's samples about the filter's line (level and rate now), and
         about the constant level ``centre`` (log: the window's median)."""
         self._noise_ns = int(stamp_ns)
-        while self._history and self._history[0][0] < stamp_ns - self.history_ns:
-            self._history.popleft()
-        stamps = np.fromiter((s for s, _ in self._history), np.int64, len(self._history))
-        values = np.fromiter((v for _, v in self._history), float, len(self._history))
+        while self._stamps and self._stamps[0] < stamp_ns - self.history_ns:
+            self._stamps.popleft()
+            self._values.popleft()
+        stamps = np.fromiter(self._stamps, np.int64, len(self._stamps))
+        values = np.fromiter(self._values, float, len(self._values))
         line = self.level + self.rate * (stamps - stamp_ns) / NS
         self.noise = noise_density(stamps, values - line) or self.noise
         self.level_noise = noise_density(stamps, values - centre) or self.level_noise
