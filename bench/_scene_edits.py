@@ -74,35 +74,31 @@ def _span(scene: Any, start_s: float, end_s: float) -> tuple[int, int]:
 
 def blank_joints(scene: Any, start_s: float, end_s: float) -> Any:
     """``scene`` with the joints frames in [start_s, end_s) emptied (no person; the frame stays)."""
-    lo, hi = _span(scene, start_s, end_s)
-    events, joints_world, person_ids = [], [], []
-    k = 0
-    for stamp, kind, payload in scene.events:
-        if kind == 'joints':
-            world, ids = scene.joints_world[k], scene.person_ids[k]
-            if lo <= stamp < hi:
-                people = np.asarray(payload[0])
-                payload = (people[:0], *payload[1:])
-                world, ids = np.asarray(world)[:0], np.asarray(ids)[:0]
-            joints_world.append(world)
-            person_ids.append(ids)
-            k += 1
-        events.append((stamp, kind, payload))
-    return replace(scene, events=events, joints_world=joints_world, person_ids=person_ids)
+    return _edit_joints(scene, start_s, end_s, drop=False)
 
 
 def drop_joints(scene: Any, start_s: float, end_s: float) -> Any:
     """``scene`` without its joints frames in [start_s, end_s)."""
+    return _edit_joints(scene, start_s, end_s, drop=True)
+
+
+def _edit_joints(scene: Any, start_s: float, end_s: float, drop: bool) -> Any:
+    """``scene`` with its joints frames in [start_s, end_s) dropped, or emptied (the frame kept
+    without its people), their truth alike."""
     lo, hi = _span(scene, start_s, end_s)
     events, joints_world, person_ids = [], [], []
-    k = 0
+    k = -1
     for stamp, kind, payload in scene.events:
         if kind == 'joints':
             k += 1
+            world, ids = scene.joints_world[k], scene.person_ids[k]
             if lo <= stamp < hi:
-                continue
-            joints_world.append(scene.joints_world[k - 1])
-            person_ids.append(scene.person_ids[k - 1])
+                if drop:
+                    continue
+                payload = (np.asarray(payload[0])[:0], *payload[1:])
+                world, ids = np.asarray(world)[:0], np.asarray(ids)[:0]
+            joints_world.append(world)
+            person_ids.append(ids)
         events.append((stamp, kind, payload))
     return replace(scene, events=events, joints_world=joints_world, person_ids=person_ids)
 
