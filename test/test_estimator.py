@@ -327,3 +327,22 @@ def test_converged_has_hysteresis_and_publishing_latches_until_a_reset():
     assert est.converged and est.publishing
     est.reset()
     assert not est.publishing and math.isnan(est.current())
+
+
+def test_a_few_samples_far_out_do_not_make_the_level_look_wandering():
+    """Block means of residuals clipped to NOISE_CLIP_SIGMAS σ (scale_filter.noise_density): two
+    neighbouring samples a third low (a walker on a stair, before the gate is armed) in 30 s of
+    keyframes leave the noise density near that of the clean samples, while a drift the same
+    samples ride on still shows in it."""
+    from hac_ros.core.scale_filter import noise_density
+
+    rng = np.random.default_rng(3)
+    stamps = (np.arange(24) * 1.3e9).astype(np.int64)
+    clean = rng.normal(0.0, 0.02, stamps.size)
+    stairs = clean.copy()
+    stairs[[8, 9]] = -0.4
+    drifting = clean + np.linspace(-0.15, 0.15, stamps.size)  # 35 % over the window
+    density = {name: noise_density(stamps, r).density  # type: ignore[union-attr]
+               for name, r in (('clean', clean), ('stairs', stairs), ('drifting', drifting))}
+    assert density['stairs'] < 2.0 * density['clean'], density
+    assert density['drifting'] > 5.0 * density['clean'], density

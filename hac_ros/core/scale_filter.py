@@ -56,6 +56,11 @@ NOISE_HISTORY_WINDOWS = 4.0  # the noise is measured over this many windows of s
 NOISE_BLOCK_MIN_S = 0.125  # the shortest block of the noise density (then doubled)
 NOISE_BLOCKS_MIN = 4  # a block length needs the history to span this many blocks
 NOISE_REFRESH_NS = 500_000_000  # the noise is re-measured this often (stamp time)
+# The block means are taken of residuals clipped to this many σ about their centre: a few samples
+# far out (a walker on a stair before the gate is armed) say little of how the level wanders,
+# and without the clip they alone kept a keyframe-rate window of a person behind furniture from
+# converging.
+NOISE_CLIP_SIGMAS = 3.0
 HUBER_K = 2.0  # normalised innovations beyond this are down-weighted (Huber)
 
 
@@ -77,8 +82,9 @@ def noise_density(stamps_ns: np.ndarray, residuals: np.ndarray) -> Noise | None:
     largest of σ² over the sample rate (independent samples), σ² × NOISE_CORRELATION_S, and
     B × the variance of the means of blocks of B seconds, for B = 1/8, 1/4, 1/2, 1, 2, ... s
     while the samples span NOISE_BLOCKS_MIN blocks (two grids half a block apart, whole blocks
-    only): a correlation over B shows as block means that scatter more than independent samples
-    would. None with fewer than 3 samples."""
+    only; the residuals clipped to NOISE_CLIP_SIGMAS σ about their centre): a correlation over B
+    shows as block means that scatter more than independent samples would. None with fewer than
+    3 samples."""
     n = len(residuals)
     if n < 3:
         return None
@@ -90,6 +96,8 @@ def noise_density(stamps_ns: np.ndarray, residuals: np.ndarray) -> Noise | None:
     sigma2 = max(MAD_TO_SIGMA * weighted_median(np.abs(residuals - centre), weights),
                  SAMPLE_SIGMA_FLOOR) ** 2
     density = max(sigma2 * span / max(n - 1, 1), sigma2 * NOISE_CORRELATION_S)
+    clip = NOISE_CLIP_SIGMAS * math.sqrt(sigma2)
+    residuals = np.clip(residuals, centre - clip, centre + clip)
     block = NOISE_BLOCK_MIN_S
     while span >= NOISE_BLOCKS_MIN * block:
         variances = []
