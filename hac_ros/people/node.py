@@ -256,7 +256,8 @@ class PeopleNode(Node):
             period, self._period = self._period, Counter()
             timing, self._timing = self._timing, []
             counts = dict(self.counts)
-            has_camera = self._camera is not None
+            camera = self._camera[0] if self._camera is not None else None
+        has_camera = camera is not None
         problems = sorted(k.split('.', 1)[1] for k in period if k.startswith('rejected.'))
         if counts.get('qos_incompatible'):
             level, message = WARN, 'a camera publisher\'s QoS does not match image_qos'
@@ -270,6 +271,9 @@ class PeopleNode(Node):
             level, message = OK, (f'{period.get("images_processed", 0)} images, '
                                   f'{period.get("people_published", 0)} people')
         values = [(key, str(counts[key])) for key in sorted(counts)]
+        values.append(('camera_info', 'none' if camera is None else (
+            f'{camera.width} x {camera.height}, fx {camera.K[0, 0]:.1f} fy {camera.K[1, 1]:.1f} '
+            f'cx {camera.K[0, 2]:.1f} cy {camera.K[1, 2]:.1f}')))
         if timing:
             for k, name in enumerate(('processing_ms', 'model_ms', 'lift_ms')):
                 values.append((name, f'{1e3 * sum(t[k] for t in timing) / len(timing):.1f}'))
