@@ -451,3 +451,20 @@ def test_the_map_in_use_follows_cloud_mode_and_its_cap():
         cal.add_joints(stamp, np.zeros((0, 24, 3)), 'camera')
     cal.flush()  # two poses: the first poses of a stream are judged together at the end
     np.testing.assert_array_equal(cal.map.points_map, both.points_map)
+
+
+def test_rotation_log_is_scipys_rotation_vector_at_every_angle():
+    """core.transforms.rotation_log, in closed form, against scipy's as_rotvec: from a nanoradian
+    to a half turn (where scipy's is taken), random axes."""
+    from scipy.spatial.transform import Rotation
+
+    from hac_ros.core.transforms import rotation_log
+
+    rng = np.random.default_rng(5)
+    for angle in (0.0, 1e-9, 1e-6, 1e-3, 0.1, 1.0, 3.0, np.pi - 0.02, np.pi - 0.005):
+        for _ in range(50):
+            axis = rng.normal(size=3)
+            rotvec = angle * axis / np.linalg.norm(axis)
+            R = Rotation.from_rotvec(rotvec).as_matrix()
+            assert np.allclose(rotation_log(R), Rotation.from_matrix(R).as_rotvec(),
+                               rtol=0.0, atol=1e-12), angle

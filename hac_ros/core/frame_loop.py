@@ -10,6 +10,7 @@ frames queued until their pose is known.
 """
 from __future__ import annotations
 
+import functools
 import math
 from collections import Counter, deque
 from dataclasses import dataclass, replace
@@ -305,22 +306,23 @@ class FrameLoop:
         at ``c_map`` (3,), SLAM units), and a plane map in use is judged once the bodies give
         their axis. A new map that overlaps is measured against the old one along the camera's
         view (MapIndex.rescale_against): the estimator follows a map that changed its scale."""
-        axis = self.ground.body_axis(PLANE_JUDGE_BODIES)
+        # the bodies' axis, only when a map is judged (an eigen-decomposition per pose otherwise)
+        axis = functools.cache(lambda: self.ground.body_axis(PLANE_JUDGE_BODIES))
         previous = self.map
 
         def problem(index: MapIndex, shape: MapShape) -> str:
-            return plane_problem(shape, index.sample, c_map, axis)
+            return plane_problem(shape, index.sample, c_map, axis())
         chosen, lost, refused = self.maps.activate(stamp_ns, problem)
         if refused:
             return self._reject('map_degenerate', stamp_ns, refused)
         if self.maps.plane_unjudged and self.map is not None and self.maps.shape is not None:
-            why = plane_problem(self.maps.shape, self.map.sample, c_map, axis)
+            why = plane_problem(self.maps.shape, self.map.sample, c_map, axis())
             if why:  # its samples measured a wall or the camera's own plane: dropped too
                 self.maps.refuse_in_use(why)
                 self.estimator.restart()
                 return self._reject('map_degenerate', stamp_ns, self.maps.degenerate +
                                     ' (refused)')
-            if axis is not None:
+            if axis() is not None:
                 self.maps.plane_judged()
             else:  # until judged, converge only on a plane the first bodies take for the floor
                 rough = self.ground.body_axis()

@@ -1,6 +1,8 @@
 """Rotation and pose helpers: interpolation, rotation vectors, checks, the base's offset."""
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
@@ -17,9 +19,23 @@ def interpolate_pose(stamp_ns: int, t0_ns: int, R0: np.ndarray, c0: np.ndarray,
     return R, c
 
 
+NEAR_HALF_TURN_RAD = math.pi - 1e-2  # beyond this the skew part no longer gives the axis well
+
+
 def rotation_log(R: np.ndarray) -> np.ndarray:
-    """Rotation vector (3,) rad of the rotation matrix R (3, 3)."""
-    return Rotation.from_matrix(R).as_rotvec()
+    """Rotation vector (3,) rad of the rotation matrix R (3, 3): the angle from atan2 of the skew
+    part's norm and the trace (exact at small angles), about the skew part's axis; near a half
+    turn, scipy's. In closed form because the odometry takes one per SLAM pose, where scipy's
+    cost about 0.5 ms (docs/benchmarks.md, replay throughput)."""
+    R = np.asarray(R, dtype=float)
+    w = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+    sin2 = math.sqrt(float(w @ w))  # 2 sin(angle)
+    angle = math.atan2(0.5 * sin2, 0.5 * (R[0, 0] + R[1, 1] + R[2, 2] - 1.0))
+    if angle > NEAR_HALF_TURN_RAD:
+        return Rotation.from_matrix(R).as_rotvec()
+    if sin2 < 1e-12:
+        return 0.5 * w
+    return (angle / sin2) * w
 
 
 def is_rotation(R: np.ndarray, tol: float = 1e-6) -> bool:
