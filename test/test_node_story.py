@@ -44,7 +44,9 @@ def test_the_log_tells_inputs_first_map_convergence_level_changes_and_the_status
     change of the status level with its reasons; a status line each log_period_s whose counts
     add up; each warning ends with what to do."""
     walk = scenario_recording('walk', duration=8.0)
-    h = harness(log_period_s=0.5)
+    # played faster than a slow host processes it: being behind is not this test's story (the
+    # latency warning has tests of its own), so it may not hold the status at WARN
+    h = harness(log_period_s=0.5, latency_warn_s=60.0)
     h.play(walk.events, frame_period_s=0.01)
     h.settle()
     log = _Log(capfd)
