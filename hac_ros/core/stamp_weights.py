@@ -21,21 +21,26 @@ WEIGHT_QUANTUM_S = 1e-4  # ... in steps of this
 TIE_REL = 1e-9  # half the weight within this share of the total of a boundary: on it
 
 
+def gap_weights(gaps_s: np.ndarray) -> np.ndarray:
+    """The weights of samples whose frames cover ``gaps_s`` seconds of stamp time (any shape):
+    clipped to [WEIGHT_MIN_S, WEIGHT_CAP_S], rounded to WEIGHT_QUANTUM_S."""
+    clipped = np.clip(gaps_s, WEIGHT_MIN_S, WEIGHT_CAP_S)
+    return np.round(clipped / WEIGHT_QUANTUM_S) * WEIGHT_QUANTUM_S
+
+
 def sample_weight(gap_s: float) -> float:
-    """The weight of a sample whose frame covers ``gap_s`` seconds of stamp time: clipped to
-    [WEIGHT_MIN_S, WEIGHT_CAP_S], rounded to WEIGHT_QUANTUM_S."""
-    return round(min(max(gap_s, WEIGHT_MIN_S), WEIGHT_CAP_S) / WEIGHT_QUANTUM_S) * WEIGHT_QUANTUM_S
+    """The weight of one sample whose frame covers ``gap_s`` seconds (:func:`gap_weights`)."""
+    return float(gap_weights(np.float64(gap_s)))
 
 
 def stamp_weights(stamps_ns: np.ndarray) -> np.ndarray:
-    """Each sample's weight, seconds (:func:`sample_weight` of the time since the previous
-    sampled frame; the first frame weighs as much as the second). stamps_ns (n,) sorted int."""
+    """Each sample's weight, seconds (:func:`gap_weights` of the time since the previous sampled
+    frame; the first frame weighs as much as the second). stamps_ns (n,) sorted int."""
     stamps = np.asarray(stamps_ns, dtype=np.int64)
     frames, inverse = np.unique(stamps, return_inverse=True)
     gaps = np.diff(frames) / NS
     gaps = np.r_[gaps[:1] if len(gaps) else [WEIGHT_CAP_S], gaps]
-    clipped = np.clip(gaps, WEIGHT_MIN_S, WEIGHT_CAP_S)
-    return (np.round(clipped / WEIGHT_QUANTUM_S) * WEIGHT_QUANTUM_S)[inverse]  # sample_weight's
+    return gap_weights(gaps)[inverse]
 
 
 def weighted_median(values: np.ndarray, weights: np.ndarray) -> float:

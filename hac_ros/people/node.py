@@ -257,13 +257,12 @@ class PeopleNode(Node):
             timing, self._timing = self._timing, []
             counts = dict(self.counts)
             camera = self._camera[0] if self._camera is not None else None
-        has_camera = camera is not None
         problems = sorted(k.split('.', 1)[1] for k in period if k.startswith('rejected.'))
         if counts.get('qos_incompatible'):
             level, message = WARN, 'a camera publisher\'s QoS does not match image_qos'
         elif problems:
             level, message = WARN, 'images rejected: ' + ', '.join(problems)
-        elif not has_camera:
+        elif camera is None:
             level, message = WARN, f'no CameraInfo on {self.params.camera_info_topic}'
         elif not period.get('images_received'):
             level, message = WARN, f'no image on {self.image_topic}'
