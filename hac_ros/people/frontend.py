@@ -12,7 +12,7 @@ import numpy as np
 
 from hac_ros.core.layouts.blazepose33 import HIPS, LAYOUT, SHOULDERS
 from hac_ros.people.lifting import Camera, Lifted, lift_person
-from hac_ros.people.model import PoseModel
+from hac_ros.people.model import HOG_WINDOW, PoseModel
 
 JOINTS = LAYOUT.joints_per_person
 
@@ -22,12 +22,16 @@ class Frame:
     """One image's people: ``joints_cam`` (P, 33, 3) metres, camera optical frame, in the
     ``blazepose33`` order; ``lifted`` their fits; ``dropped`` the people the model found but the
     lifting refused, by reason (:data:`hac_ros.people.lifting.REASONS`); ``model_s`` the wall
-    seconds spent in the model, ``lift_s`` in the lifting."""
+    seconds spent in the model, ``lift_s`` in the lifting; ``too_small`` when the image is smaller
+    than the person detector's window (:data:`hac_ros.people.model.HOG_WINDOW`, whichever
+    detector runs): only the landmarker's own detector looked, and people that small are
+    beyond what the front end finds."""
 
     joints_cam: np.ndarray
     lifted: list[Lifted] = field(default_factory=list)
     dropped: Counter[str] = field(default_factory=Counter)
     from_crop: int = 0
+    too_small: bool = False
     model_s: float = 0.0
     lift_s: float = 0.0
 
@@ -44,7 +48,8 @@ class PeopleFromImages:
         start = time.perf_counter()
         found = self.model.detect(rgb)
         lifted_at = time.perf_counter()
-        frame = Frame(joints_cam=np.zeros((0, JOINTS, 3)), model_s=lifted_at - start)
+        frame = Frame(joints_cam=np.zeros((0, JOINTS, 3)), model_s=lifted_at - start,
+                      too_small=too_small(rgb))
         for person in found:
             result = lift_person(person.pixels, person.visibility, person.world, camera,
                                  hips=HIPS, shoulders=SHOULDERS)
@@ -57,6 +62,11 @@ class PeopleFromImages:
             frame.joints_cam = np.stack([lifted.joints_cam for lifted in frame.lifted])
         frame.lift_s = time.perf_counter() - lifted_at
         return frame
+
+
+def too_small(rgb: np.ndarray) -> bool:
+    """The image (H, W, 3) is smaller than the person detector's window, width x height."""
+    return rgb.shape[1] < HOG_WINDOW[0] or rgb.shape[0] < HOG_WINDOW[1]
 
 
 def size_matches(rgb: np.ndarray, camera: Camera) -> bool:

@@ -1,5 +1,6 @@
 """Images as (H, W, 3) uint8 RGB: from ``sensor_msgs/Image`` (:mod:`msg_adapters.image`), from
-``sensor_msgs/CompressedImage`` (JPEG or PNG, decoded by OpenCV), and from files and videos for
+``sensor_msgs/CompressedImage`` (JPEG decoded by simplejpeg, which reports corrupt data that
+OpenCV's decoder only prints and decodes anyway; PNG by OpenCV), and from files and videos for
 ``hac people``. A message that cannot be read raises
 :class:`~msg_adapters.image.ImageError` with its reason (``wrong_encoding``, ``empty_image``,
 ``corrupt_image``).
@@ -14,6 +15,7 @@ from hac_ros.people.extra import require
 from msg_adapters.image import ImageError, image_to_rgb
 
 COMPRESSED_FORMATS = ('jpeg', 'jpg', 'png')
+JPEG_MAGIC = b'\xff\xd8'  # a JPEG's first bytes (SOI)
 IMAGE_SUFFIXES = ('.png', '.jpg', '.jpeg', '.bmp', '.tif', '.tiff', '.webp', '.pgm', '.ppm')
 
 
@@ -31,6 +33,14 @@ def compressed_to_rgb(msg: Any) -> np.ndarray:
         raise ImageError('wrong_encoding', f'CompressedImage: format {fmt!r} is not JPEG or PNG')
     if not len(raw):
         raise ImageError('empty_image', 'CompressedImage: no data')
+    if raw[:2].tobytes() == JPEG_MAGIC:
+        import simplejpeg
+
+        try:
+            return simplejpeg.decode_jpeg(raw, colorspace='RGB', strict=True)
+        except ValueError as exc:  # strict: libjpeg's "Corrupt JPEG data" warnings too
+            raise ImageError('corrupt_image', f'CompressedImage: a JPEG of {len(raw)} bytes '
+                             f'that the decoder reports corrupt ({exc})') from exc
     bgr = cv2.imdecode(raw, cv2.IMREAD_COLOR)
     if bgr is None or not bgr.size:
         raise ImageError('corrupt_image', f'CompressedImage: {len(raw)} bytes that do not '

@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from hac_ros.core.errors import InputError
-from hac_ros.people.extra import require, shipped_models
+from hac_ros.people.extra import native_logs_to, require, shipped_models
 from hac_ros.people.params import PERSON_DETECTORS
 
 LOG = logging.getLogger(__name__)
@@ -37,6 +37,9 @@ CROP_HEIGHT_PX = 384  # a HOG box is scaled to this height before the landmarker
 CROP_MARGIN = 0.25  # of the box's size, added on each side of a crop
 HOG_MIN_WEIGHT = 0.3  # HOG's SVM score below which a box is not taken
 HOG_SCALE_STEP = 1.05  # HOG's pyramid step
+HOG_WINDOW = (64, 128)  # the people detector's window, width x height pixels: OpenCV's HOG
+# crashes the process (SIGSEGV, or SIGABRT in malloc) on an image smaller than this, so such an
+# image is never given to it
 COVERED_IOU = 0.3  # a HOG box overlapping a pose's box this much is that person
 DUPLICATE_IOU = 0.5  # two poses whose boxes overlap this much are one person
 
@@ -141,8 +144,9 @@ class PoseModel:
                                  f'{model_path or "the shipped models"} as a pose landmarker '
                                  f'({exc})') from exc
 
-        self._whole = landmarker(max_people)
-        self._crop = landmarker(1) if person_detector == 'hog' else None
+        with native_logs_to(LOG):
+            self._whole = landmarker(max_people)
+            self._crop = landmarker(1) if person_detector == 'hog' else None
         self._hog = None
         if person_detector == 'hog':
             self._hog = self.cv2.HOGDescriptor()
@@ -152,6 +156,8 @@ class PoseModel:
         # each: 'covered' (a pose already there), 'pose', 'duplicate' (its pose was one already
         # found), 'no_pose' or 'too_small'
         self.last_boxes: list[tuple[np.ndarray, str]] = []
+        # the last image was smaller than HOG_WINDOW: the person detector did not look at it
+        self.last_too_small = False
 
     def close(self) -> None:
         for landmarker in (self._whole, self._crop):
@@ -173,8 +179,13 @@ class PoseModel:
         return people
 
     def person_boxes(self, rgb: np.ndarray) -> np.ndarray:
-        """The person detector's boxes (N, 4) x0, y0, x1, y1 pixels (none without a detector)."""
+        """The person detector's boxes (N, 4) x0, y0, x1, y1 pixels (none without a detector, or
+        in an image smaller than its window: :attr:`last_too_small`)."""
+        self.last_too_small = False
         if self._hog is None:
+            return np.zeros((0, 4))
+        if rgb.shape[1] < HOG_WINDOW[0] or rgb.shape[0] < HOG_WINDOW[1]:
+            self.last_too_small = True
             return np.zeros((0, 4))
         gray = self.cv2.cvtColor(rgb, self.cv2.COLOR_RGB2GRAY)
         boxes, weights = self._hog.detectMultiScale(gray, winStride=(8, 8), padding=(8, 8),

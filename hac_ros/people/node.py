@@ -9,10 +9,11 @@ found. Nothing is published for an image without a CameraInfo of its size.
 
 Threads: the executor's thread receives; an image waits in a slot of one, a newer one replacing
 it (``dropped.overload``), so the newest is always the one taken; one processing thread runs the
-model and publishes. ``max_rate_hz`` skips images by stamp before they wait (``dropped.rate_cap``).
-Every fault is counted under its reason in ``/diagnostics`` (1 Hz) and logged once; none stops
-the node. ``num_threads`` pins the process (``hac_people_node`` itself, not a node embedded in
-another program) to that many cores.
+model and publishes. ``max_rate_hz`` skips images by stamp before they wait (``dropped.rate_cap``;
+by arrival time while stamps are zero or go backwards, which are counted). Every fault is counted
+under its reason in ``/diagnostics`` (1 Hz) and logged once; none stops the node. The log tells
+the run's story (:mod:`hac_ros.people.story`). ``num_threads`` pins the process
+(``hac_people_node`` itself, not a node embedded in another program) to that many cores.
 """
 from __future__ import annotations
 
@@ -24,6 +25,7 @@ from collections import Counter
 from collections.abc import Sequence
 from typing import Any
 
+import numpy as np
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.clock import Clock, ClockType
 from rclpy.event_handler import SubscriptionEventCallbacks
@@ -35,8 +37,9 @@ from hac_ros.people import extra
 from hac_ros.people.arguments import USAGE
 from hac_ros.people.frontend import PeopleFromImages, size_matches
 from hac_ros.people.lifting import Camera
-from hac_ros.people.params import NODE_NAME, PeopleParams, describe, names
-from hac_ros.people.reasons import REJECTIONS
+from hac_ros.people.params import NODE_NAME, PeopleParams, describe, names, rectified
+from hac_ros.people.reasons import REJECTIONS, WARNINGS
+from hac_ros.people.story import PeopleStory, describe_camera
 from hac_ros.ros.arguments import run
 from msg_adapters import (
     MessageError,
@@ -94,7 +97,12 @@ class PeopleNode(Node):
         self._wake = threading.Condition(self._lock)
         self._slot: tuple[Any, int] | None = None
         self._camera: tuple[Camera, str] | None = None  # and its frame_id
-        self._last_stamp: int | None = None  # of the last image let through the rate cap
+        self._camera_invalid = ''  # why the last CameraInfo was refused, while none is in use
+        self._rectified = rectified(self.params)
+        self._kept: tuple[int, int] | None = None  # (stamp, arrival) ns of the last image let
+        # through the rate cap
+        self._previous_stamp: int | None = None  # of the last image received
+        self._busy = False  # an image is being processed
         self._period: Counter[str] = Counter()  # this diagnostics period's counts
         self._timing: list[tuple[float, float, float]] = []  # (total, model, lift) seconds
         self._stopping = False
@@ -120,14 +128,17 @@ class PeopleNode(Node):
         self._diagnostics = self.create_publisher(
             TYPES.get('diagnostic_msgs/msg/DiagnosticArray'), DIAGNOSTICS_TOPIC, OUTPUT_QOS)
         self.create_timer(DIAGNOSTICS_PERIOD_S, self._publish_diagnostics, clock=STEADY)
+        self.story = PeopleStory(self.get_logger(), self.resolve_topic_name(topic),
+                                 self.resolve_topic_name(self.params.camera_info_topic))
+        self.create_timer(0.5, self._tick, clock=STEADY)
         self._worker = threading.Thread(target=self._work, name='hac_people', daemon=True)
         self._worker.start()
         rate = (f'at most {self.params.max_rate_hz:g} images/s of stamp time'
                 if self.params.max_rate_hz > 0 else 'every image')
         self.get_logger().info(
-            f'people from {topic} with {self.params.camera_info_topic} -> '
-            f'{self.params.joints_topic} (joint_layout blazepose33), {rate}, person detector '
-            f'{self.params.person_detector}')
+            f'people from {topic} ({"rectified: P" if self._rectified else "raw: K and D"}) with '
+            f'{self.params.camera_info_topic} -> {self.params.joints_topic} (joint_layout '
+            f'blazepose33), {rate}, person detector {self.params.person_detector}')
 
     def destroy_node(self) -> None:
         with self._lock:
@@ -140,14 +151,18 @@ class PeopleNode(Node):
     # ------------------------------------------------------------------ inputs
     def _on_camera_info(self, msg: Any) -> None:
         try:
-            K, width, height = camera_info_to_intrinsics(msg)
-            model, D = camera_info_distortion(msg)
+            K, width, height = camera_info_to_intrinsics(msg, rectified=self._rectified)
+            model, D = ('', np.zeros(0)) if self._rectified else camera_info_distortion(msg)
             camera = Camera(K=K, width=width, height=height, D=D, distortion_model=model)
         except (MessageError, InputError) as exc:
+            with self._lock:
+                if self._camera is None:
+                    self._camera_invalid = str(exc)
             self._reject('camera_info_invalid', str(exc))
             return
         with self._lock:
             self._camera = (camera, str(msg.header.frame_id))
+        self.story.camera_info(camera, self._rectified)
 
     def _on_lost(self, info: Any) -> None:
         """Images the middleware received but dropped before the node saw them (its queue of
@@ -170,24 +185,41 @@ class PeopleNode(Node):
                 'qos_incompatible in /diagnostics; said once)')
 
     def _on_image(self, msg: Any) -> None:
-        """Executor thread: the rate cap, then the slot (the newest image waits there)."""
+        """Executor thread: the stamp's checks and the rate cap, then the slot (the newest image
+        waits there)."""
+        arrival = time.monotonic_ns()
+        with self._lock:
+            self._count('images_received')
         try:
             stamp = stamp_to_ns(msg.header.stamp)
         except MessageError as exc:
             self._reject('corrupt_image', f'an image header without a valid stamp ({exc})')
             return
+        self.story.image(int(getattr(msg, 'width', 0)), int(getattr(msg, 'height', 0)),
+                         str(getattr(msg, 'encoding', '') or getattr(msg, 'format', '')), stamp)
         with self._lock:
-            self._count('images_received')
+            previous, self._previous_stamp = self._previous_stamp, stamp
+            untrusted = ('stamp_zero' if stamp == 0 else 'stamp_backwards'
+                         if previous is not None and stamp < previous else '')
             period_ns = (1e9 / self.params.max_rate_hz) if self.params.max_rate_hz > 0 else 0.0
-            last = self._last_stamp
-            if last is not None and 0 <= stamp - last < period_ns:
+            capped = False
+            if self._kept is not None and period_ns > 0:
+                kept_stamp, kept_arrival = self._kept
+                trusted = not untrusted and kept_stamp > 0
+                elapsed = stamp - kept_stamp if trusted else arrival - kept_arrival
+                capped = elapsed < period_ns
+            if capped:
                 self._count('dropped.rate_cap')
-                return
-            self._last_stamp = stamp  # a stamp before the last one starts again (a replay)
-            if self._slot is not None:
-                self._count('dropped.overload')
-            self._slot = (msg, stamp)
-            self._wake.notify()
+            else:
+                self._kept = (stamp, arrival)
+                if self._slot is not None:
+                    self._count('dropped.overload')
+                self._slot = (msg, stamp)
+                self._wake.notify()
+        if untrusted:
+            self._warn(untrusted, f'stamp {stamp / 1e9:.3f} s' + (
+                f' after {previous / 1e9:.3f} s' if untrusted == 'stamp_backwards' and
+                previous is not None else ''))
 
     # ------------------------------------------------------------------ processing
     def _work(self) -> None:
@@ -200,11 +232,15 @@ class PeopleNode(Node):
                     return
                 msg, stamp = self._slot  # type: ignore[misc]
                 self._slot = None
+                self._busy = True
                 camera = self._camera
             try:
                 self._process(msg, stamp, camera)
             except Exception:  # never stop the node; counted and logged
                 self._reject('processing_error', traceback.format_exc())
+            finally:
+                with self._lock:
+                    self._busy = False
 
     def _process(self, msg: Any, stamp: int, camera: tuple[Camera, str] | None) -> None:
         start = time.perf_counter()
@@ -216,8 +252,12 @@ class PeopleNode(Node):
             self._reject(exc.reason, str(exc))
             return
         if camera is None:
-            self._reject('no_camera_info', f'no CameraInfo on {self.params.camera_info_topic} '
-                         f'yet: nothing metric is published without K')
+            with self._lock:
+                invalid = self._camera_invalid
+            self._reject('no_camera_info', f'no valid CameraInfo on '
+                         f'{self.params.camera_info_topic} yet' + (
+                             f' (the last was invalid: {invalid})' if invalid else '')
+                         + ': nothing metric is published without K')
             return
         if not size_matches(rgb, camera[0]):
             self._reject('camera_info_size_mismatch', f'an image of {rgb.shape[1]} x '
@@ -225,8 +265,12 @@ class PeopleNode(Node):
                          f'{camera[0].width} x {camera[0].height}: it is skipped')
             return
         frame = self.people.process(rgb, camera[0])
+        if frame.too_small:
+            self._warn('image_too_small', f'{rgb.shape[1]} x {rgb.shape[0]} on '
+                       f'{self.image_topic}')
         frame_id = self.params.camera_frame or str(msg.header.frame_id) or camera[1]
         self._joints.publish(joints_to_pose_array(frame.joints_cam, stamp, frame_id, TYPES))
+        self.story.people(frame.joints_cam, stamp)
         with self._lock:
             self._count('images_processed')
             self._count('people_published', len(frame.lifted))
@@ -240,6 +284,22 @@ class PeopleNode(Node):
         """Counts a key (the lock held)."""
         self.counts[key] += n
         self._period[key] += n
+
+    def _warn(self, key: str, text: str) -> None:
+        """An image processed all the same, with a warning of :data:`WARNINGS`."""
+        with self._lock:
+            self._count(key)
+            first = key not in self._told
+            self._told.add(key)
+        if first:
+            self.get_logger().warning(f'{WARNINGS[key]}: {text} (counted as {key} in '
+                                      '/diagnostics; said once)')
+
+    def _tick(self) -> None:
+        with self._lock:
+            counts = dict(self.counts)
+            waiting = int(self._slot is not None) + int(self._busy)
+        self.story.tick(counts, waiting, self.params.log_period_s, self.params.stale_after_s)
 
     def _reject(self, reason: str, text: str) -> None:
         with self._lock:
@@ -257,22 +317,27 @@ class PeopleNode(Node):
             timing, self._timing = self._timing, []
             counts = dict(self.counts)
             camera = self._camera[0] if self._camera is not None else None
+            invalid = self._camera_invalid
         problems = sorted(k.split('.', 1)[1] for k in period if k.startswith('rejected.'))
+        warned = sorted(k for k in period if k in WARNINGS)
         if counts.get('qos_incompatible'):
             level, message = WARN, 'a camera publisher\'s QoS does not match image_qos'
-        elif problems:
-            level, message = WARN, 'images rejected: ' + ', '.join(problems)
+        elif problems or warned:
+            level, message = WARN, '; '.join(
+                (['images rejected: ' + ', '.join(problems)] if problems else [])
+                + (['images with warnings: ' + ', '.join(warned)] if warned else []))
         elif camera is None:
-            level, message = WARN, f'no CameraInfo on {self.params.camera_info_topic}'
+            level, message = WARN, (f'the CameraInfo on {self.params.camera_info_topic} is '
+                                    f'invalid' if invalid else
+                                    f'no CameraInfo on {self.params.camera_info_topic}')
         elif not period.get('images_received'):
             level, message = WARN, f'no image on {self.image_topic}'
         else:
             level, message = OK, (f'{period.get("images_processed", 0)} images, '
                                   f'{period.get("people_published", 0)} people')
         values = [(key, str(counts[key])) for key in sorted(counts)]
-        values.append(('camera_info', 'none' if camera is None else (
-            f'{camera.width} x {camera.height}, fx {camera.K[0, 0]:.1f} fy {camera.K[1, 1]:.1f} '
-            f'cx {camera.K[0, 2]:.1f} cy {camera.K[1, 2]:.1f}')))
+        values.append(('camera_info', describe_camera(camera, self._rectified)
+                       if camera is not None else f'invalid: {invalid}' if invalid else 'none'))
         if timing:
             for k, name in enumerate(('processing_ms', 'model_ms', 'lift_ms')):
                 values.append((name, f'{1e3 * sum(t[k] for t in timing) / len(timing):.1f}'))

@@ -26,9 +26,11 @@ from hac_ros.people.extra import require
 from hac_ros.people.frontend import PeopleFromImages, size_matches
 from hac_ros.people.images import IMAGE_SUFFIXES
 from hac_ros.people.lifting import Camera
+from hac_ros.people.model import HOG_WINDOW
 from hac_ros.people.params import PeopleParams
 from hac_ros.recording.atomic import staged_output
 from hac_ros.replay.feeder import Progress, progress_pass
+from msg_adapters.camera_info import principal_point_problem
 
 
 @dataclass
@@ -44,6 +46,7 @@ class PeopleResult:
     frames_with_people: int = 0
     most_people: int = 0
     from_crops: int = 0
+    too_small: int = 0  # frames smaller than the person detector's window
     dropped: Counter[str] = field(default_factory=Counter)
 
     def text(self) -> str:
@@ -51,7 +54,10 @@ class PeopleResult:
         return (f'wrote {self.path}: {self.frames} frames ({self.width} x {self.height}), '
                 f'{self.people} people in {self.frames_with_people} of them (at most '
                 f'{self.most_people} in one, {self.from_crops} from the person detector\'s '
-                f'crops); joint_layout blazepose33' + (f'; dropped: {dropped}' if dropped else ''))
+                f'crops); joint_layout blazepose33' + (f'; dropped: {dropped}' if dropped else '')
+                + (f'; {self.too_small} frames smaller than the person detector\'s '
+                   f'{HOG_WINDOW[0]} x {HOG_WINDOW[1]} px window (only the landmarker looked)'
+                   if self.too_small else ''))
 
 
 def parse_camera(text: str) -> tuple[np.ndarray, np.ndarray]:
@@ -183,6 +189,9 @@ def people_from_images(source: str | Path, camera: str, output: str | Path,
             for i, rgb in enumerate(frames.frames()):
                 if camera_of is None:
                     camera_of = Camera(K=K, width=rgb.shape[1], height=rgb.shape[0], D=D)
+                    problem = principal_point_problem(K, camera_of.width, camera_of.height)
+                    if problem:
+                        raise ArgumentError(f'{{camera}} {camera}: {problem}', 'camera')
                     result = PeopleResult(target, 0, camera_of.width, camera_of.height)
                 if not size_matches(rgb, camera_of):
                     raise InputError(f'{frames.path}: frame {i} is {rgb.shape[1]} x '
@@ -194,6 +203,7 @@ def people_from_images(source: str | Path, camera: str, output: str | Path,
                 result.people += len(frame.lifted)
                 result.frames_with_people += int(len(frame.lifted) > 0)
                 result.from_crops += frame.from_crop
+                result.too_small += int(frame.too_small)
                 result.dropped.update(frame.dropped)
                 if bar is not None:
                     bar.update(1)
@@ -210,9 +220,12 @@ def people_from_images(source: str | Path, camera: str, output: str | Path,
                                                              else frames.fps))
     result.most_people = max((len(j) for j in per_frame), default=0)
     if not result.people:
+        small = (f'; the frames are {result.width} x {result.height}, smaller than the person '
+                 f'detector\'s {HOG_WINDOW[0]} x {HOG_WINDOW[1]} px window'
+                 if result.too_small else '')
         raise InputError(f'{frames.path}: nobody found in {result.frames} frames; nothing to '
                          'write (dropped by the lifting: '
-                         f'{dict(result.dropped) or "none"})')
+                         f'{dict(result.dropped) or "none"}){small}')
     joints = np.full((result.frames, result.most_people, LAYOUT.joints_per_person, 3), np.nan)
     for i, found in enumerate(per_frame):
         joints[i, :len(found)] = found

@@ -14,6 +14,8 @@ NODE_NAME = 'hac_people_node'
 IMAGE_TRANSPORTS = ('raw', 'compressed')
 IMAGE_QOS = ('reliable', 'best_effort')
 PERSON_DETECTORS = ('hog', 'none')
+RECTIFIED = ('auto', 'true', 'false')
+RECTIFIED_TOPIC_PREFIX = 'image_rect'  # rectified: auto takes P for image_rect, image_rect_color
 
 
 def _p(default: Any, description: str, *, choices: tuple[str, ...] | None = None,
@@ -39,6 +41,10 @@ class PeopleParams:
                                 '(nothing metric is published without it)')
     joints_topic: str = _p('hmr/joints', 'output: each person\'s 33 landmarks in metres, camera '
                            'optical frame (PoseArray, joint_layout blazepose33)')
+    rectified: str = _p('auto', 'true: the images are rectified (image_proc\'s image_rect): '
+                        'their camera is CameraInfo\'s P, no distortion; false: raw images, K and '
+                        'D; auto: true when image_topic\'s last name starts with image_rect',
+                        choices=RECTIFIED)
     camera_frame: str = _p('', 'frame_id of the output; "" = the image\'s header.frame_id (else '
                            'the CameraInfo\'s)')
     model_path: str = _p('', 'a MediaPipe pose landmarker .task file; "" = the models shipped '
@@ -54,6 +60,12 @@ class PeopleParams:
     max_rate_hz: float = _p(10.0, 'at most this many images per second of stamp time are '
                             'processed (the others are counted under rate_cap); 0 = every image',
                             low=0.0, high=1000.0)
+    log_period_s: float = _p(10.0, 'a status line in the log this often (images received, '
+                             'processed, dropped, rejected; people), wall seconds; 0 = off',
+                             low=0.0, high=86400.0)
+    stale_after_s: float = _p(2.0, 'no image for this long (wall clock) after images came: '
+                              'the log warns that the camera stopped, /diagnostics says WARN, '
+                              'seconds', low=0.1, high=86400.0)
     num_threads: int = _p(1, 'CPU cores the node\'s process runs on (MediaPipe and OpenCV); 0 = '
                           'every core it was given', low=0, high=1024)
 
@@ -84,6 +96,13 @@ def _check(f: dataclasses.Field, value: Any) -> None:
         raise ParameterError(f'{f.name}: one of {", ".join(meta["choices"])}, not {value!r}')
     if meta['low'] is not None and not meta['low'] <= value <= meta['high']:
         raise ParameterError(f'{f.name}: in [{meta["low"]}, {meta["high"]}], got {value!r}')
+
+
+def rectified(params: PeopleParams) -> bool:
+    """The images are rectified (``rectified``, or ``auto`` and the topic's name says so)."""
+    if params.rectified != 'auto':
+        return params.rectified == 'true'
+    return params.image_topic.rstrip('/').rsplit('/', 1)[-1].startswith(RECTIFIED_TOPIC_PREFIX)
 
 
 def names() -> list[str]:

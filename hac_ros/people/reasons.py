@@ -2,7 +2,8 @@
 it dropped: its one table (the core's is :mod:`hac_ros.core.reasons`, hac_node's). Keys appear in
 its ``/diagnostics`` as ``rejected.<key>``; the lifting's as ``people_dropped.<key>``
 (:data:`hac_ros.people.lifting.REASONS`); images skipped on purpose as ``dropped.rate_cap``,
-``dropped.overload`` and ``dropped.lost`` (docs/people.md, "What the node does with each image").
+``dropped.overload`` and ``dropped.lost``; images processed with a warning under the key of
+:data:`WARNINGS` (docs/people.md, "What the node does with each image").
 """
 from __future__ import annotations
 
@@ -14,6 +15,30 @@ REJECTIONS = {
     'corrupt_image': 'an image whose bytes do not match its size, or do not decode',
     'no_camera_info': 'an image before any CameraInfo',
     'camera_info_size_mismatch': 'an image whose size is not the CameraInfo\'s',
-    'camera_info_invalid': 'a CameraInfo with an invalid K, size or distortion',
+    'camera_info_invalid': 'a CameraInfo with an invalid K, size, ROI or distortion, or a '
+                           'principal point outside the image',
     'processing_error': 'an error inside the model or the lifting (logged with its traceback)',
 }
+
+# key -> what it means: images processed all the same, counted under the key itself in
+# /diagnostics, the status WARN for the period, the first logged
+WARNINGS = {
+    'image_too_small': 'an image smaller than the person detector\'s 64 x 128 px window: only '
+                       'the landmarker looked at it, and people that small are not found',
+    'stamp_zero': 'an image stamped 0 (a driver without a clock): the rate cap counts arrival '
+                  'time instead, and the joints keep the stamp (hac_node refuses it)',
+    'stamp_backwards': 'an image stamped before the one before it: the rate cap counts arrival '
+                       'time instead',
+}
+
+
+def markdown_table() -> str:
+    """docs/people.md's table of every key (held to this by ``make docs`` and its test)."""
+    from hac_ros.people.lifting import REASONS as LIFTING
+
+    rows = ['| key in /diagnostics | the image or person | meaning |', '|---|---|---|']
+    rows += [f'| `rejected.{key}` | not published | {text} |' for key, text in REJECTIONS.items()]
+    rows += [f'| `{key}` | published, status WARN | {text} |' for key, text in WARNINGS.items()]
+    rows += [f'| `people_dropped.{key}` | the person left out | {text} |'
+             for key, text in LIFTING.items()]
+    return '\n'.join(rows) + '\n'
