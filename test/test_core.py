@@ -272,7 +272,7 @@ def test_bad_inputs_are_counted_never_raised_never_nan():
         stamp = int(stamp)
         joints = scene.joints_cam[t].copy()
         if t == 12:
-            joints[3] = np.nan  # NaN joint
+            joints[3] = np.inf  # an infinite joint (NaN is "not seen")
         if t == 13:
             joints[:, 2] = -np.abs(joints[:, 2])  # the person behind the camera
         if t == 14:

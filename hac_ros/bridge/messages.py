@@ -238,11 +238,16 @@ class OutputMessages:
 
     # ------------------------------------------------------------------ markers
     def markers(self, output: HumanJointsOut) -> bytes:
-        """Skeletons (one LINE_LIST per person) every frame; the camera path and the ground plane
+        """Skeletons (one LINE_LIST per person, the bones whose joints are both seen) every frame;
+        the camera path and the ground plane
         with the first frame and then at most once per SLOW_MARKERS_PERIOD_NS of stamp time."""
         stamp, frame = output.stamp_ns, self.params.metric_frame
-        people = [(person, joints) for person, joints in enumerate(output.joints_metric)
-                  if np.isfinite(joints).all()]
+        people = []  # each person's bones with both ends seen (a NaN joint is not seen)
+        for person, joints in enumerate(output.joints_metric):
+            bones = joints[self._bone_joints].reshape(-1, 2, 3)
+            bones = bones[np.isfinite(bones).all(axis=(1, 2))]
+            if len(bones):
+                people.append((person, bones.reshape(-1, 3)))
         path, plane = _NO_POINTS, None
         last = self._slow_sent_ns
         if last is None or not 0 <= stamp - last < SLOW_MARKERS_PERIOD_NS:
@@ -250,8 +255,8 @@ class OutputMessages:
             if len(path) >= 2 or plane is not None:
                 self._slow_sent_ns = stamp
         markers = [marker(stamp, frame, 'skeleton', person, LINE_LIST, IDENTITY_POSE,
-                          (SKELETON_WIDTH_M, 0.0, 0.0), SKELETON_RGBA, joints[self._bone_joints])
-                   for person, joints in people]
+                          (SKELETON_WIDTH_M, 0.0, 0.0), SKELETON_RGBA, bones)
+                   for person, bones in people]
         if len(path) >= 2:
             markers.append(marker(stamp, frame, 'camera_path', 0, LINE_STRIP, IDENTITY_POSE,
                                   (PATH_WIDTH_M, 0.0, 0.0), PATH_RGBA, path))

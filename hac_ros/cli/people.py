@@ -42,6 +42,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         default=default.person_detector,
                         help='far, small people: crops of OpenCV\'s HOG person detector (default '
                         f'{default.person_detector})')
+    parser.add_argument('--person-min-height-px', type=float,
+                        default=default.person_min_height_px, metavar='PX',
+                        help='the smallest person the person detector looks for, pixels '
+                        f'(default {default.person_min_height_px:g}; 100 costs half the CPU)')
     parser.add_argument('--no-progress', action='store_true', help='no progress bar')
 
 
@@ -56,7 +60,8 @@ def run(args: argparse.Namespace) -> int:
     from hac_ros.people.offline import people_from_images
 
     params = PeopleParams().replace(model_path=args.model_path, max_people=args.max_people,
-                                    person_detector=args.person_detector)
+                                    person_detector=args.person_detector,
+                                    person_min_height_px=args.person_min_height_px)
     result = people_from_images(args.source, args.camera, args.output, fps=args.fps,
                                 start=args.start, stamps=args.stamps, params=params,
                                 progress=None if args.no_progress else progress_bar('frame'))

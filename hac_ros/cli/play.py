@@ -1,4 +1,6 @@
-"""``hac play IN``: publish a recording's input topics over DDS, to drive ``hac_node``.
+"""``hac play IN``: publish a recording's input topics over DDS, to drive ``hac_node``; or a video's
+or a folder of images' frames as a camera (``camera/image_raw``, ``camera/camera_info``), to drive
+``hac_people_node``.
 
 The work is :class:`hac_ros.ros.player.Player`'s; this module parses the arguments and starts
 rclpy without its signal handlers: SIGINT, SIGTERM and SIGHUP end ``hac play`` as every command
@@ -13,6 +15,8 @@ from collections.abc import Sequence
 
 from hac_ros.cli import show
 from hac_ros.core.errors import HacError
+
+DEFAULT_FRAME_ID = 'camera_optical'  # hac_ros.ros.player's (not imported here: a fast --help)
 
 
 def parse_remap(items: Sequence[str] | None) -> dict[str, str]:
@@ -32,13 +36,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         'Publish a recording\'s input topics over DDS in log-time order, at real time or --rate, '
         'with the QoS hac_node expects (reliable; maps and /tf_static transient local): the way '
         'to drive hac_node without a ROS install. Default topics: /slam/pose, /slam/cloud, '
-        '/hmr/joints, /camera/camera_info, /tf, /tf_static (those the recording holds).')
+        '/hmr/joints, /camera/camera_info, /tf, /tf_static (those the recording holds). '
+        'A video or a folder of images (with --camera) is played as a camera, as image_publisher '
+        'does: /camera/image_raw (rgb8 Image; JPEG CompressedImage on '
+        '/camera/image_raw/compressed with --compressed) and /camera/camera_info, reliable, frame '
+        'i stamped --start + i / fps (needs OpenCV, the [people] extra).')
     parser.add_argument('input', metavar='IN', help='recording (rosbag2 directory, .mcap, .db3, '
-                        'or ROS 1 .bag); only read')
+                        'or ROS 1 .bag), a video (a file OpenCV reads) or a folder of images '
+                        '(without metadata.yaml; sorted by name); only read')
     parser.add_argument('--rate', type=float, default=1.0,
                         help='playback speed, a factor of real time (default 1)')
     parser.add_argument('--loop', action='store_true',
-                        help='play again from the start at the end, until interrupted')
+                        help='play again from the start at the end, until interrupted (a video\'s '
+                        'stamps run on: the recording\'s start again)')
     parser.add_argument('--clock', type=float, nargs='?', const=40.0, default=0.0, metavar='HZ',
                         help='publish /clock with the playback time (at HZ between messages, '
                         'default 40), for nodes run with use_sim_time')
@@ -49,6 +59,21 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--wait', type=float, default=0.0, metavar='S',
                         help='wait up to S seconds for a subscriber on every topic before playing '
                         '(default 0: start at once)')
+    camera = parser.add_argument_group('a video or a folder of images')
+    camera.add_argument('--camera', metavar='fx,fy,cx,cy[,k1,k2,p1,p2]',
+                        help='the intrinsics in pixels of the frames as they are (and plumb_bob '
+                        'distortion); hac import\'s fx,fy,cx,cy,width,height too (the size must '
+                        'be the frames\'). Needed for a video or a folder')
+    camera.add_argument('--fps', type=float, default=None, metavar='HZ',
+                        help='frames per second (default: the video\'s; a folder needs it)')
+    camera.add_argument('--start', type=float, default=None, metavar='S',
+                        help='the first frame\'s stamp in seconds (frame i at S + i / fps; '
+                        'default 0), as hac people stamps it')
+    camera.add_argument('--frame-id', default=None, metavar='FRAME',
+                        help=f'the header frame_id (default {DEFAULT_FRAME_ID})')
+    camera.add_argument('--compressed', action='store_true',
+                        help='publish JPEG CompressedImage on /camera/image_raw/compressed '
+                        'instead of Image on /camera/image_raw')
 
 
 def run(args: argparse.Namespace) -> int:
@@ -67,13 +92,16 @@ def run(args: argparse.Namespace) -> int:
     rclpy.init(args=[], signal_handler_options=SignalHandlerOptions.NO)
     try:
         with Player(args.input, rate=args.rate, loop=args.loop, clock_hz=args.clock,
-                    topics=args.topics, remap=remap, wait_s=args.wait) as player:
+                    topics=args.topics, remap=remap, wait_s=args.wait, camera=args.camera,
+                    fps=args.fps, start=args.start, frame_id=args.frame_id,
+                    compressed=args.compressed) as player:
             for reason in player.skipped:
                 show(f'hac play: warning: not played: {reason}', sys.stderr)
             names = ', '.join(f'{t.name} -> {t.published_as}' if t.name != t.published_as
                               else t.name for t in player.plan)
-            show(f'hac play: {args.input}: {names} at {args.rate:g}x'
-                  + (' (loop)' if args.loop else ''))
+            what = f' ({player.frames.describe()})' if player.frames is not None else ''
+            show(f'hac play: {args.input}{what}: {names} at {args.rate:g}x'
+                 + (' (loop)' if args.loop else ''))
             stats = player.run()
     finally:
         rclpy.try_shutdown()

@@ -23,9 +23,10 @@ def candidate_joints(mode: str, layout: JointLayout, joints_cam: np.ndarray, R_w
                      normal_map: np.ndarray | None) -> list[int]:
     """Indices of the joints whose rays are queried for one person.
 
-    joints_cam: (K, 3) metres, camera optical frame, finite, the person in front of the camera.
-    R_wc: (3, 3) camera to map. normal_map: (3,) down, unit, map frame (the ground normal or the
-    bodies' rough down), or None (``lowest_gravity`` then has no candidate).
+    joints_cam: (K, 3) metres, camera optical frame, the person in front of the camera; a NaN
+    joint is not seen and never a candidate (its depth is not > 0). R_wc: (3, 3) camera to map.
+    normal_map: (3,) down, unit, map frame (the ground normal or the bodies' rough down), or None
+    (``lowest_gravity`` then has no candidate).
     Only joints in front of the camera (z > 0) among the layout's contact candidates are
     candidates. Plain Python over the joints: numpy's per-call cost dominates at this size.
     """
@@ -48,6 +49,19 @@ def candidate_joints(mode: str, layout: JointLayout, joints_cam: np.ndarray, R_w
         if depth[j] > 0.0 and (best < 0 or height_down[j] > lowest):
             best, lowest = j, height_down[j]
     return [best] if best >= 0 else []
+
+
+def contact_seen(mode: str, layout: JointLayout, joints_cam: np.ndarray) -> bool:
+    """Whether the contact can be told from the joints seen (finite; joints_cam (K, 3), NaN rows
+    not seen). A fixed-joint mode needs one of its joints seen. The other modes take the lowest
+    (or the largest ratio) among the layout's contact candidates (every joint when the layout
+    names none): an unseen candidate may be the contact, so every candidate must be seen; with a
+    layout whose candidates are all joints, one unseen joint is enough to give no contact."""
+    fixed = layout.fixed_joints(mode)
+    if fixed is not None:
+        return bool(np.isfinite(joints_cam[list(fixed)]).all(axis=1).any())
+    allowed = layout.contact or range(len(joints_cam))
+    return bool(np.isfinite(joints_cam[list(allowed)]).all())
 
 
 def sole_points(layout: JointLayout, joints_cam: np.ndarray, candidates: list[int],
@@ -73,8 +87,12 @@ def leg_lengths(layout: JointLayout, joints: np.ndarray) -> list[float]:
 
 
 def leg_length(layout: JointLayout, joints: np.ndarray) -> float:
-    """The person's leg length, metres: the longer leg's (0 for a layout without legs)."""
-    return max(leg_lengths(layout, joints), default=0.0)
+    """The person's leg length, metres: the longer seen leg's (0 for a layout without legs; NaN
+    when no leg is seen whole: a joint of each NaN)."""
+    seen = [leg for leg in leg_lengths(layout, joints) if math.isfinite(leg)]
+    if not layout.legs:
+        return 0.0
+    return max(seen) if seen else math.nan
 
 
 def combine_ratios(mode: str, ratios: list[float]) -> float:

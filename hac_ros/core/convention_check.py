@@ -144,14 +144,14 @@ class ConventionCheck:
         up_map = R_wc @ up_cam
         if down_map is not None and float(up_map @ down_map) > 0.5 * float(np.linalg.norm(up_map)):
             self._inverted += 1  # the body's up axis along the scene's down
-        if K is not None:
-            in_image = in_view(joints_cam, K, *image_size)
+        if K is not None:  # the joints seen (NaN: not seen, not judged)
+            in_image = in_view(joints_cam[np.isfinite(joints_cam).all(axis=1)], K, *image_size)
             self._joints += len(in_image)
             self._joints_in_image += sum(in_image)
         if self._axes_taken(stamp_ns):
             self._add_axis(layout, R_wc, joints_cam, up_cam)
         legs = leg_lengths(layout, joints_cam)
-        if len(legs) == 2 and max(legs) > 0.0:
+        if len(legs) == 2 and all(math.isfinite(leg) for leg in legs) and max(legs) > 0.0:
             self._legs[self._legs_seen % LEG_HISTORY] = (0.5 * (legs[0] + legs[1]),
                                                         abs(legs[0] - legs[1]) / max(legs))
             self._legs_seen += 1

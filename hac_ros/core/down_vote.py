@@ -80,6 +80,9 @@ class DownVote:
             self._below = shape.normal * math.copysign(1.0, side) if side != 0.0 else None
         floors = (map_index.floor_offset(-up_map), map_index.floor_offset(up_map))
         allowed = list(layout.contact) or list(range(len(joints_cam)))
+        if not np.isfinite(joints_cam[allowed]).all():  # a candidate not seen: no vote
+            self._down = self._decide()
+            return
         self._bodies += 1
         for way, down in enumerate((-up_map, up_map)):
             down_cam = R_wc.T @ down

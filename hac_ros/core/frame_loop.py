@@ -17,6 +17,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from hac_ros.core.contact import contact_seen
 from hac_ros.core.convention_check import ConventionCheck
 from hac_ros.core.conventions import Conventions
 from hac_ros.core.estimator import RollingScale
@@ -37,7 +38,7 @@ from hac_ros.core.pending import (
     PendingStatus,
     Record,
 )
-from hac_ros.core.plausibility import body_unit_problem
+from hac_ros.core.plausibility import body_unit_problem, seen_problem
 from hac_ros.core.pose_stream import FreezeWatch, Pose, PoseTrack, ZigzagWatch
 from hac_ros.core.posture import posture_problem
 from hac_ros.core.reasons import text as reason_text
@@ -388,18 +389,25 @@ class FrameLoop:
         """One person's scale sample (docs/method.md, steps 1–5; hac_ros.core.sample) and its
         bookkeeping."""
         self.people += 1
-        if not np.isfinite(joints).all():
+        seen = np.isfinite(joints).all(axis=1)  # NaN joints are not seen (docs/inputs.md)
+        if np.isinf(joints).any():
             return self._rejected_sample(stamp, person, 'nonfinite_joints')
-        unit = body_unit_problem(joints)
+        if not seen.all():
+            problem = seen_problem(self.layout, seen)
+            if problem:
+                return self._rejected_sample(stamp, person, 'too_little_seen', problem)
+        unit = body_unit_problem(joints[seen])
         if unit:
             return self._rejected_sample(stamp, person, 'joints_not_metres', unit)
-        if not (joints[:, 2] > 0.0).any():
+        if not (joints[seen, 2] > 0.0).any():
             return self._rejected_sample(stamp, person, 'behind_camera')
         up_cam = self.layout.up_axis(joints)
         notes = self._vote_down(stamp, R_wc, c_map, joints, up_cam)
         down = self.ground.rough_down()
         self.check.add_person(stamp, self.layout, R_wc, joints, up_cam, down, self._K,
                               self._image_size)
+        if not contact_seen(self.params.contact_mode, self.layout, joints):
+            return notes + self._rejected_sample(stamp, person, 'contact_unseen')
         if posture_problem(self.layout, joints, up_cam, None if down is None else R_wc.T @ down):
             # only standing people measure (hac_ros.core.posture)
             return notes + self._rejected_sample(stamp, person, 'not_standing')

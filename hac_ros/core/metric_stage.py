@@ -180,8 +180,9 @@ class MetricStage:
     def _sane(self, outputs: list[Output]) -> list[Output]:
         """The outputs with nothing non-finite or beyond ``output_max_m`` metres
         (hac_ros.core.plausibility): such a pose, odometry, scale or joints message is suppressed
-        and a cloud loses those points, each counted as ``output_implausible``; a person whose
-        input joints were not finite (counted as such) is left out of the joints."""
+        and a cloud loses those points, each counted as ``output_implausible``; in the joints a
+        NaN joint is one not seen and stays NaN, and a person with an infinite joint (counted as
+        such) or none seen is left out."""
         bound, out = self.config.output_max_m, []
         for output in outputs:
             ok = True
@@ -189,12 +190,14 @@ class MetricStage:
                 ok = sane(output.position_metric, bound) and sane(output.covariance, math.inf)
             elif isinstance(output, ScaleOut):
                 ok = math.isfinite(output.scale) and output.scale > 0.0
-            elif isinstance(output, HumanJointsOut):
+            elif isinstance(output, HumanJointsOut):  # NaN joints: not seen, kept NaN
                 people = output.joints_metric
-                finite = np.isfinite(people).all(axis=(1, 2))
-                if not finite.all():
-                    output = replace(output, joints_metric=people[finite])
-                ok = sane(output.joints_metric, bound)
+                seen = np.isfinite(people).all(axis=2)
+                keep = ~np.isinf(people).any(axis=(1, 2)) & seen.any(axis=1)
+                if not keep.all():
+                    output = replace(output, joints_metric=people[keep])
+                    seen = seen[keep]
+                ok = sane(output.joints_metric[seen], bound)
             elif isinstance(output, CloudOut):
                 points = sane_rows(output.points_metric, bound)
                 if len(points) < len(output.points_metric):

@@ -22,6 +22,8 @@ import math
 
 import numpy as np
 
+from hac_ros.core.layouts import JointLayout
+
 CLOUD_DEPTH_DECADES = 3.0  # a point 1000x nearer or further than the median depth ...
 CLOUD_IMPLAUSIBLE_SHARE = 0.25  # ... for more than this share of a map's points: refused
 BODY_SPAN_MIN_M = 0.3  # a person's joints (box diagonal) spread at least this much, metres ...
@@ -104,3 +106,19 @@ def sane_rows(points: np.ndarray, bound_m: float) -> np.ndarray:
     """The rows of ``points`` (N, 3) whose coordinates are all finite and within ``bound_m``."""
     keep = np.all(np.abs(points) <= bound_m, axis=1)
     return points if keep.all() else points[keep]
+
+
+MIN_SEEN_SHARE = 0.5  # a person is judged when at least this share of their joints is seen
+
+
+def seen_problem(layout: JointLayout, seen: np.ndarray) -> str:
+    """Why too little of a person is seen to judge them ('' when enough is): seen (K,) bool,
+    the joints given (finite; NaN ones are unseen). The body axis needs one seen joint at each
+    end, and at least :data:`MIN_SEEN_SHARE` of the joints must be seen."""
+    flags = seen.tolist()
+    for end, indices in (('lower', layout.axis_lower), ('upper', layout.axis_upper)):
+        if not any(flags[i] for i in indices):
+            return f'no joint of the body axis\'s {end} end seen'
+    if sum(flags) < MIN_SEEN_SHARE * len(flags):
+        return f'{sum(flags)} of {len(flags)} joints seen'
+    return ''

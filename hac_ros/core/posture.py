@@ -47,8 +47,10 @@ def posture_problem(layout: JointLayout, joints: np.ndarray, up: np.ndarray,
     """Why this body does not stand ('' when it does): 'seated or kneeling' (no support leg), or
     'lying' (its axis across ``down``).
 
-    joints: (K, 3) metres, any frame, finite; up: (3,) the layout's lower → upper axis in that
-    frame, any length; down: (3,) the scene's down, unit, same frame, or None while unknown.
+    joints: (K, 3) metres, any frame (NaN rows: not seen; a leg with one is not judged, and
+    without a leg seen whole nor the feet the body does not stand as far as it shows); up: (3,)
+    the layout's lower → upper axis in that frame, any length; down: (3,) the scene's down, unit,
+    same frame, or None while unknown.
     """
     norm = float(np.linalg.norm(up))
     if not math.isfinite(norm) or norm <= 0.0:
@@ -62,13 +64,18 @@ def posture_problem(layout: JointLayout, joints: np.ndarray, up: np.ndarray,
         thigh = joints[knee] - joints[hip]
         shin = joints[ankle] - joints[knee]
         t_norm, s_norm = float(np.linalg.norm(thigh)), float(np.linalg.norm(shin))
-        if t_norm <= 0.0 or s_norm <= 0.0:
+        if not (t_norm > 0.0 and s_norm > 0.0):  # NaN: a joint not seen
             continue
         if (float(thigh @ body_down) >= _THIGH_COS * t_norm
                 and float(shin @ body_down) >= _SHIN_COS * s_norm):
             return ''
     if down is not None and layout.feet:
-        offset = joints.mean(axis=0) - joints[list(layout.feet)].mean(axis=0)
+        seen = joints[np.isfinite(joints).all(axis=1)]
+        feet = joints[list(layout.feet)]
+        feet = feet[np.isfinite(feet).all(axis=1)]
+        if not len(feet):
+            return 'seated or kneeling'  # no foot seen: not known to stand
+        offset = seen.mean(axis=0) - feet.mean(axis=0)
         across = offset - float(offset @ down) * down
         if float(np.linalg.norm(across)) <= BALANCE_MAX_M:
             return ''  # balanced over the feet: a squat, a crouch

@@ -93,8 +93,16 @@ REASONS: dict[str, Reason] = {
     'joints_wrong_frame': Reason(REJECTED, 'joints in a frame other than the camera frame',
         remedy='one camera per node: set camera_frame to its optical frame and publish every '
                'joints message in it'),
-    'nonfinite_joints': Reason(REJECTED, 'a person with NaN/inf joints',
+    'nonfinite_joints': Reason(REJECTED, 'a person with infinite joints (NaN is "not seen")',
         remedy='none: the person is skipped'),
+    'too_little_seen': Reason(
+        REJECTED, 'a person of whom too little is seen (NaN joints): no joint at one end of the '
+        'body axis, or fewer than half the joints',
+        remedy='none: the person is skipped'),
+    'contact_unseen': Reason(
+        REJECTED, 'a person whose contact joints (or the leg that gives their height above the '
+        'sole) are not seen (NaN): no contact, no sample',
+        remedy='none: people whose feet are out of view or hidden give no scale'),
     'joints_not_metres': Reason(
         REJECTED, 'people refused: joints spread over more than 4 m or less than 0.3 m (HMR '
         'joints must be metres)', warns=True,

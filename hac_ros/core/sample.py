@@ -13,7 +13,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hac_ros.core.contact import candidate_joints, combine_ratios, in_view, sole_points
+from hac_ros.core.contact import (
+    candidate_joints,
+    combine_ratios,
+    contact_seen,
+    in_view,
+    sole_points,
+)
 from hac_ros.core.layouts import JointLayout
 from hac_ros.core.params import HacParams
 from hac_ros.core.plane import Plane
@@ -24,8 +30,9 @@ from hac_ros.core.reference import MapIndex
 class Sample:
     """A person's sample: scale (metres per SLAM unit), source ('map' or 'ground') and the point
     on the surface that gave it (metres, camera optical frame); or, with ``reason`` set, why there
-    is none ('behind_camera', 'no_map', 'no_reference'; the scale NaN). ``floor_scale``: what the
-    ground plane alone says for that point (its ray's floor intersection; NaN without one)."""
+    is none ('behind_camera', 'contact_unseen', 'no_map', 'no_reference'; the scale NaN).
+    ``floor_scale``: what the ground plane alone says for that point (its ray's floor
+    intersection; NaN without one)."""
 
     scale: float
     source: str = ''
@@ -60,21 +67,24 @@ class Scene:
 
 def person_sample(params: HacParams, layout: JointLayout, scene: Scene, R_wc: np.ndarray,
                   c_map: np.ndarray, joints: np.ndarray) -> Sample:
-    """The sample of one person (joints (K, 3) metres, camera optical frame, finite, some in front
-    of the camera), or :func:`no_sample` with the reason there is none."""
+    """The sample of one person (joints (K, 3) metres, camera optical frame, some in front of the
+    camera; NaN rows not seen), or :func:`no_sample` with the reason there is none."""
     if scene.map is None and scene.plane is None:
         return no_sample('no_map')
     if scene.normal is None and params.contact_mode == 'lowest_gravity':
         return no_sample('no_down')  # the lowest joint needs down (hac_ros.core.down_vote)
     candidates = candidate_joints(params.contact_mode, layout, joints, R_wc, scene.normal)
     if not candidates:
-        return no_sample('behind_camera')
+        return no_sample('behind_camera' if contact_seen(params.contact_mode, layout, joints)
+                         else 'contact_unseen')
     visible = in_view(joints[candidates], scene.K, *scene.image_size)
     # the points on the surface the candidates touch (metres, camera frame): the joints
     # themselves, or moved down onto the sole (sole_correction)
     points = joints[candidates]
     if params.sole_correction and scene.normal is not None:  # down unknown: the joints as they are
         points = sole_points(layout, joints, candidates, R_wc.T @ scene.normal)
+        if not np.isfinite(points).all():
+            return no_sample('contact_unseen')  # no leg seen whole: no height above the sole
     plane = scene.plane
     ratios = [math.nan] * len(candidates)  # d_A / d_S of each candidate, metres per SLAM unit
     floor_ratios = [math.nan] * len(candidates)  # the same with the ground plane's d_S

@@ -10,9 +10,12 @@ of Google's ``.task`` files. ``model_path`` runs a ``.task`` file instead (e.g. 
 landmarker).
 
 Far, small people that the pose detector misses on the whole image are found by OpenCV's HOG
-person detector (``person_detector: hog``): each box no pose already covers is cropped with a
-margin, scaled up to :data:`CROP_HEIGHT_PX` and given to the landmarker, and its landmarks are
-mapped back to the image. Images are (H, W, 3) uint8 RGB throughout.
+person detector (``person_detector: hog``): it runs on the image scaled so that its window holds
+a person of ``person_min_height_px`` (:meth:`PoseModel.hog_zoom`); each box no pose already covers
+is cropped with a margin, scaled up to :data:`CROP_HEIGHT_PX` and given to the landmarker, and its
+landmarks are mapped back to the image (a pose under half ``person_min_height_px`` is HOG's
+clutter, dropped). Images are (H, W, 3) uint8 RGB throughout. Measured on vtest.avi's hand labels
+(``bench/people_recall.py``): docs/accuracy.md, "Small people".
 """
 from __future__ import annotations
 
@@ -26,7 +29,7 @@ import numpy as np
 
 from hac_ros.core.errors import InputError
 from hac_ros.people.extra import native_logs_to, require, shipped_models
-from hac_ros.people.params import PERSON_DETECTORS
+from hac_ros.people.params import PERSON_DETECTORS, PeopleParams
 
 LOG = logging.getLogger(__name__)
 
@@ -36,10 +39,12 @@ TASK_MEMBERS = ('pose_detector.tflite', 'pose_landmarks_detector.tflite')
 CROP_HEIGHT_PX = 384  # a HOG box is scaled to this height before the landmarker sees it
 CROP_MARGIN = 0.25  # of the box's size, added on each side of a crop
 HOG_MIN_WEIGHT = 0.3  # HOG's SVM score below which a box is not taken
-HOG_SCALE_STEP = 1.05  # HOG's pyramid step
+HOG_SCALE_STEP = 1.1  # HOG's pyramid step (1.05 costs twice the time for the same recall)
 HOG_WINDOW = (64, 128)  # the people detector's window, width x height pixels: OpenCV's HOG
 # crashes the process (SIGSEGV, or SIGABRT in malloc) on an image smaller than this, so such an
 # image is never given to it
+HOG_PERSON_PX = 96  # the height of the person its window holds (the window has a margin)
+MIN_POSE_SHARE = 0.5  # a crop's pose shorter than this share of person_min_height_px is dropped
 COVERED_IOU = 0.3  # a HOG box overlapping a pose's box this much is that person
 DUPLICATE_IOU = 0.5  # two poses whose boxes overlap this much are one person
 
@@ -48,13 +53,16 @@ DUPLICATE_IOU = 0.5  # two poses whose boxes overlap this much are one person
 class Landmarks:
     """One person as the model gives them: ``pixels`` (33, 2) image landmarks in pixels of the
     image (x right, y down; outside the image when the model places a joint beyond its edge),
-    ``visibility`` (33,) in [0, 1], ``world`` (33, 3) the same landmarks in metres around the
-    hips in the model's own frame; ``from_crop`` when found in a person detector's crop."""
+    ``visibility`` (33,) in [0, 1] (the model's belief that the landmark is in view and not
+    occluded), ``world`` (33, 3) the same landmarks in metres around the hips in the model's own
+    frame; ``presence`` (33,) in [0, 1] (its belief that the landmark is in the image at all; 1
+    when the model gives none); ``from_crop`` when found in a person detector's crop."""
 
     pixels: np.ndarray
     visibility: np.ndarray
     world: np.ndarray
     from_crop: bool = False
+    presence: np.ndarray | None = None
 
     def box(self) -> np.ndarray:
         """(x0, y0, x1, y1) pixels: the bounding box of the landmarks."""
@@ -107,17 +115,22 @@ class PoseModel:
 
     model_path: a pose landmarker ``.task`` file ('' = the shipped models); max_people: poses per
     image (and per crop: 1); min_detection_confidence, min_presence_confidence: MediaPipe's
-    thresholds in [0, 1]; person_detector: ``hog`` or ``none``. Not thread-safe: one caller.
+    thresholds in [0, 1]; person_detector: ``hog`` or ``none``; person_min_height_px: the smallest
+    person, in pixels of the image, the person detector looks for. Not thread-safe: one caller.
     """
 
     def __init__(self, model_path: str = '', max_people: int = 6,
                  min_detection_confidence: float = 0.5, min_presence_confidence: float = 0.5,
-                 person_detector: str = 'hog') -> None:
+                 person_detector: str = 'hog', person_min_height_px: float = 60.0) -> None:
         if person_detector not in PERSON_DETECTORS:
             raise InputError(f'person_detector: one of {", ".join(PERSON_DETECTORS)}, not '
                              f'{person_detector!r}')
         if max_people < 1:
             raise InputError(f'max_people: at least 1, got {max_people}')
+        if not 8.0 <= person_min_height_px <= 10000.0:
+            raise InputError(f'person_min_height_px: in [8, 10000] pixels, got '
+                             f'{person_min_height_px}')
+        self.person_min_height_px = float(person_min_height_px)
         for name, value in (('min_detection_confidence', min_detection_confidence),
                             ('min_presence_confidence', min_presence_confidence)):
             if not 0.0 <= value <= 1.0:
@@ -154,10 +167,20 @@ class PoseModel:
         self.model_calls = 0  # landmarker calls made (whole images and crops)
         # the person detector's boxes of the last image (x0, y0, x1, y1 pixels) and what came of
         # each: 'covered' (a pose already there), 'pose', 'duplicate' (its pose was one already
-        # found), 'no_pose' or 'too_small'
+        # found), 'no_pose', 'small_pose' (under MIN_POSE_SHARE of person_min_height_px) or
+        # 'too_small' (a crop under 8 px)
         self.last_boxes: list[tuple[np.ndarray, str]] = []
         # the last image was smaller than HOG_WINDOW: the person detector did not look at it
         self.last_too_small = False
+
+    @classmethod
+    def from_params(cls, params: PeopleParams) -> PoseModel:
+        """The model ``hac_people_node`` and ``hac people`` run, from their parameters."""
+        return cls(model_path=params.model_path, max_people=params.max_people,
+                   min_detection_confidence=params.min_detection_confidence,
+                   min_presence_confidence=params.min_presence_confidence,
+                   person_detector=params.person_detector,
+                   person_min_height_px=params.person_min_height_px)
 
     def close(self) -> None:
         for landmarker in (self._whole, self._crop):
@@ -172,26 +195,42 @@ class PoseModel:
         height, width = rgb.shape[:2]
         people = []
         for normalised, world in zip(result.pose_landmarks, result.pose_world_landmarks):
-            values = np.array([(p.x, p.y, p.visibility or 0.0) for p in normalised], dtype=float)
+            values = np.array([(p.x, p.y, p.visibility or 0.0,
+                                1.0 if p.presence is None else p.presence) for p in normalised],
+                              dtype=float)
             people.append(Landmarks(
                 pixels=values[:, :2] * (width, height), visibility=values[:, 2],
-                world=np.array([(p.x, p.y, p.z) for p in world], dtype=float)))
+                world=np.array([(p.x, p.y, p.z) for p in world], dtype=float),
+                presence=values[:, 3]))
         return people
 
+    @property
+    def hog_zoom(self) -> float:
+        """The scale HOG sees the image at: its window then holds a person of
+        ``person_min_height_px`` at the pyramid's first or second level (below 1: shrunk)."""
+        return HOG_PERSON_PX / self.person_min_height_px * HOG_SCALE_STEP
+
+    def too_small(self, width: int, height: int) -> bool:
+        """An image of ``width`` x ``height`` pixels is smaller than the person detector's window
+        at the scale it searches: no person of ``person_min_height_px`` fits in it."""
+        return (width * self.hog_zoom < HOG_WINDOW[0]
+                or height * self.hog_zoom < HOG_WINDOW[1])
+
     def person_boxes(self, rgb: np.ndarray) -> np.ndarray:
-        """The person detector's boxes (N, 4) x0, y0, x1, y1 pixels (none without a detector, or
-        in an image smaller than its window: :attr:`last_too_small`)."""
-        self.last_too_small = False
-        if self._hog is None:
-            return np.zeros((0, 4))
-        if rgb.shape[1] < HOG_WINDOW[0] or rgb.shape[0] < HOG_WINDOW[1]:
-            self.last_too_small = True
+        """The person detector's boxes (N, 4) x0, y0, x1, y1 pixels of ``rgb`` (none without a
+        detector, or in an image :meth:`too_small` for it: :attr:`last_too_small`)."""
+        self.last_too_small = self.too_small(rgb.shape[1], rgb.shape[0])
+        if self._hog is None or self.last_too_small:
             return np.zeros((0, 4))
         gray = self.cv2.cvtColor(rgb, self.cv2.COLOR_RGB2GRAY)
+        zoom = self.hog_zoom
+        gray = self.cv2.resize(gray, None, fx=zoom, fy=zoom, interpolation=self.cv2.INTER_LINEAR)
+        if gray.shape[1] < HOG_WINDOW[0] or gray.shape[0] < HOG_WINDOW[1]:
+            return np.zeros((0, 4))  # rounding: detectMultiScale crashes below its window
         boxes, weights = self._hog.detectMultiScale(gray, winStride=(8, 8), padding=(8, 8),
                                                     scale=HOG_SCALE_STEP)
         keep = [i for i, w in enumerate(np.ravel(weights)) if w >= HOG_MIN_WEIGHT]
-        xywh = np.asarray(boxes, dtype=float).reshape(-1, 4)[keep]
+        xywh = np.asarray(boxes, dtype=float).reshape(-1, 4)[keep] / zoom
         return np.c_[xywh[:, :2], xywh[:, :2] + xywh[:, 2:]]
 
     def detect(self, rgb: np.ndarray) -> list[Landmarks]:
@@ -219,9 +258,13 @@ class PoseModel:
             for found in self._landmarks(self._crop, crop):
                 person = Landmarks(pixels=found.pixels / zoom + (x0, y0),
                                    visibility=found.visibility, world=found.world,
-                                   from_crop=True)
+                                   from_crop=True, presence=found.presence)
+                box_found = person.box()
+                if box_found[3] - box_found[1] < MIN_POSE_SHARE * self.person_min_height_px:
+                    outcome = 'small_pose'  # HOG's box on clutter (a van's wheel)
+                    continue
                 outcome = 'duplicate'
-                if all(_iou(person.box(), p.box()) <= DUPLICATE_IOU for p in people):
+                if all(_iou(box_found, p.box()) <= DUPLICATE_IOU for p in people):
                     people.append(person)
                     outcome = 'pose'
             self.last_boxes.append((box, outcome))

@@ -86,11 +86,8 @@ class PeopleNode(Node):
             extra.limit_threads(self.params.num_threads)
         from hac_ros.people.model import PoseModel
 
-        self.people = PeopleFromImages(PoseModel(
-            model_path=self.params.model_path, max_people=self.params.max_people,
-            min_detection_confidence=self.params.min_detection_confidence,
-            min_presence_confidence=self.params.min_presence_confidence,
-            person_detector=self.params.person_detector))
+        self.people = PeopleFromImages(PoseModel.from_params(self.params),
+                                       self.params.landmark_min_visibility)
         self.counts: Counter[str] = Counter()
         self._told: set[str] = set()
         self._lock = threading.Lock()  # counts, camera, the slot
@@ -275,6 +272,7 @@ class PeopleNode(Node):
             self._count('images_processed')
             self._count('people_published', len(frame.lifted))
             self._count('people_from_crops', frame.from_crop)
+            self._count('landmarks_unseen', frame.unseen)
             for reason, count in frame.dropped.items():
                 self._count(f'people_dropped.{reason}', count)
             self._timing.append((time.perf_counter() - start, frame.model_s, frame.lift_s))

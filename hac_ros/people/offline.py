@@ -26,7 +26,6 @@ from hac_ros.people.extra import require
 from hac_ros.people.frontend import PeopleFromImages, size_matches
 from hac_ros.people.images import IMAGE_SUFFIXES
 from hac_ros.people.lifting import Camera
-from hac_ros.people.model import HOG_WINDOW
 from hac_ros.people.params import PeopleParams
 from hac_ros.recording.atomic import staged_output
 from hac_ros.replay.feeder import Progress, progress_pass
@@ -47,6 +46,7 @@ class PeopleResult:
     most_people: int = 0
     from_crops: int = 0
     too_small: int = 0  # frames smaller than the person detector's window
+    unseen: int = 0  # landmarks written NaN: not seen
     dropped: Counter[str] = field(default_factory=Counter)
 
     def text(self) -> str:
@@ -54,27 +54,52 @@ class PeopleResult:
         return (f'wrote {self.path}: {self.frames} frames ({self.width} x {self.height}), '
                 f'{self.people} people in {self.frames_with_people} of them (at most '
                 f'{self.most_people} in one, {self.from_crops} from the person detector\'s '
-                f'crops); joint_layout blazepose33' + (f'; dropped: {dropped}' if dropped else '')
-                + (f'; {self.too_small} frames smaller than the person detector\'s '
-                   f'{HOG_WINDOW[0]} x {HOG_WINDOW[1]} px window (only the landmarker looked)'
+                f'crops; {self.unseen} landmarks not seen, NaN); joint_layout blazepose33'
+                + (f'; dropped: {dropped}' if dropped else '')
+                + (f'; {self.too_small} frames too small for the person detector (no '
+                   'person of person_min_height_px fits: only the landmarker looked)'
                    if self.too_small else ''))
 
 
-def parse_camera(text: str) -> tuple[np.ndarray, np.ndarray]:
-    """``fx,fy,cx,cy[,k1,k2,p1,p2]`` (pixels; plumb_bob) → (K (3, 3), D (4,) or (0,))."""
+CAMERA_FORMS = ('fx,fy,cx,cy[,k1,k2,p1,p2] (pixels; plumb_bob distortion) or '
+                'fx,fy,cx,cy,width,height (hac import\'s form)')
+
+
+def parse_camera(text: str) -> tuple[np.ndarray, np.ndarray, tuple[int, int] | None]:
+    """``fx,fy,cx,cy[,k1,k2,p1,p2]`` (pixels; plumb_bob) or ``hac import``'s
+    ``fx,fy,cx,cy,width,height`` → (K (3, 3), D (4,) or (0,), (width, height) or None: the size
+    the images must have)."""
+    from hac_ros.files.readers import parse_camera as parse_sized
+
     parts = text.replace(',', ' ').split()
+    if len(parts) == 6:
+        K, width, height = parse_sized(text)
+        return K, np.zeros(0), (width, height)
     try:
         values = [float(p) for p in parts]
         if len(values) not in (4, 8):
             raise ValueError(f'{len(values)} values')
     except ValueError as exc:
-        raise ArgumentError(f'{{camera}} {text!r}: expected fx,fy,cx,cy or fx,fy,cx,cy,k1,k2,p1,p2 '
-                            f'(pixels; plumb_bob distortion) ({exc})', 'camera') from exc
+        raise ArgumentError(f'{{camera}} {text!r}: expected {CAMERA_FORMS} ({exc})',
+                            'camera') from exc
     fx, fy, cx, cy = values[:4]
     if not (all(math.isfinite(v) for v in values) and fx > 0 and fy > 0):
         raise ArgumentError(f'{{camera}} {text!r}: fx and fy must be positive, all finite',
                             'camera')
-    return np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]]), np.array(values[4:])
+    return (np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]]), np.array(values[4:]),
+            None)
+
+
+def check_camera(text: str, K: np.ndarray, size: tuple[int, int] | None, width: int,
+                 height: int, where: Path) -> None:
+    """ArgumentError naming ``camera`` when the size given is not the frames' (``width`` x
+    ``height`` of ``where``) or K's principal point is not inside them."""
+    if size is not None and size != (width, height):
+        raise ArgumentError(f'{{camera}} {text!r}: says {size[0]} x {size[1]}, the frames of '
+                            f'{where} are {width} x {height}', 'camera')
+    problem = principal_point_problem(K, width, height)
+    if problem:
+        raise ArgumentError(f'{{camera}} {text!r}: {problem}', 'camera')
 
 
 def read_stamps(path: str | Path) -> np.ndarray:
@@ -126,6 +151,11 @@ class FrameSource:
         else:
             raise ArgumentError(f'{{source}} {self.path} does not exist', 'source')
 
+    def close(self) -> None:
+        """Releases the video (a folder holds nothing open)."""
+        if self.video is not None:
+            self.video.release()
+
     def frames(self) -> Iterator[np.ndarray]:
         """Each frame as (H, W, 3) uint8 RGB, in order."""
         if self.video is not None:
@@ -148,7 +178,8 @@ def people_from_images(source: str | Path, camera: str, output: str | Path,
     """Write ``output`` (.npz, refused when it exists) with the metric people of every frame of
     ``source`` (a video file or a folder of images).
 
-    camera: ``fx,fy,cx,cy[,k1,k2,p1,p2]`` pixels (the image size is the frames'); fps: frames per
+    camera: ``fx,fy,cx,cy[,k1,k2,p1,p2]`` pixels (the image size is the frames'), or
+    ``fx,fy,cx,cy,width,height`` (the size checked against the frames'); fps: frames per
     second (default: the video's; a folder needs it or ``stamps``); start: the first frame's stamp,
     seconds; stamps: a file of one stamp per frame instead; params: the model's parameters
     (``model_path``, ``max_people``, ``person_detector``, the confidences).
@@ -159,7 +190,7 @@ def people_from_images(source: str | Path, camera: str, output: str | Path,
     if target.exists() or target.is_symlink():
         raise HacError(f'{target} already exists: not overwritten (remove it or choose another '
                        'name)')
-    K, D = parse_camera(camera)
+    K, D, size = parse_camera(camera)
     params = params or PeopleParams()
     frames = FrameSource(source)
     if stamps is not None:
@@ -176,11 +207,7 @@ def people_from_images(source: str | Path, camera: str, output: str | Path,
         if not math.isfinite(start):
             raise ArgumentError('{start} must be finite seconds', 'start')
         given = None
-    people = PeopleFromImages(PoseModel(
-        model_path=params.model_path, max_people=params.max_people,
-        min_detection_confidence=params.min_detection_confidence,
-        min_presence_confidence=params.min_presence_confidence,
-        person_detector=params.person_detector))
+    people = PeopleFromImages(PoseModel.from_params(params), params.landmark_min_visibility)
     per_frame: list[np.ndarray] = []
     result: PeopleResult | None = None
     camera_of: Camera | None = None
@@ -188,10 +215,8 @@ def people_from_images(source: str | Path, camera: str, output: str | Path,
         with progress_pass(progress, frames.count, 'people') as bar:
             for i, rgb in enumerate(frames.frames()):
                 if camera_of is None:
+                    check_camera(camera, K, size, rgb.shape[1], rgb.shape[0], frames.path)
                     camera_of = Camera(K=K, width=rgb.shape[1], height=rgb.shape[0], D=D)
-                    problem = principal_point_problem(K, camera_of.width, camera_of.height)
-                    if problem:
-                        raise ArgumentError(f'{{camera}} {camera}: {problem}', 'camera')
                     result = PeopleResult(target, 0, camera_of.width, camera_of.height)
                 if not size_matches(rgb, camera_of):
                     raise InputError(f'{frames.path}: frame {i} is {rgb.shape[1]} x '
@@ -204,6 +229,7 @@ def people_from_images(source: str | Path, camera: str, output: str | Path,
                 result.frames_with_people += int(len(frame.lifted) > 0)
                 result.from_crops += frame.from_crop
                 result.too_small += int(frame.too_small)
+                result.unseen += frame.unseen
                 result.dropped.update(frame.dropped)
                 if bar is not None:
                     bar.update(1)
@@ -220,8 +246,8 @@ def people_from_images(source: str | Path, camera: str, output: str | Path,
                                                              else frames.fps))
     result.most_people = max((len(j) for j in per_frame), default=0)
     if not result.people:
-        small = (f'; the frames are {result.width} x {result.height}, smaller than the person '
-                 f'detector\'s {HOG_WINDOW[0]} x {HOG_WINDOW[1]} px window'
+        small = (f'; the frames are {result.width} x {result.height}: too small for the person '
+                 f'detector (no person of {params.person_min_height_px:g} px fits its window)'
                  if result.too_small else '')
         raise InputError(f'{frames.path}: nobody found in {result.frames} frames; nothing to '
                          'write (dropped by the lifting: '

@@ -53,6 +53,15 @@ class PeopleParams:
     person_detector: str = _p('hog', 'far, small people: hog (OpenCV\'s HOG person detector, '
                               'each box not yet covered cropped and scaled up for the '
                               'landmarker) or none', choices=PERSON_DETECTORS)
+    person_min_height_px: float = _p(60.0, 'the smallest person, in pixels of the image, the '
+                                     'person detector looks for: it searches the image scaled '
+                                     'by 105.6 / this (60: recall 90 % on vtest.avi at 0.85 '
+                                     'CPU-s a 768 x 576 frame; 100: half the CPU, people under '
+                                     '~100 px missed)', low=8.0, high=10000.0)
+    landmark_min_visibility: float = _p(0.3, 'a landmark is published (else NaN: not seen) '
+                                        'when its visibility and presence are at least this '
+                                        'and it lies inside the image; the feet go together '
+                                        '(one not seen: none)', low=0.0, high=1.0)
     min_detection_confidence: float = _p(0.5, 'MediaPipe\'s pose detection threshold',
                                          low=0.0, high=1.0)
     min_presence_confidence: float = _p(0.5, 'MediaPipe\'s pose presence threshold',

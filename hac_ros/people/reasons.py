@@ -23,8 +23,9 @@ REJECTIONS = {
 # key -> what it means: images processed all the same, counted under the key itself in
 # /diagnostics, the status WARN for the period, the first logged
 WARNINGS = {
-    'image_too_small': 'an image smaller than the person detector\'s 64 x 128 px window: only '
-                       'the landmarker looked at it, and people that small are not found',
+    'image_too_small': 'an image in which no person of person_min_height_px fits the person '
+                       'detector\'s 64 x 128 px window, even scaled as it searches: only the '
+                       'landmarker looked at it',
     'stamp_zero': 'an image stamped 0 (a driver without a clock): the rate cap counts arrival '
                   'time instead, and the joints keep the stamp (hac_node refuses it)',
     'stamp_backwards': 'an image stamped before the one before it: the rate cap counts arrival '

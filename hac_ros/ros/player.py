@@ -26,6 +26,18 @@ refused when it was asked for by name.
 :meth:`Player.run` stops between two messages when its ``stop`` event is set (the command's
 signal handlers set it), so an interrupted play never leaves half a message. Errors name the
 argument (``rate``, ``topics``, ``remap``); only :mod:`hac_ros.cli.play` names flags.
+
+A video (a file OpenCV reads) or a folder of images (one without ``metadata.yaml``, sorted by
+name) is played as a camera, the way ROS's image_publisher does, through
+:class:`~hac_ros.ros.camera_source.CameraFrames` (OpenCV: the ``[people]`` extra):
+``/camera/image_raw``
+(``sensor_msgs/Image`` rgb8; with ``compressed``, ``/camera/image_raw/compressed``, a JPEG
+``CompressedImage``) and ``/camera/camera_info`` (the frames' size, K, plumb_bob D), both
+reliable, depth 10 (what ``hac_people_node`` subscribes with), the CameraInfo just before its image
+with the same header. Frame i is stamped ``start + i / fps`` (the video's rate, or ``fps``), as
+``hac people`` stamps it; with ``loop`` the stamps run on (pass k's frame i at
+``start + (k N + i) / fps``), and every frame goes out at ``(stamp - first stamp) / rate`` after the
+first: a decoder slower than that falls behind, no frame is skipped.
 """
 from __future__ import annotations
 
@@ -44,6 +56,16 @@ from hac_ros.core.params import POSE_MSGTYPES
 from hac_ros.core.printable import printable
 from hac_ros.recording.reader import Recording
 from hac_ros.replay.feeder import tie_ordered
+from hac_ros.ros.camera_source import (
+    CAMERA_DEPTH,
+    COMPRESSED_TOPIC,
+    DEFAULT_FRAME_ID,
+    IMAGE_TOPIC,
+    RECORDING,
+    RECORDING_SUFFIXES,
+    CameraFrames,
+    input_kind,
+)
 from msg_adapters import MessageError, ns_to_stamp, rclpy_types
 
 log = logging.getLogger(__name__)
@@ -69,6 +91,7 @@ KIND_OF_TYPE = {'sensor_msgs/msg/CameraInfo': 'camera_info', CLOUD_MSGTYPE: 'clo
 INSTALL_HINT = {'tf2_msgs': 'ros-jazzy-tf2-msgs (comes with tf2_ros)'}
 
 
+
 @dataclass
 class PlayTopic:
     """One topic played: its name in the recording, the name it is published on, its message
@@ -78,6 +101,7 @@ class PlayTopic:
     published_as: str
     msgtype: str
     latched: bool
+    depth: int = RELIABLE_DEPTH  # the history of a publisher that is not latched
 
 
 @dataclass
@@ -177,16 +201,46 @@ def _latched_topics(recording: Recording) -> set[str]:
     return latched
 
 
+# ------------------------------------------------------------------ a video or images as a camera
+def plan_camera_topics(frames: CameraFrames, topics: Sequence[str] | None = None,
+                       remap: Mapping[str, str] | None = None) -> list[PlayTopic]:
+    """The camera topics to play (default both), as :func:`plan_topics` plans a recording's."""
+    remap = dict(remap or {})
+    given = ', '.join(frames.topics)
+    if topics:
+        wanted = [t if t.startswith('/') else '/' + t for t in topics]
+        missing = [t for t in wanted if t not in frames.topics]
+        if missing:
+            other = (f' ({COMPRESSED_TOPIC} with {{compressed}})' if not frames.compressed
+                     else f' ({IMAGE_TOPIC} without {{compressed}})')
+            raise ArgumentError(f'{{topics}}: {printable(", ".join(missing))} not played from '
+                                f'{printable(frames.path)} (a {frames.kind}: it gives {given}'
+                                f'{other})', 'topics', 'compressed')
+        wanted = [t for t in frames.topics if t in wanted]  # the CameraInfo first
+    else:
+        wanted = list(frames.topics)
+    unknown = [old for old in remap if old not in wanted]
+    if unknown:
+        raise ArgumentError(f'{{remap}}: {printable(", ".join(unknown))} is not a topic played '
+                            f'(played: {printable(", ".join(wanted))})', 'remap')
+    return [PlayTopic(name, remap.get(name, name), frames.topics[name], False, CAMERA_DEPTH)
+            for name in wanted]
+
+
 class Player:
-    """Publishes a recording's topics from a node of its own in ``context`` (the default context
-    when None; rclpy must be initialised). See the module docstring; ``wait_s``: before playing,
-    wait up to this long until every topic played has a subscriber (0: start at once, as
-    ``ros2 bag play`` does)."""
+    """Publishes a recording's topics, or a video's or a folder of images' frames as a camera
+    (:class:`CameraFrames`: ``camera``, ``fps``, ``start``, ``frame_id``, ``compressed``, refused
+    for a recording), from a node of its own in ``context`` (the default context when None; rclpy
+    must be initialised). See the module docstring; ``wait_s``: before playing, wait up to this
+    long until every topic played has a subscriber (0: start at once, as ``ros2 bag play``
+    does)."""
 
     def __init__(self, path: str | Path, rate: float = 1.0, loop: bool = False,
                  clock_hz: float = 0.0, topics: Sequence[str] | None = None,
                  remap: Mapping[str, str] | None = None, wait_s: float = 0.0,
-                 context: Any = None, node_name: str = 'hac_play') -> None:
+                 context: Any = None, node_name: str = 'hac_play', camera: str | None = None,
+                 fps: float | None = None, start: float | None = None,
+                 frame_id: str | None = None, compressed: bool = False) -> None:
         import rclpy
 
         self.rate = check_rate(rate)
@@ -195,12 +249,33 @@ class Player:
         if not 0.0 <= float(wait_s) < float('inf'):
             raise ParameterError(f'wait_s: expected a number >= 0, got {wait_s!r}')
         self.loop, self.clock_hz, self.wait_s = loop, float(clock_hz), float(wait_s)
-        self.recording = Recording(path)
-        try:
-            self.plan, self.skipped = plan_topics(self.recording, topics, remap)
-        except BaseException:
-            self.recording.close()
-            raise
+        self.kind = input_kind(path)
+        self.recording: Recording | None = None
+        self.frames: CameraFrames | None = None
+        if self.kind == RECORDING:
+            given = [name for name, value in (('camera', camera), ('fps', fps), ('start', start),
+                                              ('frame_id', frame_id), ('compressed', compressed))
+                     if value is not None and value is not False]
+            if given:
+                raise ArgumentError(', '.join('{' + n + '}' for n in given) + ': for a video or '
+                                    f'a folder of images; {printable(path)} is read as a '
+                                    'recording', *given)
+            self.recording = _open_recording(path)
+            try:
+                self.plan, self.skipped = plan_topics(self.recording, topics, remap)
+            except BaseException:
+                self.recording.close()
+                raise
+        else:
+            self.frames = CameraFrames(path, self.kind, camera, fps,
+                                       0.0 if start is None else start,
+                                       DEFAULT_FRAME_ID if frame_id is None else frame_id,
+                                       compressed)
+            try:
+                self.plan, self.skipped = plan_camera_topics(self.frames, topics, remap), []
+            except BaseException:
+                self.frames.close()
+                raise
         self.node = rclpy.create_node(node_name, context=context,
                                       start_parameter_services=False)
         types = rclpy_types()
@@ -209,6 +284,7 @@ class Player:
         self._clock = (self.node.create_publisher(types.get(CLOCK[1]), CLOCK[0], 10)
                        if self.clock_hz > 0 else None)
         self._kinds = {t.name: KIND_OF_TYPE.get(t.msgtype, '') for t in self.plan}
+        self._timeline: tuple[int, float] | None = None  # frames: (first stamp, its wall time)
 
     # ------------------------------------------------------------------ playing
     def run(self, stop: threading.Event | None = None) -> PlayStats:
@@ -219,8 +295,12 @@ class Player:
         self._wait_for_subscribers(stop)
         while not stop.is_set():
             stats.loops += 1
-            self._play_once(stop, stats)
-            if not self.loop:
+            if self.frames is not None:
+                played = self._play_frames(stop, stats)
+            else:
+                self._play_once(stop, stats)
+                played = True
+            if not self.loop or not played:
                 break
         stats.stopped = stop.is_set()
         if not stats.stopped:
@@ -229,6 +309,7 @@ class Player:
         return stats
 
     def _messages(self) -> Iterator[tuple[str, int, Any]]:
+        assert self.recording is not None
         return tie_ordered(self.recording.messages(list(self._publishers)), self._kinds)
 
     def _play_once(self, stop: threading.Event, stats: PlayStats) -> None:
@@ -242,9 +323,30 @@ class Player:
             if not self._sleep_until(due, stop, first_ns, wall0):
                 return
             self._publish_clock(log_ns)
+            assert self.recording is not None
             data = self.recording.to_cdr(raw, topic, log_ns)
             self._publishers[topic].publish(bytes(data))
             stats.published[self._publishers[topic].topic_name] += 1
+
+    def _play_frames(self, stop: threading.Event, stats: PlayStats) -> bool:
+        """One pass over the frames, each at (its stamp - the first frame's) / rate after the
+        first frame of the first pass (a pass goes on where the last one ended); False when the
+        pass had no frame."""
+        assert self.frames is not None
+        played = False
+        for stamp_ns, messages in self.frames.messages([t.name for t in self.plan]):
+            played = True
+            if self._timeline is None:
+                self._timeline = (stamp_ns, time.monotonic())
+            first_ns, wall0 = self._timeline
+            due = wall0 + (stamp_ns - first_ns) / NS / self.rate
+            if not self._sleep_until(due, stop, first_ns, wall0):
+                return True
+            self._publish_clock(stamp_ns)
+            for topic, msg in messages:
+                self._publishers[topic].publish(msg)
+                stats.published[self._publishers[topic].topic_name] += 1
+        return played
 
     def _sleep_until(self, due: float, stop: threading.Event, first_ns: int,
                      wall0: float) -> bool:
@@ -300,7 +402,10 @@ class Player:
 
     def close(self) -> None:
         self.node.destroy_node()
-        self.recording.close()
+        if self.recording is not None:
+            self.recording.close()
+        if self.frames is not None:
+            self.frames.close()
 
     def __enter__(self) -> Player:
         return self
@@ -317,6 +422,16 @@ def _qos(topic: PlayTopic) -> Any:
         return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth,
                           reliability=ReliabilityPolicy.RELIABLE,
                           durability=DurabilityPolicy.TRANSIENT_LOCAL)
-    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=RELIABLE_DEPTH,
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=topic.depth,
                       reliability=ReliabilityPolicy.RELIABLE,
                       durability=DurabilityPolicy.VOLATILE)
+
+
+def _open_recording(path: str | Path) -> Recording:
+    """Recording(path); a file that is neither a recording nor a video says both."""
+    try:
+        return Recording(path)
+    except HacError as exc:
+        if Path(path).is_file() and Path(path).suffix.lower() not in RECORDING_SUFFIXES:
+            raise HacError(f'{exc}; nor a video OpenCV (the [people] extra) opens') from exc
+        raise

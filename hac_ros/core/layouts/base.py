@@ -82,7 +82,8 @@ class JointLayout:
         return _mean_of(joints, self.root)
 
     def up_axis(self, joints: np.ndarray) -> np.ndarray:
-        """The body's up vector (..., 3), not normalised: upper minus lower, joints' frame."""
+        """The body's up vector (..., 3), not normalised: upper minus lower, joints' frame (each
+        end the mean of its seen joints; NaN when one end has none)."""
         return _mean_of(joints, self.axis_upper) - _mean_of(joints, self.axis_lower)
 
     def index(self, joint_name: str) -> int:
@@ -91,9 +92,15 @@ class JointLayout:
 
 
 def _mean_of(joints: np.ndarray, indices: tuple[int, ...]) -> np.ndarray:
+    """The mean of the joints ``indices`` (..., 3) over those seen (finite); NaN when none is."""
     if len(indices) == 1:
         return joints[..., indices[0], :]
-    return joints[..., list(indices), :].mean(axis=-2)
+    group = joints[..., list(indices), :]
+    if np.isfinite(group).all():
+        return group.mean(axis=-2)
+    seen = np.isfinite(group).all(axis=-1, keepdims=True)
+    with np.errstate(invalid='ignore', divide='ignore'):
+        return np.where(seen, group, 0.0).sum(axis=-2) / seen.sum(axis=-2)
 
 
 def problems(layout: JointLayout) -> list[str]:
