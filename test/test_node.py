@@ -387,7 +387,7 @@ def test_bad_input_is_counted_logged_once_and_the_node_recovers(harness, walk):
         return Event(stamp_ns, 'joints', joints_to_pose_array(values, stamp_ns, frame_id, TYPES))
 
     nan = J.copy()
-    nan[0, 5] = np.nan
+    nan[0, 5] = np.nan  # a knee not seen: smpl24's contact may be any joint, so none is taken
     inf = J.copy()
     inf[0, 7, 2] = np.inf
     short = joints_to_pose_array(J, stamp + 1, walk.camera_frame, TYPES)
@@ -441,7 +441,8 @@ def test_bad_input_is_counted_logged_once_and_the_node_recovers(harness, walk):
 
     expected = {'cloud_empty': 1, 'cloud_malformed': 3, 'pose_out_of_order': 2,
                 'joints_malformed': 2, 'joints_wrong_layout': 1, 'pose_nonfinite': 2,
-                'nonfinite_joints': 2, 'joints_wrong_frame': 1, 'late_frame': 1, 'pose_outlier': 1}
+                'nonfinite_joints': 1, 'contact_unseen': 1, 'joints_wrong_frame': 1,
+                'late_frame': 1, 'pose_outlier': 1}
     diag = h.diagnostics()
     for reason, count in expected.items():
         assert int(diag.get(f'rejected.{reason}', 0)) == count, (reason, diag)

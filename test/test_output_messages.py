@@ -149,13 +149,15 @@ def test_cloud_and_obstacles():
 
 
 def test_joints_scale_and_skeleton_markers():
-    """Joints (P, K, 3) in order with identity orientations; a skeleton LINE_LIST per person
-    whose joints are all finite, its points the layout's bones (parent, child)."""
+    """Joints (P, K, 3) in order with identity orientations, a joint not seen (NaN) kept NaN; a
+    skeleton LINE_LIST per person, its points the layout's bones (parent, child) whose joints are
+    both seen; a person with no joint seen has none."""
     params = HacParams()
     edges = np.array(params.layout().edges, dtype=int)
     k = int(edges.max()) + 1
     joints = np.random.default_rng(1).normal(size=(3, k, 3))
-    joints[1, 2, 0] = np.nan
+    joints[1, 2, 0] = np.nan  # one joint of person 1 not seen
+    joints[2] = np.nan  # person 2 not seen at all
     out = OutputMessages(params)
     messages = out.convert(HumanJointsOut(STAMP, joints))
     array = only(messages, 'hac/human_joints')
@@ -165,10 +167,13 @@ def test_joints_scale_and_skeleton_markers():
     assert all((p.orientation.x, p.orientation.w) == (0.0, 1.0) for p in array.poses)
     markers = only(messages, 'hac/markers').markers
     assert [(m.ns, m.id, m.type, m.action) for m in markers] == [('skeleton', 0, 5, 0),
-                                                                 ('skeleton', 2, 5, 0)]
-    for m, person in zip(markers, (0, 2)):
+                                                                 ('skeleton', 1, 5, 0)]
+    touching = int((edges == 2).any(axis=1).sum())  # person 1's bones with joint 2
+    assert [len(m.points) for m in markers] == [2 * len(edges), 2 * (len(edges) - touching)]
+    for m, person in zip(markers, (0, 1)):
         assert (m.header.frame_id, stamp_to_ns(m.header.stamp)) == (params.metric_frame, STAMP)
-        assert [[q.x, q.y, q.z] for q in m.points] == joints[person][edges.ravel()].tolist()
+        seen = edges[~(edges == 2).any(axis=1)] if person == 1 else edges
+        assert [[q.x, q.y, q.z] for q in m.points] == joints[person][seen.ravel()].tolist()
         assert (m.scale.x, m.color.g, m.pose.orientation.w) == (0.03, pytest.approx(0.9), 1.0)
         assert (m.lifetime.sec, m.lifetime.nanosec, m.frame_locked, m.text) == (0, 0, False, '')
     scale = only(out.convert(ScaleOut(STAMP, 0.125, 0.01)), 'hac/scale')

@@ -436,13 +436,13 @@ def test_the_command_shows_a_bar_on_a_terminal_and_not_with_no_progress(walk_bag
 
 def test_notices_are_printed_once_on_stderr(tmp_path):
     scene = walking_scene(frames=60)
-    scene.joints_world[10:20] = np.nan  # ten frames of broken HMR output
+    scene.joints_world[10:20] = np.nan  # ten frames of HMR output that saw nobody
     source = write_recording(tmp_path / 'nan', scene)
     result = hac('replay', str(source), '-o', str(tmp_path / 'out'))  # offline: two passes
     assert result.returncode == 0, result.stderr
-    assert result.stderr.count('nonfinite_joints') == 1
-    assert 'nonfinite_joints 10' in result.stdout
-    line, = [line for line in result.stderr.splitlines() if 'nonfinite_joints' in line]
+    assert result.stderr.count('too_little_seen') == 1
+    assert 'too_little_seen 10' in result.stdout
+    line, = [line for line in result.stderr.splitlines() if 'too_little_seen' in line]
     assert line.startswith('hac replay: warning: t+')
 
 
@@ -455,7 +455,7 @@ def test_the_library_logs_its_notices_and_prints_nothing(tmp_path, caplog, capfd
     notices = [(r.name, r.levelname, r.getMessage()) for r in caplog.records]
     assert ('hac_ros.replay.replayer', 'INFO', 'no camera/camera_info in the recording: joints are '
             'judged in view by the map cone alone') in notices
-    broken = [n for n in notices if 'nonfinite_joints' in n[2]]
+    broken = [n for n in notices if 'too_little_seen' in n[2]]
     assert len(broken) == 1 and broken[0][:2] == ('hac_ros.replay.replayer', 'WARNING')
     assert capfd.readouterr() == ('', '')
 
