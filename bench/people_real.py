@@ -110,7 +110,8 @@ def floor_normal(points: np.ndarray) -> np.ndarray:
 def vtest(model: Any, step: int) -> dict[str, Any]:
     from hac_ros.people.lifting import Camera, lift_person
 
-    boxes = {'pose': 0, 'duplicate': 0, 'no_pose': 0, 'too_small': 0, 'covered': 0}
+    boxes = {'pose': 0, 'duplicate': 0, 'no_pose': 0, 'small_pose': 0, 'too_small': 0,
+             'covered': 0}
     people: list[dict[str, Any]] = []  # one per person and frame
     tracks: list[list[int]] = []
     last: list[tuple[int, np.ndarray]] = []  # (track, hips px) of the previous frame
@@ -236,7 +237,8 @@ def main(argv: list[str] | None = None) -> int:
         table(['mosaic', 'people in it', 'found', 'of them through HOG crops'], mosaic_rows), '',
         f'**vtest.avi**, one frame in {args.step} ({data["frames"]}): HOG boxes at least '
         f'{BOX_MIN_PX} px tall: {tall}; a pose from {boxes["pose"] + boxes["duplicate"]} '
-        f'(**{100 * share:.0f} %**, target >= 80 %); none from {boxes["no_pose"]}. Lifted with '
+        f'(**{100 * share:.0f} %**, target >= 80 %); none from {boxes["no_pose"]}, one under '
+        f'the size floor from {boxes["small_pose"]}. Lifted with '
         f'fx = fy = {VTEST_FOCAL_PX:g} px (assumed): {len(data["people"])} people-frames in '
         f'{len(data["tracks"])} tracks; down: the normal of the plane of their lowest foot '
         f'landmarks (trimmed least squares; {floor["tilt_deg"]:.0f} degrees from the optical y '
