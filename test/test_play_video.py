@@ -234,3 +234,32 @@ def test_hac_play_feeds_the_people_node(clip, tmp_path):
         assert any(people_of(m) for m in joints)
     finally:
         graph.close()
+
+
+def test_readme_chain_a_video_alone_gives_the_fixed_cameras_height(clip, tmp_path):
+    """README's chain from a clone with nothing but a video: `hac play FOLDER --camera ...` →
+    hac_people_node → hac_node with static_camera and joint_layout blazepose33, over DDS: hac_node
+    converges and says the camera's height above the square (vtest.avi's camera is 5-6 m up with
+    the assumed fx = 700: docs/accuracy.md, "A fixed camera")."""
+    from test_people import Graph
+
+    folder, _ = clip
+    graph = Graph({'max_rate_hz': 0.0}, {'static_camera': True, 'joint_layout': 'blazepose33',
+                                         'input_qos': 'reliable', 'stale_after_s': 60.0})
+    try:
+        # one frame a second: the people node (about 1 CPU-s a frame) takes every one
+        assert hac(['play', str(folder), '--camera', CAMERA, '--fps', '1', '--start', '10',
+                    '--wait', str(WAIT_S)]) == 0
+
+        def hac_status() -> dict[str, str]:
+            for msg in reversed(graph.received['diagnostics']):
+                for status in msg.status:
+                    if not status.name.startswith('hac_people_node'):
+                        return {kv.key: kv.value for kv in status.values}
+            return {}
+        assert wait_for(lambda: hac_status().get('converged') == 'true'), hac_status()
+        values = hac_status()
+        assert 'rejected.slam_frozen' not in values and 'no_poses' not in values['reasons']
+        assert 4.0 < float(values['camera_height_m']) < 7.0, values
+    finally:
+        graph.close()

@@ -215,6 +215,10 @@ class OutputMessages:
             ('alignment', status.alignment),
             ('rejected_total', str(sum(status.rejected.values()))),
         ]
+        values += [(key, f'{value:.4g}') for key, value in (
+            ('camera_height_m', status.camera_height_m), ('camera_pitch_deg',
+                                                          status.camera_pitch_deg),
+            ('camera_roll_deg', status.camera_roll_deg)) if math.isfinite(value)]
         values += [(f'service.{name}', str(count))
                    for name, count in sorted(status.services.items())]
         values += [(f'event.{kind}', str(count)) for kind, count in sorted(status.events.items())]

@@ -89,6 +89,10 @@ class Calibrator(FrameLoop):
 
         Its stamp is judged first (hac_ros.core.timeline: late, a jump back that starts a new
         stream, one stamp far ahead, a jump ahead), then the pose in its stream (pose_stream)."""
+        return self._add_pose(stamp_ns, R_wc, c_map, frame_id, child_frame_id)
+
+    def _add_pose(self, stamp_ns: int, R_wc: np.ndarray, c_map: np.ndarray, frame_id: str = '',
+                  child_frame_id: str = '') -> list[Record]:
         R_wc, c_map = np.asarray(R_wc, dtype=float), np.asarray(c_map, dtype=float)
         if not (is_rotation(R_wc, 1e-3) and c_map.shape == (3,) and np.all(np.isfinite(c_map))):
             return self._reject('pose_nonfinite', stamp_ns)
@@ -210,6 +214,8 @@ class Calibrator(FrameLoop):
     def _add_map_index(self, index: MapIndex) -> list[Record]:
         if len(index) == 0:
             return self._reject('cloud_empty', index.stamp_ns)
+        if self.params.static_camera and self._map_frame == '':
+            self._map_frame = index.frame_id  # poses made for a fixed camera: the map's frame
         if self._map_frame is not None and index.frame_id != self._map_frame:
             self.maps.foreign = index
             return self._reject('cloud_wrong_frame', index.stamp_ns,
@@ -262,7 +268,22 @@ class Calibrator(FrameLoop):
             for late in self.timeline.hold_frame(frame):
                 out += self._reject('late_frame', late.stamp_ns)
             return out
+        if self.params.static_camera:
+            out += self._static_pose(int(stamp_ns))
         return out + self._queue_frame(frame)
+
+    def _static_pose(self, stamp_ns: int) -> list[Record]:
+        """A fixed camera (``static_camera``): the pose at a joints stamp is the last one given
+        (the camera has not moved), or the map's origin before any, added as a SLAM pose unless
+        one at or after the stamp came; in the frame of the poses, else of the map, else ''."""
+        last = self.track.last
+        if last is not None and last.stamp_ns >= stamp_ns:
+            return []
+        R_wc, c_map = (last.R_wc, last.c_map) if last is not None else (np.eye(3), np.zeros(3))
+        maps = [m for m in (self.maps.in_use, *self.maps.waiting) if m is not None]
+        frame = self._map_frame if self._map_frame is not None else (
+            maps[-1].frame_id if maps else '')
+        return self._add_pose(stamp_ns, R_wc, c_map, frame)
 
     def _queue_frame(self, frame: Frame) -> list[Record]:
         """Process ``frame`` now if its pose is known, else keep it until a pose at or after it."""

@@ -22,7 +22,7 @@ from hac_ros.core.convention_check import ConventionCheck
 from hac_ros.core.conventions import Conventions
 from hac_ros.core.estimator import RollingScale
 from hac_ros.core.ground import GroundModel
-from hac_ros.core.human_filter import RootFilter
+from hac_ros.core.human_filter import PersonTracker, RootFilter
 from hac_ros.core.map_book import MapBook
 from hac_ros.core.map_shape import PLANE_JUDGE_BODIES, MapShape, plane_problem
 from hac_ros.core.metric_stage import MetricStage, ScaleAt, StageConfig, finite_scale
@@ -62,6 +62,7 @@ class Frame:
     """One image's HMR joints, waiting for (or matched to) its SLAM pose."""
     stamp_ns: int
     joints_cam: np.ndarray  # (P, K, 3) metres, camera optical frame (K: the joint layout's)
+STATIC_TURN_DEG = 1.0  # a fixed camera's floor turned by more: the estimate restarts
 
 
 class FrameLoop:
@@ -101,7 +102,10 @@ class FrameLoop:
         a new one: hac_ros.core.timeline); the counters, the camera and the conventions stay."""
         p = self.params
         self.estimator = RollingScale.from_params(p)
-        self.ground = GroundModel(p.ground_mode, p.ground_inlier_m, p.ground_ransac_iters, p.seed)
+        self.ground = GroundModel(p.ground_mode, p.ground_inlier_m, p.ground_ransac_iters, p.seed,
+                                  p.static_camera)
+        self.followed = PersonTracker()  # a fixed camera's people, by their roots (camera frame)
+        self._static_normal: np.ndarray | None = None  # its floor's normal the samples used
         self._map_frame: str | None = None
         # poses in another frame than the map's, in a row: a SLAM re-initialised in a new frame
         # once reset_confirm_poses more follow, else another publisher's (hac_ros.core.calibrator)
@@ -173,7 +177,8 @@ class FrameLoop:
             events=dict(self.events), conditions=self.conditions(),
             pose_matches=dict(self.track.matches))
         last = self.track.last
-        return PendingStatus(status, plane, None if last is None else last.c_map, self.segment)
+        return PendingStatus(status, plane, None if last is None else last.c_map,
+                             None if last is None else last.R_wc, self.segment)
 
     def conditions(self) -> dict[str, str]:
         """What holds now and makes /diagnostics WARN (hac_ros.core.health): reason -> text."""
@@ -372,11 +377,15 @@ class FrameLoop:
         if not self.services.holding:  # frozen: nothing expires
             self.estimator.advance(stamp)
         self.check.view_map(stamp, self.map, R_wc, c_map, self._K, self._image_size)
-        if self.freeze.frame(self.track.frozen(stamp), frame.joints_cam):
+        if (not self.params.static_camera  # a fixed camera's pose repeats: not a frozen SLAM
+                and self.freeze.frame(self.track.frozen(stamp), frame.joints_cam)):
             out += self._reject('slam_frozen', stamp)  # its pose is not the camera's
         else:
+            followed = (self.followed.follow(stamp, self.layout.root_of(frame.joints_cam))
+                        if self.params.static_camera and self.map is None
+                        and len(frame.joints_cam) else [-1] * len(frame.joints_cam))
             for person, joints in enumerate(frame.joints_cam):
-                out += self._person(stamp, person, R_wc, c_map, joints)
+                out += self._person(stamp, person, R_wc, c_map, joints, followed[person])
         out += self.check.notices(stamp)
         if self.journal is not None or self.published_scale(stamp) is not None:
             plane = self.ground.plane(self.map)
@@ -385,9 +394,10 @@ class FrameLoop:
         return out
 
     def _person(self, stamp: int, person: int, R_wc: np.ndarray, c_map: np.ndarray,
-                joints: np.ndarray) -> list[Record]:
+                joints: np.ndarray, followed: int = -1) -> list[Record]:
         """One person's scale sample (docs/method.md, steps 1–5; hac_ros.core.sample) and its
-        bookkeeping."""
+        bookkeeping; ``followed``: who they are across frames (a fixed camera without a map:
+        their contacts refine the floor's normal person by person), -1 unknown."""
         self.people += 1
         seen = np.isfinite(joints).all(axis=1)  # NaN joints are not seen (docs/inputs.md)
         if np.isinf(joints).any():
@@ -445,10 +455,30 @@ class FrameLoop:
             out += self._reject('gated', stamp)
         else:
             self._sources.append(sample.source == 'ground')
-            if sample.source == 'map' and scale_now is not None:
+            if scale_now is not None and (sample.source == 'map' or (
+                    self.params.static_camera and self.map is None)):  # fixed: the feet's floor
                 contact_map = c_map + R_wc @ sample.contact_cam / scale_now
-                self.ground.add_contact(contact_map, scale_now)
+                self.ground.add_contact(contact_map, scale_now, followed)
+                out += self._floor_turned(stamp)
         return out
+
+    def _floor_turned(self, stamp: int) -> list[Record]:
+        """A fixed camera without a map: its floor is one unit below it across the normal the
+        people's contacts refine; when that normal turns by more than STATIC_TURN_DEG the samples
+        taken against the old floor are another floor's, and the estimate restarts."""
+        if not (self.params.static_camera and self.map is None):
+            return []
+        normal = self.ground.normal()
+        before, self._static_normal = self._static_normal, normal
+        if normal is None or before is None:
+            return []
+        turned = math.degrees(math.acos(max(-1.0, min(1.0, float(normal @ before)))))
+        if turned <= STATIC_TURN_DEG:
+            self._static_normal = before  # small turns add up until they count
+            return []
+        self.estimator.restart()
+        return [NoticeOut(stamp, 'floor_refined', f'the floor the people walk on turned '
+                          f'{turned:.1f} deg as their contacts came: estimate restarted', 'info')]
 
     def _vote_down(self, stamp: int, R_wc: np.ndarray, c_map: np.ndarray, joints: np.ndarray,
                    up_cam: np.ndarray) -> list[Record]:

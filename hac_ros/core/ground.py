@@ -41,6 +41,11 @@ RANSAC_SAMPLE = 500  # contact joints a RANSAC hypothesis is scored on
 # a contact plane tilted further than this from the body normal is refused
 CONTACT_MAX_TILT_DEG = 10.0
 CONTACT_LINE_RATIO = 0.15  # second/first singular value below this: the contacts form a line
+# a fixed camera without a map (static_camera): the normal from each person's own contacts
+PERSON_MIN_CONTACTS = 5  # a person's contacts needed to take part
+STATIC_MAX_TILT_DEG = 25.0  # such a normal further than this from the bodies' axis is refused
+POOLED = True
+TRIM_SIGMAS = 3.0  # contacts further from their plane than this many robust sigmas: left out
 # the map's floor (hmr): the lowest dense surface across the body normal, its plane fitted
 FLOOR_BAND_EXTENT_REL = 0.01  # half width of the floor's band, fraction of the map's extent
 FLOOR_MIN_POINTS = 30  # map points the floor's band needs
@@ -102,8 +107,12 @@ def map_floor(map_index: MapIndex, body_normal: np.ndarray, previous: Plane | No
 class GroundModel:
     """Owns the ground-plane state of one SLAM map (reset with the estimator)."""
 
-    def __init__(self, mode: str, inlier_m: float, ransac_iters: int, seed: int = 0) -> None:
+    def __init__(self, mode: str, inlier_m: float, ransac_iters: int, seed: int = 0,
+                 static_camera: bool = False) -> None:
         self.mode = mode
+        # a fixed camera (static_camera): people stand upright, so down is against their up
+        # axis; without a map the floor is one SLAM unit below the camera (unit_floor)
+        self.static_camera = static_camera
         self.inlier_m = inlier_m
         self.ransac_iters = ransac_iters
         self._rng = np.random.default_rng(seed)
@@ -119,6 +128,7 @@ class GroundModel:
         self._body_cache: tuple[int, np.ndarray | None] = (0, None)
         # ring buffer of the last CONTACT_BUFFER contact joints, SLAM units, map frame
         self._contacts = np.empty((CONTACT_BUFFER, 3))
+        self._groups = np.full(CONTACT_BUFFER, -1, dtype=np.int64)  # whose contact (-1: unknown)
         self._contact_count = 0
         self._contacts_since_fit = 0
         self._contact_normal: np.ndarray | None = None
@@ -141,12 +151,15 @@ class GroundModel:
         self._scatter += np.outer(up_map, up_map)
         self._body_frames += 1
 
-    def add_contact(self, contact_map: np.ndarray, scale: float) -> None:
-        """A contact joint placed in the map with the current scale (SLAM units, map frame).
+    def add_contact(self, contact_map: np.ndarray, scale: float, person: int = -1) -> None:
+        """A contact joint placed in the map with the current scale (SLAM units, map frame), of
+        the person followed as ``person`` (-1: not followed).
 
-        Every CONTACT_REFIT_EVERY contacts the plane is refitted (RANSAC, then least squares)."""
+        Every CONTACT_REFIT_EVERY contacts the plane is refitted (RANSAC, then least squares; a
+        fixed camera without a map: :meth:`_refine_by_people`)."""
         if self.mode != 'hmr' or not np.all(np.isfinite(contact_map)):
             return
+        self._groups[self._contact_count % CONTACT_BUFFER] = person
         self._contacts[self._contact_count % CONTACT_BUFFER] = contact_map
         self._contact_count += 1
         self._contacts_since_fit += 1
@@ -229,7 +242,12 @@ class GroundModel:
         return normal if normal is not None else self.down.down()
 
     def plane(self, map_index: MapIndex | None) -> Plane | None:
-        """The current plane for this map, cached per (map, normal)."""
+        """The current plane for this map, cached per (map, normal); a fixed camera without a map:
+        the plane one SLAM unit below the camera (the camera at the map's origin), across the
+        normal the bodies and their contacts give."""
+        if self.static_camera and map_index is None and self.mode == 'hmr':
+            normal = self.normal()
+            return None if normal is None else Plane(normal, 1.0)
         if self.mode == 'none' or map_index is None or len(map_index) < 3:
             return None
         if self.mode == 'hmr':
@@ -254,6 +272,9 @@ class GroundModel:
     def _orient_down(self, normal: np.ndarray) -> np.ndarray | None:
         """``normal`` turned to point down as the scene says (the bodies' votes), or None while
         that is undecided."""
+        if self.static_camera:  # upright people: down is against their mean up axis
+            side = float(normal @ self._up_sum)
+            return -normal * math.copysign(1.0, side) if side != 0.0 else None
         return self.down.orient(normal)
 
     def _map_floor(self, map_index: MapIndex) -> Plane | None:
@@ -291,9 +312,45 @@ class GroundModel:
             return None
         return self._orient_down(eigvec[:, -1])
 
+    def _refine_by_people(self, body: np.ndarray) -> None:
+        """A fixed camera without a map: each person's contacts lie on a plane of the floor's
+        normal, offset by as much as their size is off the model's (their depth error scales them
+        along the camera's rays, and the floor one unit below it with them). So each person's
+        contacts are centred on their own mean and the normal is the least spread direction of
+        them all pooled (trimmed once at TRIM_SIGMAS robust sigmas): a plane through several
+        people's contacts would tilt by their size differences."""
+        points, groups = self._contact_points(), self._contact_groups()
+        centred = []
+        for person in np.unique(groups[groups >= 0]):
+            own = points[groups == person]
+            if len(own) >= PERSON_MIN_CONTACTS:
+                centred.append(own - own.mean(axis=0))
+        if len(centred) < 2 or sum(len(c) for c in centred) < CONTACT_MIN_POINTS:
+            return
+        pooled = np.concatenate(centred)
+        spread, axes = np.linalg.eigh(pooled.T @ pooled)  # ascending
+        normal = axes[:, 0]
+        residual = np.abs(pooled @ normal)
+        keep = residual <= TRIM_SIGMAS * 1.4826 * max(float(np.median(residual)), 1e-12)
+        if keep.sum() >= CONTACT_MIN_POINTS:
+            spread, axes = np.linalg.eigh(pooled[keep].T @ pooled[keep])
+            normal = axes[:, 0]
+        if spread[1] < CONTACT_LINE_RATIO ** 2 * spread[2]:
+            # everyone walked one way: the contacts fix the normal only across that line
+            line = axes[:, 2]
+            normal = body - (body @ line) * line
+            normal /= np.linalg.norm(normal)
+        oriented = self._orient_down(normal)
+        if oriented is not None and (np.degrees(np.arccos(np.clip(oriented @ body, -1, 1)))
+                                     <= STATIC_MAX_TILT_DEG):
+            self._contact_normal = oriented
+
     def _refine_with_contacts(self, inlier_distance: float) -> None:
         body = self._body_normal()
         if body is None:
+            return
+        if self.static_camera and POOLED is False:
+            self._refine_by_people(body)
             return
         points = self._contact_points()
         sample = points
@@ -314,9 +371,18 @@ class GroundModel:
             normal = body - (body @ line) * line
             normal /= np.linalg.norm(normal)
         oriented = self._orient_down(normal)
+        limit = STATIC_MAX_TILT_DEG if self.static_camera else CONTACT_MAX_TILT_DEG
         if oriented is not None and (np.degrees(np.arccos(np.clip(oriented @ body, -1, 1)))
-                                     <= CONTACT_MAX_TILT_DEG):
+                                     <= limit):
             self._contact_normal = oriented
+
+    def _contact_groups(self) -> np.ndarray:
+        """The person of each buffered contact (M,), in :meth:`_contact_points`' order."""
+        n = self._contact_count
+        if n <= CONTACT_BUFFER:
+            return self._groups[:n]
+        start = n % CONTACT_BUFFER
+        return np.concatenate([self._groups[start:], self._groups[:start]])
 
     def _contact_points(self) -> np.ndarray:
         """The buffered contact joints (M, 3), oldest first, SLAM units, map frame."""

@@ -78,6 +78,23 @@ class PersonTracker:
         return ids
 
 
+    def follow(self, stamp_ns: int, roots: np.ndarray) -> list[int]:
+        """:meth:`assign`, then each track moved to its person's root (its velocity from the
+        step): people followed by their roots alone (a fixed camera's people, the offline
+        smoothing). roots: (P, 3) metres, any fixed frame (NaN rows: nobody)."""
+        ids = self.assign(stamp_ns, roots)
+        for p, track_id in enumerate(ids):
+            if track_id < 0:
+                continue
+            track = self.tracks.get(track_id)
+            if track is None:
+                track = self.tracks[track_id] = _Track(track_id, stamp_ns, np.zeros((2, 3)))
+            elif stamp_ns > track.last_ns:  # the track's velocity, for the next prediction
+                track.state[1] = (roots[p] - track.state[0]) / ((stamp_ns - track.last_ns) / NS)
+            track.state[0], track.last_ns = roots[p], stamp_ns
+        return ids
+
+
 class RootFilter:
     """Online: each person's world root through a constant-velocity Kalman filter (module doc)."""
 
@@ -129,18 +146,9 @@ def smooth_people(stamps_ns: list[int], joints_metric: list[np.ndarray],
     tracker = PersonTracker()
     rows: dict[int, list[tuple[int, int]]] = {}  # track id -> [(frame, person)]
     for f, (stamp, people) in enumerate(zip(stamps_ns, joints_metric)):
-        roots = layout.root_of(people)
-        ids = tracker.assign(stamp, roots)
-        for p, track_id in enumerate(ids):
-            if track_id < 0:
-                continue
-            track = tracker.tracks.get(track_id)
-            if track is None:
-                track = tracker.tracks[track_id] = _Track(track_id, stamp, np.zeros((2, 3)))
-            elif stamp > track.last_ns:  # the track's velocity, for the next prediction
-                track.state[1] = (roots[p] - track.state[0]) / ((stamp - track.last_ns) / NS)
-            track.state[0], track.last_ns = roots[p], stamp
-            rows.setdefault(track_id, []).append((f, p))
+        for p, track_id in enumerate(tracker.follow(stamp, layout.root_of(people))):
+            if track_id >= 0:
+                rows.setdefault(track_id, []).append((f, p))
     out = [people.copy() for people in joints_metric]
     reach = int(3.0 * sigma_s * NS)
     for members in rows.values():

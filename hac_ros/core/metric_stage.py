@@ -342,9 +342,18 @@ class MetricStage:
         if plane is None or c_map is None or scale is None or pending.segment not in self.segments:
             return status
         placed, _ = self.alignment(pending.segment, plane)
-        foot_map = c_map + (plane.offset - plane.normal @ c_map) * plane.normal
-        return replace(status, ground_normal_metric=placed.rotation @ plane.normal,
-                       ground_point_metric=placed.point(foot_map, scale))
+        below = float(plane.offset - plane.normal @ c_map)  # SLAM units, the camera above it
+        foot_map = c_map + below * plane.normal
+        status = replace(status, ground_normal_metric=placed.rotation @ plane.normal,
+                         ground_point_metric=placed.point(foot_map, scale),
+                         camera_height_m=below * scale)
+        if pending.R_wc is not None:
+            down_cam = pending.R_wc.T @ plane.normal  # down in the camera optical frame
+            status = replace(
+                status, camera_pitch_deg=math.degrees(math.asin(max(-1.0, min(1.0, float(
+                    down_cam[2]))))),
+                camera_roll_deg=math.degrees(math.atan2(float(down_cam[0]), float(down_cam[1]))))
+        return status
 
 
 def finite_scale(value: float | None) -> float | None:

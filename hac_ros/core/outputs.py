@@ -122,6 +122,12 @@ class Status:
     # how frames found their SLAM pose: 'exact' (within sync_slop_s), 'interpolated'
     pose_matches: dict[str, int] = field(default_factory=dict)
     spread_stat: float = float('nan')  # the estimate's own standard deviation (σ_stat), same unit
+    # the camera over the ground plane, once there are a plane and a scale: its height (metres),
+    # its pitch (degrees its optical axis points below the horizon) and roll (degrees its x axis
+    # turns about the optical axis, clockwise in the image)
+    camera_height_m: float = float('nan')
+    camera_pitch_deg: float = float('nan')
+    camera_roll_deg: float = float('nan')
     publishing: bool = False  # metric outputs flow: from the segment's first convergence on
 
     @property

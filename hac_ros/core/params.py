@@ -83,6 +83,11 @@ class HacParams:
                                low=0.05, high=20.0)
     cone_min_points: int = _p(3, 'map points needed in the cone for a hit', low=1, high=1000)
     ground_mode: str = _p('hmr', 'ground plane strategy', choices=GROUND_MODES)
+    static_camera: bool = _p(False, 'the camera does not move (a tripod, a wall): no SLAM pose '
+                             'is needed (one given is used), slam_frozen is off, the people '
+                             'stand upright; without a map the floor is one unit below the '
+                             'camera, so the scale is the camera\'s height above the floor in '
+                             'metres (docs/method.md, "A fixed camera")')
 
     # --- the HMR model's joints (core/layouts/); the index lists are for joint_layout custom
     joint_layout: str = _p('smpl24', 'joint order of each person in the joints message',

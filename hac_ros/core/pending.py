@@ -89,12 +89,14 @@ class PendingStatus:
 
     status: every SLAM-unit field filled, the metric ones None; plane: the ground plane (SLAM map
     frame) or None; c_map: (3,) the last camera centre, SLAM units (the plane point below it);
-    segment: the segment then.
+    R_wc: (3, 3) the last camera-to-map rotation (the camera's tilt over the plane); segment: the
+    segment then.
     """
 
     status: Status
     plane: Plane | None
     c_map: np.ndarray | None
+    R_wc: np.ndarray | None
     segment: int = 0
 
 

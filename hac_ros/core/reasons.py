@@ -212,7 +212,8 @@ REASONS: dict[str, Reason] = {
     'slam_frozen': Reason(
         CONDITION, 'the SLAM pose repeats bit for bit while the people move: tracking lost? '
         '(frames not sampled)', counted=True,
-        remedy='check the SLAM\'s tracking (relocalise it); none once it moves again'),
+        remedy='a camera that does not move (a tripod, a wall): set static_camera true; a SLAM: '
+               'check its tracking (relocalise it); none once it moves again'),
     'pose_zigzag': Reason(
         CONDITION, 'the SLAM pose goes back and forth between two places, pose after pose: two '
         'SLAMs on pose_topic in one frame (two robots in one domain without namespaces?)',

@@ -98,6 +98,18 @@ class InputTopics:
             recording.check_topic(cloud_topic, [INPUT_MSGTYPES['cloud']], 'map cloud',
                                   ' (use {cloud_topic})', ('cloud_topic',))
             return cls('', '', joints_topic, cloud_topic, camera_info, TF_TOPICS[0], static)
+        if params.static_camera:  # a fixed camera: the SLAM pose and the map are optional
+            if pose_topic not in recording.topics:
+                pose_topic = ''
+            if cloud_topic not in recording.topics:
+                cloud_topic = ''
+        if not pose_topic:
+            recording.check_topic(joints_topic, [INPUT_MSGTYPES['joints']], 'HMR joints',
+                                  ' (use {joints_topic})', ('joints_topic',))
+            if cloud_topic:
+                recording.check_topic(cloud_topic, [INPUT_MSGTYPES['cloud']], 'map cloud',
+                                      ' (use {cloud_topic})', ('cloud_topic',))
+            return cls('', '', joints_topic, cloud_topic, cls._camera_info(recording, params))
         recorded = recording.topics.get(pose_topic)
         if pose_type is None:
             pose_type = next((k for k, v in POSE_MSGTYPES.items() if v == recorded),
@@ -133,8 +145,9 @@ class InputTopics:
 
     def kinds(self) -> dict[str, str]:
         """topic -> 'pose' | 'tf' | 'tf_static' | 'joints' | 'cloud' | 'camera_info'."""
-        out = {self.joints: 'joints', self.cloud: 'cloud'}
-        for topic, kind in ((self.pose, 'pose'), (self.camera_info, 'camera_info'),
+        out = {self.joints: 'joints'}
+        for topic, kind in ((self.cloud, 'cloud'), (self.pose, 'pose'),
+                            (self.camera_info, 'camera_info'),
                             (self.tf, 'tf'), (self.tf_static, 'tf_static')):
             if topic:
                 out[topic] = kind

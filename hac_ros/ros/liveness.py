@@ -89,6 +89,8 @@ class Liveness:
         quiet = {kind: now - self.arrived.get(kind, self.started_s) for kind in ('pose', 'joints')}
         for kind, other, reason, text in (('joints', 'pose', 'no_joints', 'no HMR joints'),
                                           ('pose', 'joints', 'no_poses', 'no SLAM pose')):
+            if kind == 'pose' and p.static_camera:
+                continue  # a fixed camera needs no SLAM pose
             if quiet[kind] > p.stale_after_s and quiet[other] <= p.stale_after_s:
                 found.append(Finding(reason, f'{text} for {quiet[kind]:.0f} s'))
         values = [('latency_p50_ms', f'{1e3 * p50:.1f}'), ('latency_p99_ms', f'{1e3 * p99:.1f}'),

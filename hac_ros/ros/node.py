@@ -149,6 +149,7 @@ class HacShell(RuntimeControl):
         self.liveness = Liveness()
         self._inbox = Inbox(self.params.joints_backlog_max, self.params.pose_coalesce_s)
         self.story = Story(self.get_logger(), self._inbox)  # the log's story (hac_ros.ros.story)
+        self.story.pose_needed = not self.params.static_camera
         self.outputs.health = WatchedHealth(self.outputs.health.gravity_wanted,
                                             self.story.on_health)
         self._processor = Processor(self._inbox, self._handle, self._on_dropped,

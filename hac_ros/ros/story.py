@@ -70,6 +70,7 @@ class Story:
         self._count: Counter[str] = Counter()
         self._told: set[str] = set()  # inputs whose first-seen line was written
         self._waiting_told = False
+        self.pose_needed = True  # False for a fixed camera (static_camera): no SLAM pose
         self.map_told = False
         self.first_joints_ns: int | None = None  # the first joints frame (since the last reset)
         self._since = 'the first joints'
@@ -94,7 +95,8 @@ class Story:
             if kind not in self._told and now - first >= FIRST_SEEN_S:
                 self._tell_input(kind)
         if 'joints' in self._told and 'pose' in self.inputs and 'pose' not in self._first \
-                and not self._waiting_told:  # (the first map's wait is the calibrator's notice)
+                and not self._waiting_told and self.pose_needed:
+            # (the first map's wait is the calibrator's notice)
             self._waiting_told = True
             self.log.info(f'waiting for the first SLAM pose on '
                           f'{printable(self.inputs["pose"].topic)}: joints come, nothing metric '
