@@ -21,7 +21,8 @@ K = np.array([[500.0, 0.0, 320.0], [0.0, 500.0, 240.0], [0.0, 0.0, 1.0]])
 
 def static_scene(seconds: float = 20.0, rate: float = 10.0, sizes=(1.0, 1.0, 1.0), seed: int = 0
                  ) -> list[tuple[int, np.ndarray]]:
-    """Three SMPL-24 people walking across a floor (z = 0) in view of a camera HEIGHT_M up,
+    """Three SMPL-24 people walking to and fro across a floor (z = 0), each along a heading of
+    their own, in view of a camera HEIGHT_M up,
     looking 8 m ahead (PITCH_DEG down) and rolled ROLL_DEG: (stamp ns, joints (3, 24, 3) metres,
     camera optical frame) per frame. ``sizes``: each person's size against the model's (their
     depth error), with 1 % jitter per frame."""
@@ -35,8 +36,14 @@ def static_scene(seconds: float = 20.0, rate: float = 10.0, sizes=(1.0, 1.0, 1.0
     for i in range(int(seconds * rate)):
         t = i / rate
         people = []
-        for k, (x0, y0, speed) in enumerate(((-2.0, 1.0, 0.8), (1.0, 3.0, -0.6), (0.0, 5.0, 0.5))):
-            body = STANDING + [(x0 + speed * t + 4.0) % 8.0 - 4.0, y0, 0.0]
+        for k, (heading, speed, phase) in enumerate(((0.0, 0.8, 0.0), (2.1, 0.6, 3.0),
+                                                      (4.2, 0.5, 6.0))):
+            # each walks to and fro across the square (x in [-3, 3], y in [0, 6]) along a
+            # heading of its own, turning at the ends
+            along = (speed * t + phase) % 12.0
+            along = along if along < 6.0 else 12.0 - along
+            x, y = (along - 3.0) * math.cos(heading), 3.0 + (along - 3.0) * math.sin(heading)
+            body = STANDING + [x, y, 0.0]
             if i % 2:
                 body[10 + k % 2] += [0.0, 0.0, 0.08]  # a swinging foot
             people.append(((body - camera) @ R) * sizes[k] * (1 + rng.normal(0.0, 0.01)))

@@ -439,6 +439,10 @@ class FrameLoop:
             scale_now = None
             scene = replace(scene, scale=None)
             sample = person_sample(self.params, self.layout, scene, R_wc, c_map, joints)
+        if self.params.static_camera and self.map is None and sample.contact_cam is not None:
+            self.ground.camera_map = c_map
+            self.ground.add_sole(R_wc @ sample.contact_cam)  # metres: the floor's normal
+            relock += self._floor_turned(stamp)
         if sample.reason:
             return relock + self._rejected_sample(stamp, person, sample.reason)
         if sample.source == 'map':
@@ -455,11 +459,9 @@ class FrameLoop:
             out += self._reject('gated', stamp)
         else:
             self._sources.append(sample.source == 'ground')
-            if scale_now is not None and (sample.source == 'map' or (
-                    self.params.static_camera and self.map is None)):  # fixed: the feet's floor
+            if sample.source == 'map' and scale_now is not None:
                 contact_map = c_map + R_wc @ sample.contact_cam / scale_now
                 self.ground.add_contact(contact_map, scale_now, followed)
-                out += self._floor_turned(stamp)
         return out
 
     def _floor_turned(self, stamp: int) -> list[Record]:

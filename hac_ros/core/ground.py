@@ -44,7 +44,8 @@ CONTACT_LINE_RATIO = 0.15  # second/first singular value below this: the contact
 # a fixed camera without a map (static_camera): the normal from each person's own contacts
 PERSON_MIN_CONTACTS = 5  # a person's contacts needed to take part
 STATIC_MAX_TILT_DEG = 25.0  # such a normal further than this from the bodies' axis is refused
-POOLED = True
+SOLE_MIN_POINTS = 30  # a fixed camera's sole points needed before its floor is fitted
+SOLE_REFIT_EVERY = 20  # ... refitted every this many new ones
 TRIM_SIGMAS = 3.0  # contacts further from their plane than this many robust sigmas: left out
 # the map's floor (hmr): the lowest dense surface across the body normal, its plane fitted
 FLOOR_BAND_EXTENT_REL = 0.01  # half width of the floor's band, fraction of the map's extent
@@ -127,6 +128,10 @@ class GroundModel:
         self._body_frames = 0
         self._body_cache: tuple[int, np.ndarray | None] = (0, None)
         # ring buffer of the last CONTACT_BUFFER contact joints, SLAM units, map frame
+        self._soles: list[np.ndarray] = []  # a fixed camera's sole points, metres, map axes,
+        # from the camera (static_camera without a map)
+        self._soles_since_fit = 0
+        self.camera_map: np.ndarray | None = None  # a fixed camera's centre, SLAM units
         self._contacts = np.empty((CONTACT_BUFFER, 3))
         self._groups = np.full(CONTACT_BUFFER, -1, dtype=np.int64)  # whose contact (-1: unknown)
         self._contact_count = 0
@@ -167,6 +172,36 @@ class GroundModel:
                 and self._contacts_since_fit >= CONTACT_REFIT_EVERY):
             self._contacts_since_fit = 0
             self._refine_with_contacts(self.inlier_m / scale)
+
+    def add_sole(self, sole_map: np.ndarray) -> None:
+        """A fixed camera without a map: the point a standing person's sole touches, metres, map
+        axes, from the camera (R_wc J: no scale needed). Every SOLE_REFIT_EVERY the floor's
+        normal is refitted to them all (Tukey-weighted least squares, :func:`robust_plane`): its
+        offset is the camera's height, but the estimate measures that, person by person."""
+        if not (self.static_camera and self.mode == 'hmr' and np.all(np.isfinite(sole_map))):
+            return
+        self._soles.append(np.asarray(sole_map, dtype=float))
+        if len(self._soles) > CONTACT_BUFFER:
+            self._soles.pop(0)
+        self._soles_since_fit += 1
+        body = self._body_normal()
+        if (body is None or len(self._soles) < SOLE_MIN_POINTS
+                or self._soles_since_fit < SOLE_REFIT_EVERY):
+            return
+        self._soles_since_fit = 0
+        points = np.array(self._soles)
+        fitted = robust_plane(points, body, float(np.median(points @ body)))
+        if fitted is None:
+            return
+        normal, _, sing = fitted
+        if sing[1] < CONTACT_LINE_RATIO * sing[0]:  # everyone walked one way: across it only
+            line = np.linalg.svd(points - points.mean(axis=0), full_matrices=False)[2][0]
+            normal = body - (body @ line) * line
+            normal /= np.linalg.norm(normal)
+        oriented = self._orient_down(normal)
+        if oriented is not None and (np.degrees(np.arccos(np.clip(oriented @ body, -1, 1)))
+                                     <= STATIC_MAX_TILT_DEG):
+            self._contact_normal = oriented
 
     # ------------------------------------------------------------------ queries
     @property
@@ -247,7 +282,8 @@ class GroundModel:
         normal the bodies and their contacts give."""
         if self.static_camera and map_index is None and self.mode == 'hmr':
             normal = self.normal()
-            return None if normal is None else Plane(normal, 1.0)
+            centre = self.camera_map if self.camera_map is not None else np.zeros(3)
+            return None if normal is None else Plane(normal, 1.0 + float(normal @ centre))
         if self.mode == 'none' or map_index is None or len(map_index) < 3:
             return None
         if self.mode == 'hmr':
@@ -312,46 +348,11 @@ class GroundModel:
             return None
         return self._orient_down(eigvec[:, -1])
 
-    def _refine_by_people(self, body: np.ndarray) -> None:
-        """A fixed camera without a map: each person's contacts lie on a plane of the floor's
-        normal, offset by as much as their size is off the model's (their depth error scales them
-        along the camera's rays, and the floor one unit below it with them). So each person's
-        contacts are centred on their own mean and the normal is the least spread direction of
-        them all pooled (trimmed once at TRIM_SIGMAS robust sigmas): a plane through several
-        people's contacts would tilt by their size differences."""
-        points, groups = self._contact_points(), self._contact_groups()
-        centred = []
-        for person in np.unique(groups[groups >= 0]):
-            own = points[groups == person]
-            if len(own) >= PERSON_MIN_CONTACTS:
-                centred.append(own - own.mean(axis=0))
-        if len(centred) < 2 or sum(len(c) for c in centred) < CONTACT_MIN_POINTS:
-            return
-        pooled = np.concatenate(centred)
-        spread, axes = np.linalg.eigh(pooled.T @ pooled)  # ascending
-        normal = axes[:, 0]
-        residual = np.abs(pooled @ normal)
-        keep = residual <= TRIM_SIGMAS * 1.4826 * max(float(np.median(residual)), 1e-12)
-        if keep.sum() >= CONTACT_MIN_POINTS:
-            spread, axes = np.linalg.eigh(pooled[keep].T @ pooled[keep])
-            normal = axes[:, 0]
-        if spread[1] < CONTACT_LINE_RATIO ** 2 * spread[2]:
-            # everyone walked one way: the contacts fix the normal only across that line
-            line = axes[:, 2]
-            normal = body - (body @ line) * line
-            normal /= np.linalg.norm(normal)
-        oriented = self._orient_down(normal)
-        if oriented is not None and (np.degrees(np.arccos(np.clip(oriented @ body, -1, 1)))
-                                     <= STATIC_MAX_TILT_DEG):
-            self._contact_normal = oriented
-
     def _refine_with_contacts(self, inlier_distance: float) -> None:
         body = self._body_normal()
         if body is None:
             return
-        if self.static_camera and POOLED is False:
-            self._refine_by_people(body)
-            return
+
         points = self._contact_points()
         sample = points
         if len(points) > RANSAC_SAMPLE:  # RANSAC on a subset; the refit uses every inlier
