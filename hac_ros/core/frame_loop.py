@@ -441,7 +441,7 @@ class FrameLoop:
             sample = person_sample(self.params, self.layout, scene, R_wc, c_map, joints)
         if self.params.static_camera and self.map is None and sample.contact_cam is not None:
             self.ground.camera_map = c_map
-            self.ground.add_sole(R_wc @ sample.contact_cam)  # metres: the floor's normal
+            self.ground.add_sole(R_wc @ sample.contact_cam, followed)  # metres: its normal
             relock += self._floor_turned(stamp)
         if sample.reason:
             return relock + self._rejected_sample(stamp, person, sample.reason)

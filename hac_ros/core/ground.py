@@ -46,6 +46,8 @@ PERSON_MIN_CONTACTS = 5  # a person's contacts needed to take part
 STATIC_MAX_TILT_DEG = 25.0  # such a normal further than this from the bodies' axis is refused
 SOLE_MIN_POINTS = 30  # a fixed camera's sole points needed before its floor is fitted
 SOLE_REFIT_EVERY = 20  # ... refitted every this many new ones
+PER_PERSON = True
+PERSON_MIN_SOLES = 5
 TRIM_SIGMAS = 3.0  # contacts further from their plane than this many robust sigmas: left out
 # the map's floor (hmr): the lowest dense surface across the body normal, its plane fitted
 FLOOR_BAND_EXTENT_REL = 0.01  # half width of the floor's band, fraction of the map's extent
@@ -131,6 +133,7 @@ class GroundModel:
         self._soles: list[np.ndarray] = []  # a fixed camera's sole points, metres, map axes,
         # from the camera (static_camera without a map)
         self._soles_since_fit = 0
+        self._sole_people: list[int] = []
         self.camera_map: np.ndarray | None = None  # a fixed camera's centre, SLAM units
         self._contacts = np.empty((CONTACT_BUFFER, 3))
         self._groups = np.full(CONTACT_BUFFER, -1, dtype=np.int64)  # whose contact (-1: unknown)
@@ -173,7 +176,7 @@ class GroundModel:
             self._contacts_since_fit = 0
             self._refine_with_contacts(self.inlier_m / scale)
 
-    def add_sole(self, sole_map: np.ndarray) -> None:
+    def add_sole(self, sole_map: np.ndarray, person: int = -1) -> None:
         """A fixed camera without a map: the point a standing person's sole touches, metres, map
         axes, from the camera (R_wc J: no scale needed). Every SOLE_REFIT_EVERY the floor's
         normal is refitted to them all (Tukey-weighted least squares, :func:`robust_plane`): its
@@ -181,8 +184,10 @@ class GroundModel:
         if not (self.static_camera and self.mode == 'hmr' and np.all(np.isfinite(sole_map))):
             return
         self._soles.append(np.asarray(sole_map, dtype=float))
+        self._sole_people.append(person)
         if len(self._soles) > CONTACT_BUFFER:
             self._soles.pop(0)
+            self._sole_people.pop(0)
         self._soles_since_fit += 1
         body = self._body_normal()
         if (body is None or len(self._soles) < SOLE_MIN_POINTS
@@ -190,6 +195,14 @@ class GroundModel:
             return
         self._soles_since_fit = 0
         points = np.array(self._soles)
+        if PER_PERSON:
+            people = np.array(self._sole_people)
+            parts = [points[people == k] - points[people == k].mean(axis=0)
+                     for k in np.unique(people[people >= 0])
+                     if (people == k).sum() >= PERSON_MIN_SOLES]
+            if len(parts) < 2:
+                return
+            points = np.concatenate(parts)
         fitted = robust_plane(points, body, float(np.median(points @ body)))
         if fitted is None:
             return
