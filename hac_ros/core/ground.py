@@ -46,8 +46,7 @@ PERSON_MIN_CONTACTS = 5  # a person's contacts needed to take part
 STATIC_MAX_TILT_DEG = 25.0  # such a normal further than this from the bodies' axis is refused
 SOLE_MIN_POINTS = 30  # a fixed camera's sole points needed before its floor is fitted
 SOLE_REFIT_EVERY = 20  # ... refitted every this many new ones
-PER_PERSON = True
-PERSON_MIN_SOLES = 5
+PERSON_MIN_SOLES = 5  # a person's sole points needed to take part
 TRIM_SIGMAS = 3.0  # contacts further from their plane than this many robust sigmas: left out
 # the map's floor (hmr): the lowest dense surface across the body normal, its plane fitted
 FLOOR_BAND_EXTENT_REL = 0.01  # half width of the floor's band, fraction of the map's extent
@@ -195,14 +194,15 @@ class GroundModel:
             return
         self._soles_since_fit = 0
         points = np.array(self._soles)
-        if PER_PERSON:
-            people = np.array(self._sole_people)
-            parts = [points[people == k] - points[people == k].mean(axis=0)
-                     for k in np.unique(people[people >= 0])
-                     if (people == k).sum() >= PERSON_MIN_SOLES]
-            if len(parts) < 2:
-                return
-            points = np.concatenate(parts)
+        # each person's soles lie on a plane of the floor's normal, offset by as much as their
+        # size is off the model's: centred person by person, the offsets leave the fit
+        people = np.array(self._sole_people)
+        parts = [points[people == k] - points[people == k].mean(axis=0)
+                 for k in np.unique(people[people >= 0])
+                 if (people == k).sum() >= PERSON_MIN_SOLES]
+        if len(parts) < 2:
+            return
+        points = np.concatenate(parts)
         fitted = robust_plane(points, body, float(np.median(points @ body)))
         if fitted is None:
             return
