@@ -31,7 +31,7 @@ from _people_scenes import video_frames
 from _report import command_line, machine, write_json
 
 from hac_ros.core.calibrator import Calibrator
-from hac_ros.core.human_filter import PersonTracker, _Track
+from hac_ros.core.human_filter import PersonTracker
 from hac_ros.core.layouts.blazepose33 import LAYOUT
 from hac_ros.core.numeric import NS
 from hac_ros.core.outputs import DiagnosticsOut, SampleOut
@@ -71,12 +71,7 @@ def main(argv: list[str] | None = None) -> int:
             out = calibrator.add_joints(stamp, joints, 'camera')
             outs += out
             roots = LAYOUT.root_of(joints) if len(joints) else np.zeros((0, 3))
-            ids = tracker.assign(stamp, roots)  # people followed by their hips (as smooth_people)
-            for p, track_id in enumerate(ids):
-                if track_id >= 0:
-                    track = tracker.tracks.setdefault(track_id, _Track(track_id, stamp,
-                                                                       np.zeros((2, 3))))
-                    track.state[0], track.last_ns = roots[p], stamp
+            ids = tracker.follow(stamp, roots)  # people followed by their hips
             for o in out:
                 if isinstance(o, SampleOut) and o.accepted and 0 <= o.person < len(ids):
                     heights[ids[o.person]].append(o.scale)
