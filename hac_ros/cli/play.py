@@ -68,7 +68,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help='frames per second (default: the video\'s; a folder needs it)')
     camera.add_argument('--start', type=float, default=None, metavar='S',
                         help='the first frame\'s stamp in seconds (frame i at S + i / fps; '
-                        'default 0), as hac people stamps it')
+                        'default 1: a ROS stamp of 0 means "not set"; hac people --start 1 '
+                        'stamps alike)')
     camera.add_argument('--frame-id', default=None, metavar='FRAME',
                         help=f'the header frame_id (default {DEFAULT_FRAME_ID})')
     camera.add_argument('--compressed', action='store_true',

@@ -400,23 +400,25 @@ class FrameLoop:
         their contacts refine the floor's normal person by person), -1 unknown."""
         self.people += 1
         seen = np.isfinite(joints).all(axis=1)  # NaN joints are not seen (docs/inputs.md)
-        if np.isinf(joints).any():
-            return self._rejected_sample(stamp, person, 'nonfinite_joints')
-        if not seen.all():
+        every = bool(seen.all())
+        if not every:
+            if np.isinf(joints).any():
+                return self._rejected_sample(stamp, person, 'nonfinite_joints')
             problem = seen_problem(self.layout, seen)
             if problem:
                 return self._rejected_sample(stamp, person, 'too_little_seen', problem)
-        unit = body_unit_problem(joints[seen])
+        visible = joints if every else joints[seen]
+        unit = body_unit_problem(visible)
         if unit:
             return self._rejected_sample(stamp, person, 'joints_not_metres', unit)
-        if not (joints[seen, 2] > 0.0).any():
+        if not (visible[:, 2] > 0.0).any():
             return self._rejected_sample(stamp, person, 'behind_camera')
         up_cam = self.layout.up_axis(joints)
         notes = self._vote_down(stamp, R_wc, c_map, joints, up_cam)
         down = self.ground.rough_down()
         self.check.add_person(stamp, self.layout, R_wc, joints, up_cam, down, self._K,
                               self._image_size)
-        if not contact_seen(self.params.contact_mode, self.layout, joints):
+        if not (every or contact_seen(self.params.contact_mode, self.layout, joints)):
             return notes + self._rejected_sample(stamp, person, 'contact_unseen')
         if posture_problem(self.layout, joints, up_cam, None if down is None else R_wc.T @ down):
             # only standing people measure (hac_ros.core.posture)

@@ -36,6 +36,7 @@ CAMERA_INFO_MSGTYPE = 'sensor_msgs/msg/CameraInfo'
 COMPRESSED_FORMAT = 'rgb8; jpeg compressed bgr8'  # compressed_image_transport's form for rgb8
 CAMERA_DEPTH = 10  # as hac_people_node subscribes (reliable, depth 10)
 DEFAULT_FRAME_ID = 'camera_optical'
+DEFAULT_START_S = 1.0  # frame 0's stamp: a ROS stamp of 0 means "not set" (stamp_zero)
 CAMERA_FORMS = ('fx,fy,cx,cy[,k1,k2,p1,p2] (pixels; plumb_bob distortion) or '
                 'fx,fy,cx,cy,width,height')
 MAX_STAMP_S = 2**31 - 1  # builtin_interfaces/Time's int32 seconds
@@ -100,7 +101,7 @@ class CameraFrames:
     ExtraMissing."""
 
     def __init__(self, path: str | Path, kind: str, camera: str | None, fps: float | None = None,
-                 start: float = 0.0, frame_id: str = DEFAULT_FRAME_ID,
+                 start: float = DEFAULT_START_S, frame_id: str = DEFAULT_FRAME_ID,
                  compressed: bool = False) -> None:
         self.path, self.kind = Path(path), kind
         if not camera:

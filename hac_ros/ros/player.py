@@ -60,6 +60,7 @@ from hac_ros.ros.camera_source import (
     CAMERA_DEPTH,
     COMPRESSED_TOPIC,
     DEFAULT_FRAME_ID,
+    DEFAULT_START_S,
     IMAGE_TOPIC,
     RECORDING,
     RECORDING_SUFFIXES,
@@ -268,7 +269,7 @@ class Player:
                 raise
         else:
             self.frames = CameraFrames(path, self.kind, camera, fps,
-                                       0.0 if start is None else start,
+                                       DEFAULT_START_S if start is None else start,
                                        DEFAULT_FRAME_ID if frame_id is None else frame_id,
                                        compressed)
             try:
