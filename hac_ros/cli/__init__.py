@@ -1,5 +1,5 @@
 """The ``hac`` command: ``simulate | replay | batch | eval | plot | demo | import | export | play |
-lifecycle | people``.
+lifecycle | people | video``.
 
 Thin: each sub-command is a module of this package with ``add_arguments(parser)`` and
 ``run(args) -> int``, and only argument parsing in it; the work is done by the library modules
@@ -59,6 +59,8 @@ COMMANDS = {
     'lifecycle': ('lifecycle', 'take a lifecycle transition of a managed node (configure, ...)'),
     'people': ('people', 'metric people from a video or images (the [people] extra), for hac '
                'import'),
+    'video': ('video', 'a metric trajectory, map and people from a video alone (the [video] '
+              'extra)'),
 }
 
 

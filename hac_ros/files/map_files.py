@@ -229,3 +229,17 @@ def _ply_ascii(path: Path, body: bytes, before: list[_Element], vertex: _Element
             raise InputError(f'map file {path}: PLY vertex {i}: malformed line "{row.strip()}" '
                              f'({exc})') from exc
     return out
+
+
+def write_ply(path: str | Path, points: np.ndarray, comment: str = '') -> None:
+    """``points`` (N, 3), any unit and frame (the caller's ``comment`` says which), as a binary
+    little-endian PLY of float32 x, y, z vertices (what :func:`read_ply`, CloudCompare, MeshLab and
+    Open3D read)."""
+    xyz = np.ascontiguousarray(np.asarray(points, dtype='<f4').reshape(-1, 3))
+    lines = ['ply', 'format binary_little_endian 1.0']
+    lines += [f'comment {line}' for line in comment.splitlines() if line.strip()]
+    lines += [f'element vertex {len(xyz)}', 'property float x', 'property float y',
+              'property float z', 'end_header']
+    with open(path, 'wb') as out:
+        out.write(('\n'.join(lines) + '\n').encode('ascii'))
+        out.write(xyz.tobytes())

@@ -75,26 +75,34 @@ class PeopleFromImages:
         :func:`size_matches`)."""
         start = time.perf_counter()
         found = self.model.detect(rgb)
-        lifted_at = time.perf_counter()
-        seen: list[np.ndarray] = []
-        frame = Frame(joints_cam=np.zeros((0, JOINTS, 3)), model_s=lifted_at - start,
-                      too_small=self.model.too_small(rgb.shape[1], rgb.shape[0]))
-        for person in found:
-            result = lift_person(person.pixels, person.visibility, person.world, camera,
-                                 hips=HIPS, shoulders=SHOULDERS)
-            if isinstance(result, str):
-                frame.dropped[result] += 1
-                continue
-            frame.lifted.append(result)
-            frame.from_crop += int(person.from_crop)
-            seen.append(seen_landmarks(person, camera, self.min_visibility))
-        if frame.lifted:
-            frame.joints_cam = np.stack([lifted.joints_cam for lifted in frame.lifted])
-            unseen = ~np.stack(seen)
-            frame.joints_cam[unseen] = np.nan
-            frame.unseen = int(unseen.sum())
-        frame.lift_s = time.perf_counter() - lifted_at
+        frame = lift_found(found, camera, self.min_visibility)
+        frame.model_s = time.perf_counter() - start - frame.lift_s
+        frame.too_small = self.model.too_small(rgb.shape[1], rgb.shape[0])
         return frame
+
+def lift_found(found: list[Landmarks], camera: Camera, min_visibility: float) -> Frame:
+    """The people the model ``found`` in one image of ``camera``, lifted to metres with its K and
+    distortion, their unseen landmarks NaN (:func:`seen_landmarks` with ``min_visibility``).
+    ``hac video`` lifts them so once the reconstruction has settled the camera."""
+    start = time.perf_counter()
+    seen: list[np.ndarray] = []
+    frame = Frame(joints_cam=np.zeros((0, JOINTS, 3)))
+    for person in found:
+        result = lift_person(person.pixels, person.visibility, person.world, camera,
+                             hips=HIPS, shoulders=SHOULDERS)
+        if isinstance(result, str):
+            frame.dropped[result] += 1
+            continue
+        frame.lifted.append(result)
+        frame.from_crop += int(person.from_crop)
+        seen.append(seen_landmarks(person, camera, min_visibility))
+    if frame.lifted:
+        frame.joints_cam = np.stack([lifted.joints_cam for lifted in frame.lifted])
+        unseen = ~np.stack(seen)
+        frame.joints_cam[unseen] = np.nan
+        frame.unseen = int(unseen.sum())
+    frame.lift_s = time.perf_counter() - start
+    return frame
 
 
 def size_matches(rgb: np.ndarray, camera: Camera) -> bool:
