@@ -246,14 +246,16 @@ class VideoScene:
         return path
 
 
-def camera_path(kind: str, frames: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+def camera_path(kind: str, frames: int, seed: int, near: float = 0.0
+                ) -> tuple[np.ndarray, np.ndarray]:
     """(R_wc (N, 3, 3), centres (N, 3) m) of a hand-held camera about 1.5 m high: ``sweep``
     walks 3 m sideways looking at the people, ``forward`` walks 2.5 m toward them panning, ``arc``
     walks a quarter circle around them; ``seed`` jitters the height and aim (a hand's shake).
     Built to fool a reconstruction: ``still`` stands on a tripod (no jitter), ``slide`` moves 3 m
     sideways without turning at all (pure translation: the focal is not observable), ``wall``
     walks 1.5 m along the back wall 2.5 m from it, turning a little, seeing nothing but the wall
-    and whoever stands before it (a plane: the focal is free)."""
+    and whoever stands before it (a plane: the focal is free). ``near``: metres closer to the
+    people (``sweep``, ``forward``)."""
     rng = np.random.default_rng(seed)
     s = np.linspace(0.0, 1.0, frames)
     target = np.array([0.0, 4.0, 0.9])
@@ -284,6 +286,8 @@ def camera_path(kind: str, frames: int, seed: int) -> tuple[np.ndarray, np.ndarr
         aims = np.repeat(target[None], frames, axis=0)
     else:
         raise ValueError(f'camera path: {", ".join(PATHS)}, not {kind!r}')
+    if kind in ('sweep', 'forward'):
+        centres[:, 1] += near
     centres = centres + rng.normal(0.0, 0.01, centres.shape)
     aims = aims + rng.normal(0.0, 0.03, aims.shape)
     R_wc = np.stack([look_at(c, a) for c, a in zip(centres, aims)])
@@ -297,15 +301,15 @@ def camera_path(kind: str, frames: int, seed: int) -> tuple[np.ndarray, np.ndarr
 
 def build(path: str = 'sweep', frames: int = 30, size: tuple[int, int] = (640, 480),
           statures: tuple[float, ...] = (1.62, 1.62), fps: float = 5.0, seed: int = 0,
-          blur: int = 1, noise: float = 0.0) -> VideoScene:
+          blur: int = 1, noise: float = 0.0, near: float = 0.0) -> VideoScene:
     """The scene: the camera on ``path`` (:func:`camera_path`) over ``frames`` frames at ``fps``,
     K with the focal 0.78 of the width (a 65° field of view); one billboard per stature (metres),
     from PEOPLE in turn, about 4 m ahead; ``blur`` sub-frames averaged toward the next pose (1:
-    sharp); ``noise`` the sensor's Gaussian sigma in grey levels."""
+    sharp); ``noise`` the sensor's Gaussian sigma in grey levels; ``near``: :func:`camera_path`'s."""
     width, height = size
     focal = 0.78 * width
     K = np.array([[focal, 0.0, width / 2], [0.0, focal, height / 2], [0.0, 0.0, 1.0]])
-    R_wc, centres = camera_path(path, frames, seed)
+    R_wc, centres = camera_path(path, frames, seed, near)
     spots = ([np.array([0.0, 6.0]), np.array([-0.8, 6.2])] if path == 'wall'
              else [np.array([-0.9, 4.2]), np.array([0.8, 3.8]), np.array([0.0, 5.0])])
     people = [Person(PEOPLE[i % len(PEOPLE)], spots[i % len(spots)], stature)

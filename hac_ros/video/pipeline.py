@@ -29,7 +29,7 @@ from hac_ros.recording.atomic import staged_output
 from hac_ros.replay.feeder import Progress
 from hac_ros.replay.replayer import ReplaySummary
 from hac_ros.video.gates import Gate, failed, judge
-from hac_ros.video.keyframes import DEFAULT_MOTION
+from hac_ros.video.keyframes import DEFAULT_MOTION, check_rate
 from hac_ros.video.sfm import Reconstruction
 from hac_ros.video.stages import STILL, Keyframes, People
 
@@ -136,6 +136,10 @@ def video(source: str | Path, output: str | Path, options: VideoOptions | None =
     if not source.exists():
         raise InputError(f'{source} does not exist')
     camera = parse_camera(options.camera) if options.camera else None
+    check_rate(options.keyframe_rate)
+    if camera is not None:
+        width, height = _frame_size(source)
+        check_camera(str(options.camera), camera[0], camera[2], width, height, source)
     root = (options.cache or default_cache()) / _key(_identity(source))
     seconds: dict[str, float] = {}
     resumed: list[str] = []
@@ -157,9 +161,6 @@ def video(source: str | Path, output: str | Path, options: VideoOptions | None =
         lambda f: choose_keyframes(source, f, options.fps, options.start, options.keyframe_rate,
                                    options.keyframe_motion, progress),
         Keyframes.load)
-    if camera is not None:
-        check_camera(str(options.camera), camera[0], camera[2], keyframes.width,
-                     keyframes.height, source)
     if keyframes.most_motion < STILL:
         raise InputError(f'{source}: the camera does not move (the scene shifted at most '
                          f'{keyframes.most_motion:.1%} of the width in {keyframes.frames} frames): '
@@ -197,6 +198,19 @@ def video(source: str | Path, output: str | Path, options: VideoOptions | None =
     seconds['calibration'] = time.perf_counter() - start
     return VideoResult(output, keyframes.frames, len(keyframes.names), model, gates,
                        result[0], result[1], result[2], resumed, seconds)
+
+
+def _frame_size(source: Path) -> tuple[int, int]:
+    """(width, height) of the first frame of ``source``."""
+    from hac_ros.people.offline import FrameSource
+
+    frames = FrameSource(source)
+    try:
+        for rgb in frames.frames():
+            return rgb.shape[1], rgb.shape[0]
+    finally:
+        frames.close()
+    raise InputError(f'{source}: no frame')
 
 
 def _reconstruct(folder: Path, keyframes: Keyframes, masks: Path,
