@@ -16,6 +16,7 @@ import math
 from dataclasses import dataclass, field
 from functools import cache
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -337,3 +338,60 @@ def _between(A: np.ndarray, B: np.ndarray, w: float) -> np.ndarray:
     from scipy.spatial.transform import Rotation, Slerp
 
     return Slerp([0.0, 1.0], Rotation.from_matrix(np.stack([A, B])))([w]).as_matrix()[0]
+
+
+def people_alone(scene: VideoScene, joints: Path, work: Path, stamps_fps: float | None = None
+                 ) -> float:
+    """The scale (metres per metre) the people alone allow: the joints ``hac video`` lifted
+    (its ``inputs/joints.npz``) replayed with the true camera poses and the true map (the room's
+    planes, every 10 cm) in ``work``. Its error from 1 is the body-size prior's (the statures
+    against the model's), with nothing of the reconstruction in it. ``stamps_fps``: frame i of the
+    truth at i / this (default the scene's fps)."""
+    from hac_ros.core.params import HacParams
+    from hac_ros.files.importer import import_files
+    from hac_ros.files.map_files import write_ply
+    from hac_ros.replay.replayer import replay
+
+    work.mkdir(parents=True, exist_ok=True)
+    truth = work / 'truth.tum'
+    fps = scene.fps
+    if stamps_fps is not None:
+        scene.fps = stamps_fps
+    try:
+        scene.write_tum(truth)
+    finally:
+        scene.fps = fps
+    write_ply(work / 'room.ply', room_points(scene.planes, 0.1))
+    K = scene.K
+    height, width = scene.frames.shape[1:3]
+    import_files(work / 'recording', truth, work / 'room.ply', joints,
+                 camera=f'{K[0, 0]},{K[1, 1]},{K[0, 2]},{K[1, 2]},{width},{height}',
+                 joint_layout='blazepose33')
+    summary = replay(work / 'recording', work / 'replayed', HacParams(joint_layout='blazepose33'))
+    if summary.final_scale is None:
+        raise RuntimeError(f'the people alone calibrated nothing: {summary.why_not_calibrated()}')
+    return summary.final_scale
+
+
+def aligned(scene: VideoScene, stamps_s: np.ndarray, positions: np.ndarray,
+            rotations: np.ndarray) -> dict[str, Any]:
+    """A trajectory (TUM: stamps s, positions (N, 3), R_wc (N, 3, 3)) against the truth at frame
+    round(stamp * fps): ``ate_m`` after an SE(3) fit of the positions (no scale), ``ate_rel`` over
+    the path's length, ``up_deg`` the angle between its z and the truth's up (the rotation from
+    the orientations: a straight path leaves the turn about itself free to a position fit),
+    ``scale`` a Sim(3) fit's (truth metres per unit, with that rotation), and that fit's
+    ``rotation`` and ``shift`` (truth = scale * rotation @ p + shift)."""
+    from hac_ros.evaluation.metrics import umeyama
+
+    index = np.rint(stamps_s * scene.fps).astype(int)
+    truth = scene.centres[index]
+    _, R, t = umeyama(positions, truth, with_scale=False)
+    ate = float(np.sqrt(((positions @ R.T + t - truth) ** 2).sum(axis=1).mean()))
+    U, _, Vt = np.linalg.svd((scene.R_wc[index] @ rotations.transpose(0, 2, 1)).sum(axis=0))
+    R = U @ np.diag([1.0, 1.0, np.linalg.det(U @ Vt)]) @ Vt
+    moved = positions @ R.T
+    centred = moved - moved.mean(axis=0)
+    scale = float((centred * (truth - truth.mean(axis=0))).sum() / (centred ** 2).sum())
+    up = float(np.degrees(np.arccos(np.clip((R @ [0.0, 0.0, 1.0])[2], -1.0, 1.0))))
+    return {'ate_m': ate, 'ate_rel': ate / scene.path_length, 'up_deg': up, 'scale': scale,
+            'rotation': R, 'shift': truth.mean(axis=0) - scale * moved.mean(axis=0)}

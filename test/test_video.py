@@ -58,7 +58,7 @@ def hac_video(frames: Path, out: Path, cache: Path, *extra: str) -> list[str]:
 
 @pytest.fixture(scope='module')
 def interrupted_then_done(scene, tmp_path_factory):
-    """The command interrupted (SIGINT) once the people are found, then run again to the end:
+    """The command interrupted (SIGINT) in the reconstruction, then run again to the end:
     (return code and stderr of the first, the second's VideoResult, OUT, the cache)."""
     from hac_ros.video.pipeline import VideoOptions, video
 
@@ -71,7 +71,8 @@ def interrupted_then_done(scene, tmp_path_factory):
                                start_new_session=True)
     try:
         deadline = time.monotonic() + 900
-        while not list(cache.glob('*/people-*')):
+        # in the reconstruction: pycolmap's database made (Ctrl-C lands in pycolmap's stages)
+        while not list(cache.glob('*/.reconstruction-*.partial/*/colmap/database.db')):
             assert process.poll() is None and time.monotonic() < deadline, process.communicate()
             time.sleep(0.05)
         os.killpg(process.pid, signal.SIGINT)
@@ -86,10 +87,11 @@ def interrupted_then_done(scene, tmp_path_factory):
 
 
 def test_an_interrupted_run_leaves_nothing_and_the_next_resumes(interrupted_then_done):
-    (code, stderr, out_existed, left), result, _, _ = interrupted_then_done
+    (code, stderr, out_existed, left), result, _, cache = interrupted_then_done
     assert code == 130, stderr
     assert 'interrupted (SIGINT)' in stderr
     assert not out_existed and left == ['cache']  # no OUT, no partial OUT beside it
+    assert not list(cache.glob('*/.*.partial'))  # nor a partial stage in the cache
     assert result.resumed[:2] == ['keyframes', 'people']
     assert result.replay.calibrated
 
@@ -97,7 +99,7 @@ def test_an_interrupted_run_leaves_nothing_and_the_next_resumes(interrupted_then
 def test_a_video_alone_gives_the_metric_path_map_and_people(scene, interrupted_then_done,
                                                             tmp_path):
     from hac_ros.files.map_files import read_map
-    from hac_ros.files.tum import read_tum
+    from hac_ros.files.tum import quats_to_rotations, read_tum
 
     built, _ = scene
     _, result, out, _ = interrupted_then_done
@@ -109,35 +111,20 @@ def test_a_video_alone_gives_the_metric_path_map_and_people(scene, interrupted_t
     # self-calibrated focal
     assert abs(result.model.K[0, 0] / built.K[0, 0] - 1) < 0.03
     # the path: SE(3) alignment, no scale; the metric frame's z is up
-    from hac_ros.evaluation.metrics import umeyama
-    from hac_ros.files.tum import quats_to_rotations
-
-    stamps_s, metric, quats = read_tum(out / 'camera_metric.tum')
-    index = np.rint(stamps_s / 1e9 * FPS).astype(int)
-    truth = built.centres[index]
-    _, R, t = umeyama(metric, truth, with_scale=False)
-    ate = float(np.sqrt(((metric @ R.T + t - truth) ** 2).sum(axis=1).mean()))
-    assert ate <= 0.02 * built.path_length, (ate, built.path_length)
-    # a nearly straight path leaves the turn about itself free: the frames' rotation from the
-    # cameras' orientations (the mean of R_true R_metric^T), the shift from the positions
-    U, _, Vt = np.linalg.svd((built.R_wc[index] @ quats_to_rotations(quats).transpose(0, 2, 1))
-                             .sum(axis=0))
-    R = U @ np.diag([1.0, 1.0, np.linalg.det(U @ Vt)]) @ Vt
-    up = np.degrees(np.arccos(np.clip((R @ [0.0, 0.0, 1.0])[2], -1.0, 1.0)))
-    assert up <= 5.0
+    stamps_ns, positions, quats = read_tum(out / 'camera_metric.tum')
+    metric = vs.aligned(built, stamps_ns / 1e9, positions, quats_to_rotations(quats))
+    assert metric['ate_rel'] <= 0.02, metric
+    assert metric['up_deg'] <= 5.0, metric
     # the scale against what the people alone allow (the module docstring)
-    stamps_s, slam, _ = read_tum(out / 'camera_slam.tum')
-    true_scale, _, _ = umeyama(slam, built.centres[np.rint(stamps_s / 1e9 * FPS).astype(int)])
-    measured = result.replay.final_scale / true_scale
-    prior = people_alone(built, out, tmp_path)
+    stamps_ns, positions, quats = read_tum(out / 'camera_slam.tum')
+    slam = vs.aligned(built, stamps_ns / 1e9, positions, quats_to_rotations(quats))
+    measured = result.replay.final_scale / slam['scale']
+    prior = vs.people_alone(built, out / 'inputs' / 'joints.npz', tmp_path)
     assert abs(measured / prior - 1) <= 0.01, (measured, prior)
     # the map in metres lies on the room's planes, in the frame of the metric path (the same
     # scale: the people's error of about 4 % is left out by fitting it)
-    moved = metric @ R.T
-    centred = moved - moved.mean(axis=0)
-    s = float((centred * (truth - truth.mean(axis=0))).sum() / (centred ** 2).sum())
-    points = s * read_map(out / 'map_metric.ply') @ R.T + truth.mean(axis=0) - s * moved.mean(
-        axis=0)
+    points = (metric['scale'] * read_map(out / 'map_metric.ply') @ metric['rotation'].T
+              + metric['shift'])
     room = [p for p in built.planes if p.texture.shape[2] == 3]  # room[0]: the floor
     off = np.abs([(points - p.origin) @ np.cross(p.across, p.down) for p in room])
     nearest = np.argmin(off, axis=0)
@@ -148,27 +135,6 @@ def test_a_video_alone_gives_the_metric_path_map_and_people(scene, interrupted_t
     text = (out / 'summary.txt').read_text()
     assert re.search(r'final scale [0-9.]+ m/SLAM unit', text)
     assert str(out) in text and '.partial' not in text
-
-
-def people_alone(built: vs.VideoScene, out: Path, tmp_path: Path) -> float:
-    """The scale (metres per metre) of the same people with the true poses and the true map:
-    the error the body-size prior leaves (statures against the model's)."""
-    from hac_ros.core.params import HacParams
-    from hac_ros.files.importer import import_files
-    from hac_ros.files.map_files import write_ply
-    from hac_ros.replay.replayer import replay
-
-    truth = tmp_path / 'truth.tum'
-    built.write_tum(truth)
-    write_ply(tmp_path / 'room.ply', vs.room_points(built.planes, 0.1))
-    K = built.K
-    import_files(tmp_path / 'rec', truth, tmp_path / 'room.ply', out / 'inputs' / 'joints.npz',
-                 camera=f'{K[0, 0]},{K[1, 1]},{K[0, 2]},{K[1, 2]},{SIZE[0]},{SIZE[1]}',
-                 joint_layout='blazepose33')
-    summary = replay(tmp_path / 'rec', tmp_path / 'replayed',
-                     HacParams(joint_layout='blazepose33'))
-    assert summary.final_scale is not None
-    return summary.final_scale
 
 
 def test_a_second_run_takes_every_stage_from_the_cache(scene, interrupted_then_done, tmp_path,

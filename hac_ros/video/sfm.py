@@ -10,6 +10,7 @@ refines its focal and k1: self-calibration, which :mod:`hac_ros.video.gates` the
 from __future__ import annotations
 
 import logging
+import threading
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -27,6 +28,7 @@ MAX_FEATURES = 4096  # SIFT features per keyframe
 OVERLAP = 10  # sequential matching: each keyframe against the next OVERLAP
 MIN_MODEL = 3  # keyframes: a smaller model is not kept
 CHUNK = 4  # keyframes per feature extraction call
+POLL_S = 0.5  # seconds between looks at a running pycolmap stage
 
 
 @dataclass
@@ -139,9 +141,15 @@ def reconstruct(images: Path, masks: Path | None, work: Path, names: list[str],
     start = time.perf_counter()
     for first in range(0, len(names), CHUNK):  # a few at a time: the bar moves
         chunk = list(names[first:first + CHUNK])
-        pycolmap.extract_features(str(database), str(images), image_names=chunk,
-                                  camera_mode=pycolmap.CameraMode.SINGLE, reader_options=reader,
-                                  extraction_options=extraction, device=pycolmap.Device.cpu)
+
+        def extract(token: Any, chunk: list[str] = chunk) -> None:
+            pycolmap.extract_features(
+                str(database), str(images), image_names=chunk,
+                camera_mode=pycolmap.CameraMode.SINGLE, reader_options=reader,
+                extraction_options=extraction, device=pycolmap.Device.cpu,
+                cancellation_token=token)
+
+        _cancellable(pycolmap, extract)
         if first == 0:  # the rest share the first chunk's camera
             with pycolmap.Database.open(str(database)) as db:
                 reader.existing_camera_id = next(iter(db.read_all_cameras())).camera_id
@@ -153,12 +161,25 @@ def reconstruct(images: Path, masks: Path | None, work: Path, names: list[str],
     pairing.overlap = OVERLAP
     pairing.quadratic_overlap = True
     pairing.loop_detection = False
-    tick = _stage(stage, 'matching', 1)
+    pairs = _sequential_pairs(len(names))
+    tick = _stage(stage, 'matching', pairs)
     start = time.perf_counter()
-    pycolmap.match_sequential(str(database), matching_options=matching, pairing_options=pairing,
-                              device=pycolmap.Device.cpu)
+    matched = [0]
+
+    def matching_progress() -> None:  # the pairs matched so far, read beside the matcher
+        try:
+            with pycolmap.Database.open(str(database)) as db:
+                now = min(pairs, int(db.num_matched_image_pairs()))
+        except (RuntimeError, ValueError, OSError):  # a read that met the writer: next time
+            return
+        tick(now - matched[0])
+        matched[0] = now
+
+    _cancellable(pycolmap, lambda token: pycolmap.match_sequential(
+        str(database), matching_options=matching, pairing_options=pairing,
+        device=pycolmap.Device.cpu, cancellation_token=token), matching_progress)
+    tick(pairs - matched[0])
     seconds['matching'] = time.perf_counter() - start
-    tick()
     options = pycolmap.IncrementalPipelineOptions()
     options.num_threads = threads
     options.multiple_models = True
@@ -168,16 +189,58 @@ def reconstruct(images: Path, masks: Path | None, work: Path, names: list[str],
     options.ba_refine_extra_params = K is None
     tick = _stage(stage, 'mapping', len(names))
     start = time.perf_counter()
-    models = pycolmap.incremental_mapping(str(database), str(images), str(work / 'models'),
-                                          options=options,
-                                          initial_image_pair_callback=lambda: tick(2),
-                                          next_image_callback=lambda: tick(1))
+    models = _cancellable(pycolmap, lambda token: pycolmap.incremental_mapping(
+        str(database), str(images), str(work / 'models'), options=options,
+        initial_image_pair_callback=lambda: tick(2), next_image_callback=lambda: tick(1),
+        cancellation_token=token))
     seconds['mapping'] = time.perf_counter() - start
     ranked = sorted(models.values(), key=lambda r: r.num_reg_images(), reverse=True)
     if not ranked:
         raise InputError(f'no reconstruction: no two of the {len(names)} keyframes could start '
                          'one (too little texture, too little motion, or frames too far apart)')
     return _read(ranked[0], names, [r.num_reg_images() for r in ranked], K is None, seconds)
+
+
+def _sequential_pairs(n: int) -> int:
+    """The image pairs sequential matching tries for ``n`` keyframes: each against the next
+    OVERLAP and, quadratically, the next 2^k for k < OVERLAP."""
+    pairs: set[tuple[int, int]] = set()
+    for i in range(n):
+        for k in range(1, OVERLAP + 1):
+            pairs.update((i, j) for j in (i + k, i + 2 ** (k - 1)) if j < n)
+    return len(pairs)
+
+
+def _cancellable(pycolmap: Any, call: Callable[[Any], Any],
+                 poll: Callable[[], None] | None = None) -> Any:
+    """``call(token)`` in a worker thread (pycolmap releases the GIL) while this thread waits,
+    calling ``poll`` twice a second: a signal (Ctrl-C) lands here at once, cancels the token and
+    waits for pycolmap to stop, then goes on as the KeyboardInterrupt it is."""
+    token = pycolmap.CancellationToken()
+    box: dict[str, Any] = {}
+    done = threading.Event()  # not Thread.join: a join a signal interrupts marks the thread
+    # stopped while it runs (CPython before 3.13), and the process then exits under pycolmap
+
+    def work() -> None:
+        try:
+            box['value'] = call(token)
+        except BaseException as exc:  # handed to the waiting thread
+            box['error'] = exc
+        finally:
+            done.set()
+
+    threading.Thread(target=work, name='pycolmap', daemon=True).start()
+    try:
+        while not done.wait(POLL_S):
+            if poll is not None:
+                poll()
+    except BaseException:
+        token.cancel()
+        done.wait()  # pycolmap stops at its next look at the token
+        raise
+    if 'error' in box:
+        raise box['error']
+    return box.get('value')
 
 
 def _stage(stage: Callable[[str, int], Any] | None, label: str, total: int
