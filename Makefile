@@ -16,7 +16,7 @@ all: test
 $(STAMP): setup.py setup.cfg package.xml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
-	$(PY) -m pip install -q -e '.[ros,dev,people]'
+	$(PY) -m pip install -q -e '.[ros,dev,video]'
 	touch $(STAMP)
 
 install: $(STAMP)
@@ -47,6 +47,8 @@ bench: $(STAMP)
 	$(PY) bench/people_speed.py
 	$(PY) bench/people_accuracy.py
 	$(PY) bench/people_real.py
+	$(PY) bench/video.py accuracy
+	$(PY) bench/video.py speed
 
 clean:
 	rm -rf out build install log .pytest_cache

@@ -395,3 +395,21 @@ def aligned(scene: VideoScene, stamps_s: np.ndarray, positions: np.ndarray,
     up = float(np.degrees(np.arccos(np.clip((R @ [0.0, 0.0, 1.0])[2], -1.0, 1.0))))
     return {'ate_m': ate, 'ate_rel': ate / scene.path_length, 'up_deg': up, 'scale': scale,
             'rotation': R, 'shift': truth.mean(axis=0) - scale * moved.mean(axis=0)}
+
+
+if __name__ == '__main__':  # a scene to try hac video on: python bench/_video_scene.py DIR
+    import argparse
+
+    parser = argparse.ArgumentParser(description='render a room with people in it as a folder '
+                                     'of frames (2 per second) and its true camera path (TUM)')
+    parser.add_argument('folder', type=Path)
+    parser.add_argument('--path', choices=PATHS, default='sweep')
+    parser.add_argument('--frames', type=int, default=30)
+    parser.add_argument('--width', type=int, default=640)
+    args = parser.parse_args()
+    built = build(args.path, frames=args.frames, size=(args.width, args.width * 3 // 4),
+                  statures=(1.59,) * 3, fps=2.0)
+    built.write_folder(args.folder / 'frames')
+    built.write_tum(args.folder / 'truth.tum')
+    print(f'{args.folder / "frames"}: {args.frames} frames at 2 per second; true camera path '
+          f'{args.folder / "truth.tum"} ({built.path_length:.2f} m); K {built.K[0, 0]:g} px')

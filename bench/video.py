@@ -80,7 +80,8 @@ def accuracy(args: argparse.Namespace, argv: list[str] | None) -> dict[str, Any]
     for path in args.paths:
         for seed in args.seeds:
             with tempfile.TemporaryDirectory() as scratch:
-                run = one_run(path, seed, args.frames, Path(scratch))
+                work = args.keep / f'{path}_{seed}' if args.keep else Path(scratch)
+                run = one_run(path, seed, args.frames, work)
             runs.append(run)
             print(f"{path} seed {seed}: registered {run['registered']:.0%}, focal "
                   f"{run['focal_err']:+.1%}, ATE {run['ate_rel']:.2%} of "
@@ -145,6 +146,8 @@ def main(argv: list[str] | None = None) -> int:
                      choices=('sweep', 'forward', 'arc'))
     acc.add_argument('--seeds', nargs='+', type=int, default=[0, 1])
     acc.add_argument('--frames', type=int, default=30)
+    acc.add_argument('--keep', type=Path, default=None, metavar='DIR',
+                     help='keep each run\'s frames, cache and outputs in DIR/<path>_<seed>')
     spd = sub.add_parser('speed')
     spd.add_argument('--keyframes', nargs='+', type=int, default=[30, 60, 120])
     spd.add_argument('--threads', nargs='+', type=int, default=[2, 1])

@@ -157,7 +157,8 @@ def test_only_the_people_front_end_imports_mediapipe_and_opencv():
     assert importers == ['hac_ros.people.model']
     gate_users = sorted(name for name, path in modules.items()
                         if 'hac_ros.people.extra' in _imports(path, modules))
-    assert gate_users and all(n.startswith(('hac_ros.people.', 'hac_ros.cli.people'))
+    assert gate_users and all(n.startswith(('hac_ros.people.', 'hac_ros.cli.people',
+                                            'hac_ros.video.', 'hac_ros.cli.video'))
                               for n in gate_users), gate_users
     graph = _graph()
     roots = [n for n in graph if n.startswith(('hac_ros.core', 'hac_ros.replay'))]
@@ -166,6 +167,26 @@ def test_only_the_people_front_end_imports_mediapipe_and_opencv():
     assert 'hac_ros.ros.node' in reached and 'hac_ros.core.calibrator' in reached
     assert not reached & {'hac_ros.people.extra', 'hac_ros.people.images',
                           'hac_ros.people.model', 'hac_ros.people.node'}
+
+
+def test_only_the_video_extra_imports_pycolmap():
+    """pycolmap (the [video] extra) is imported by hac_ros.video.extra alone, by name (a clear
+    message when it is missing), and used through it by hac_ros.video's modules only; nothing
+    but hac video's own modules and command reach hac_ros.video."""
+    modules = _modules()
+    importers = sorted(name for name, path in modules.items()
+                       if any(m.split('.')[0] == 'pycolmap' for m in _imports(path, modules)))
+    assert importers == []
+    by_name = sorted(name for name, path in modules.items()
+                     if "import_module('pycolmap')" in path.read_text(encoding='utf-8'))
+    assert by_name == ['hac_ros.video.extra']
+    gate_users = sorted(name for name, path in modules.items()
+                        if 'hac_ros.video.extra' in _imports(path, modules))
+    assert gate_users and all(n.startswith(('hac_ros.video.', 'hac_ros.cli.video'))
+                              for n in gate_users), gate_users
+    graph = _graph()
+    outside = [n for n in graph if not n.startswith(('hac_ros.video', 'hac_ros.cli'))]
+    assert not {n for n in _reachable(graph, outside) if n.startswith('hac_ros.video')}
 
 
 def test_hac_node_and_the_replay_run_without_importing_mediapipe():

@@ -62,6 +62,15 @@ def require(model_path: str = '') -> tuple[ModuleType, ModuleType]:
     return mediapipe, cv2
 
 
+def opencv() -> ModuleType:
+    """OpenCV (cv2), imported; :class:`ExtraMissing` naming the install command when it is
+    missing (``hac video``'s keyframes and masks need it without the pose model)."""
+    try:
+        return importlib.import_module('cv2')
+    except ImportError as exc:
+        raise ExtraMissing(f'OpenCV is needed (the [people] extra): {INSTALL}') from exc
+
+
 def limit_threads(cores: int) -> None:
     """This process runs on at most ``cores`` of the cores it was given (0: all of them):
     MediaPipe's Python API has no thread option, so the process is pinned

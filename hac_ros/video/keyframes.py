@@ -1,4 +1,4 @@
-"""Keyframes of a video: the frames ``hac video`` reconstructs (docs/video.md, "Keyframes").
+"""Keyframes of a video: the frames ``hac video`` reconstructs (docs/video.md, "What it runs").
 
 By motion (the default): corners are tracked frame to frame from the last keyframe (Lucas-Kanade
 on the grey image reduced to ``TRACK_WIDTH`` pixels); a frame becomes a keyframe when their median
@@ -55,8 +55,9 @@ class MotionKeyframes:
 
     def __init__(self, fps: float, motion: float = DEFAULT_MOTION, rate_hz: float | None = None,
                  max_gap_s: float = MAX_GAP_S) -> None:
-        import cv2
+        from hac_ros.people.extra import opencv
 
+        cv2 = opencv()
         check_rate(rate_hz, max_gap_s)
         self.rate_hz = rate_hz
         self.most_motion = 0.0  # the largest median corner shift seen, share of the width

@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from hac_ros.core.errors import HacError, InputError
+from hac_ros.core.errors import ArgumentError, HacError, InputError
 from hac_ros.core.params import HacParams
 from hac_ros.people.params import PeopleParams
 from hac_ros.recording.atomic import staged_output
@@ -164,12 +164,13 @@ def video(source: str | Path, output: str | Path, options: VideoOptions | None =
     if keyframes.most_motion < STILL:
         raise InputError(f'{source}: the camera does not move (the scene shifted at most '
                          f'{keyframes.most_motion:.1%} of the width in {keyframes.frames} frames): '
-                         'nothing to reconstruct; a fixed camera is static_camera\'s case '
-                         '(hac_node -p static_camera:=true: the height from the people alone)')
+                         'nothing to reconstruct; a fixed camera is the case of the parameter '
+                         'static_camera (hac_node and the replay: the camera\'s height from its '
+                         'people alone)')
     if len(keyframes.names) < MIN_KEYFRAMES:
-        raise InputError(f'{source}: {len(keyframes.names)} keyframes from {keyframes.frames} '
-                         f'frames: at least {MIN_KEYFRAMES} are needed (a longer video, or '
-                         '--keyframe-rate)')
+        raise ArgumentError(f'{source}: {len(keyframes.names)} keyframes from '
+                            f'{keyframes.frames} frames: at least {MIN_KEYFRAMES} are needed (a '
+                            'longer video, or {keyframe_rate})', 'keyframe_rate')
     people_key = _key(frames_key, asdict(people_params))
     people: People = stage(
         'people', people_key, lambda f: find_people(keyframes, f, people_params, progress),
@@ -185,10 +186,11 @@ def video(source: str | Path, output: str | Path, options: VideoOptions | None =
     gates = judge(model)
     bad = failed(gates)
     if bad:
-        raise InputError(f'{source}: the reconstruction is not trusted: '
-                         + '; '.join(f'{gate.name}: {gate.text}' for gate in bad)
-                         + ('' if camera is not None or not model.self_calibrated
-                            else ' (give the intrinsics: --camera)'))
+        remedy = ('' if camera is not None or not model.self_calibrated
+                  else ' (give the intrinsics: {camera})')
+        raise ArgumentError(f'{source}: the reconstruction is not trusted: '
+                            + '; '.join(f'{gate.name}: {gate.text}' for gate in bad) + remedy,
+                            'camera')
     if len(model.model_sizes) > 1:
         log.warning('the reconstruction broke into %d models (%s keyframes): the largest is used',
                     len(model.model_sizes), ', '.join(map(str, model.model_sizes)))

@@ -1,5 +1,5 @@
 """The camera's motion and a map from keyframes: pycolmap's incremental structure from motion on
-the CPU (docs/video.md, "The reconstruction"). Needs the [video] extra.
+the CPU (docs/video.md, "What it runs"). Needs the [video] extra.
 
 SIFT features (people masked out), sequential matching (each keyframe against the next
 ``overlap``, and quadratically farther), then incremental mapping. With given intrinsics the

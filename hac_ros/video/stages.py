@@ -168,8 +168,9 @@ def find_people(keyframes: Keyframes, target: Path, params: PeopleParams,
     """The people in every keyframe (``hac people``'s model, ``params``), and a mask per keyframe
     in ``target/masks`` (``<image name>.png``: 0 on the people, 255 elsewhere), since people move
     and the map must not."""
-    import cv2
+    from hac_ros.people.extra import opencv
 
+    cv2 = opencv()
     model = PoseModel.from_params(params)
     people = People()
     with staged_output(target) as staged:
