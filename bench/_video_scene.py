@@ -28,6 +28,7 @@ MOSAIC = ('building.jpg', 'home.jpg', 'graf1.png', 'leuvenA.jpg', 'fruits.jpg', 
           'pic3.png', 'pic5.png', 'smarties.png', 'rubberwhale1.png', 'squirrel_cls.jpg')
 PEOPLE = ('basketball1.png', 'basketball2.png')  # their left player, whole from head to feet
 SUPERSAMPLE = 2
+EXPOSURE = 0.1  # motion blur: the shutter open for a tenth of the time between frames
 PATHS = ('sweep', 'forward', 'arc', 'still', 'slide', 'wall')
 CONTRAST = 0.5  # the photos' contrast on the walls (a room is calmer than a collage)
 
@@ -323,7 +324,7 @@ def build(path: str = 'sweep', frames: int = 30, size: tuple[int, int] = (640, 4
         j = min(i + 1, frames - 1)
         sub = []
         for k in range(blur):
-            w = k / blur * 0.5  # half the way to the next pose: an exposure of half a frame
+            w = k / blur * EXPOSURE  # toward the next pose: the shutter open that share of it
             R = _between(R_wc[i], R_wc[j], w)
             sub.append(render(planes, K, size, R, (1 - w) * centres[i] + w * centres[j]))
         image = np.mean(sub, axis=0)

@@ -37,6 +37,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import _video_scene as vs
 from _report import command_line, machine, write_json
 
+from hac_ros.core.errors import HacError
 from hac_ros.files.tum import quats_to_rotations, read_tum
 from hac_ros.video.pipeline import VideoOptions, video
 
@@ -54,7 +55,11 @@ def one_run(path: str, seed: int, frames: int, work: Path) -> dict[str, Any]:
     render_s = time.perf_counter() - start
     folder = scene.write_folder(work / 'frames')
     out = work / 'out'
-    result = video(folder, out, VideoOptions(fps=FPS, cache=work / 'cache'))
+    try:
+        result = video(folder, out, VideoOptions(fps=FPS, cache=work / 'cache'))
+    except HacError as exc:  # refused: a result too (the gates said no)
+        return {'path': path, 'seed': seed, 'stature_m': stature, 'blur_noise': noisy,
+                'frames': frames, 'refused': str(exc).split(': ', 1)[-1]}
     stamps_ns, positions, quats = read_tum(out / 'camera_metric.tum')
     metric = vs.aligned(scene, stamps_ns / 1e9, positions, quats_to_rotations(quats))
     stamps_ns, positions, quats = read_tum(out / 'camera_slam.tum')
@@ -83,11 +88,16 @@ def accuracy(args: argparse.Namespace, argv: list[str] | None) -> dict[str, Any]
                 work = args.keep / f'{path}_{seed}' if args.keep else Path(scratch)
                 run = one_run(path, seed, args.frames, work)
             runs.append(run)
+            if 'refused' in run:
+                print(f"{path} seed {seed}: refused: {run['refused']}", flush=True)
+                continue
             print(f"{path} seed {seed}: registered {run['registered']:.0%}, focal "
                   f"{run['focal_err']:+.1%}, ATE {run['ate_rel']:.2%} of "
                   f"{run['path_m']:.1f} m, up {run['up_deg']:.1f} deg, scale "
                   f"{run['scale_err']:+.2%} (people alone {run['people_alone_err']:+.2%}), "
                   f"{run['samples']} samples", flush=True)
+    refused = [r for r in runs if 'refused' in r]
+    runs = [r for r in runs if 'refused' not in r]
     prior = float(np.median([r['stature_m'] * (1 + r['people_alone_err']) for r in runs]))
     for run in runs:
         run['predicted_err'] = prior / run['stature_m'] - 1
@@ -101,7 +111,7 @@ def accuracy(args: argparse.Namespace, argv: list[str] | None) -> dict[str, Any]
                 'bias': float(np.median(values)), 'worst': float(size.max())}
 
     return {'command': command_line('bench/video.py', argv), 'machine': machine(),
-            'prior_stature_m': prior, 'runs': runs,
+            'prior_stature_m': prior, 'runs': runs, 'refused': refused,
             'summary': {key: stats(key) for key in ('ate_rel', 'up_deg', 'beyond_prediction',
                                                      'beyond_people_alone', 'focal_err')}
             | {'registered_min': min(r['registered'] for r in runs)}}

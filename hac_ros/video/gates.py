@@ -11,8 +11,11 @@ rather than write a trajectory it cannot stand behind.
   (a camera that only turns, or stands still, sees no depth: that is ``static_camera``'s case);
 - with self-calibration only: ``field_of_view`` (horizontal, between ``FOV_DEG``), ``depth``
   (the map not one plane: its thinnest spread at least ``MIN_THICKNESS`` of its widest; a plane
-  leaves the focal free) and ``views`` (the cameras' viewing directions spread at least
-  ``MIN_TURN_DEG``: a camera that never turns leaves the focal and the depth trading off).
+  leaves the focal free), ``views`` (the cameras' viewing directions spread at least
+  ``MIN_TURN_DEG``: a camera that never turns leaves the focal and the depth trading off) and
+  ``pairs`` (at least ``MIN_GENERAL_PAIRS`` of the matched pairs with a general two-view geometry:
+  pairs that are a plane or a pure rotation say nothing of the focal; a room seen mostly by its
+  back wall self-calibrated to 787 px for a true 500, every other gate passed).
 """
 from __future__ import annotations
 
@@ -29,6 +32,7 @@ MIN_BASELINE = 0.05
 FOV_DEG = (20.0, 130.0)
 MIN_THICKNESS = 0.1
 MIN_TURN_DEG = 5.0
+MIN_GENERAL_PAIRS = 0.3
 
 
 @dataclass
@@ -92,6 +96,11 @@ def judge(model: Reconstruction) -> list[Gate]:
     gates.append(Gate('views', turn, turn >= MIN_TURN_DEG,
                       f'the viewing directions spread {turn:.1f}° (at least {MIN_TURN_DEG:g}°: '
                       'a camera that never turns leaves the focal free)'))
+    share = model.general_pairs
+    gates.append(Gate('pairs', share, share >= MIN_GENERAL_PAIRS,
+                      f'{share:.0%} of the matched pairs have a general geometry (at least '
+                      f'{MIN_GENERAL_PAIRS:.0%}: a plane or a pure rotation says nothing of the '
+                      'focal)'))
     return gates
 
 

@@ -1,8 +1,8 @@
 """The camera's motion and a map from keyframes: pycolmap's incremental structure from motion on
 the CPU (docs/video.md, "What it runs"). Needs the [video] extra.
 
-SIFT features (people masked out), sequential matching (each keyframe against the next
-``overlap``, and quadratically farther), then incremental mapping. With given intrinsics the
+SIFT features (people masked out), sequential matching (each keyframe against the next 1, 2, 4,
+... 512: COLMAP's quadratic overlap), then incremental mapping. With given intrinsics the
 camera is COLMAP's ``PINHOLE`` (``OPENCV`` with a plumb_bob D) and stays as given; without, it is
 ``SIMPLE_RADIAL`` (one focal and k1, the principal point at the centre) and bundle adjustment
 refines its focal and k1: self-calibration, which :mod:`hac_ros.video.gates` then judges.
@@ -25,10 +25,16 @@ log = logging.getLogger(__name__)
 
 MAX_IMAGE_SIZE = 1024  # pixels: longer sides are reduced for the features (time grows with area)
 MAX_FEATURES = 4096  # SIFT features per keyframe
-OVERLAP = 10  # sequential matching: each keyframe against the next OVERLAP
+OVERLAP = 10  # sequential matching: each keyframe against the next 2^k, k < OVERLAP
 MIN_MODEL = 3  # keyframes: a smaller model is not kept
 CHUNK = 4  # keyframes per feature extraction call
 POLL_S = 0.5  # seconds between looks at a running pycolmap stage
+# images this large (longer side, pixels) are described at their own size, not doubled first:
+# a third of the time for the same trajectory at 640 x 480 (doubling helps small images)
+NATIVE_OCTAVE_PX = 640
+# COLMAP's two-view geometry kinds that constrain a focal: a fundamental or essential matrix
+# (UNCALIBRATED 3, CALIBRATED 2); a plane or a pure rotation (PLANAR_OR_PANORAMIC ...) do not
+GENERAL_GEOMETRIES = (2, 3)
 
 
 @dataclass
@@ -57,6 +63,8 @@ class Reconstruction:
     self_calibrated: bool
     observations: np.ndarray
     seconds: dict[str, float] = field(default_factory=dict)
+    general_pairs: float = 1.0  # share of the matched pairs whose geometry is not a plane or a
+    # pure rotation (COLMAP's two-view geometry): what a self-calibrated focal rests on
 
     def save(self, path: Path) -> None:
         """Into an .npz (the cache)."""
@@ -64,7 +72,7 @@ class Reconstruction:
                  points=self.points, K=self.K, D=self.D, size=np.array([self.width, self.height]),
                  reprojection_px=self.reprojection_px, model_sizes=np.array(self.model_sizes),
                  keyframes=self.keyframes, self_calibrated=self.self_calibrated,
-                 observations=self.observations,
+                 observations=self.observations, general_pairs=self.general_pairs,
                  seconds_names=np.array(list(self.seconds)),
                  seconds=np.array(list(self.seconds.values()), dtype=float))
 
@@ -79,6 +87,7 @@ class Reconstruction:
                        keyframes=int(data['keyframes']),
                        self_calibrated=bool(data['self_calibrated']),
                        observations=data['observations'],
+                       general_pairs=float(data['general_pairs']),
                        seconds=dict(zip((str(n) for n in data['seconds_names']),
                                         (float(s) for s in data['seconds']))))
 
@@ -96,6 +105,17 @@ def _camera_options(pycolmap: Any, K: np.ndarray | None, D: np.ndarray | None) -
         reader.camera_model = 'PINHOLE'
         reader.camera_params = ','.join(f'{v:.12g}' for v in (fx, fy, cx, cy))
     return reader
+
+
+def _longer_side(image: Path) -> int:
+    """The longer side in pixels of an image file."""
+    from hac_ros.people.extra import opencv
+
+    cv2 = opencv()
+    grey = cv2.imread(str(image), cv2.IMREAD_GRAYSCALE)
+    if grey is None:
+        raise InputError(f'{image}: not an image OpenCV can read')
+    return int(max(grey.shape))
 
 
 def _intrinsics(camera: Any) -> tuple[np.ndarray, np.ndarray]:
@@ -131,12 +151,15 @@ def reconstruct(images: Path, masks: Path | None, work: Path, names: list[str],
     database.unlink(missing_ok=True)
     seconds: dict[str, float] = {}
     reader = _camera_options(pycolmap, K, D)
+    large = _longer_side(images / names[0]) >= NATIVE_OCTAVE_PX
     if masks is not None:
         reader.mask_path = str(masks)
     extraction = pycolmap.FeatureExtractionOptions()
     extraction.num_threads = threads
     extraction.max_image_size = MAX_IMAGE_SIZE
     extraction.sift.max_num_features = MAX_FEATURES
+    if large:  # SIFT's first octave doubles the image by default: three times the time
+        extraction.sift.first_octave = 0
     tick = _stage(stage, 'features', len(names))
     start = time.perf_counter()
     for first in range(0, len(names), CHUNK):  # a few at a time: the bar moves
@@ -180,6 +203,10 @@ def reconstruct(images: Path, masks: Path | None, work: Path, names: list[str],
         device=pycolmap.Device.cpu, cancellation_token=token), matching_progress)
     tick(pairs - matched[0])
     seconds['matching'] = time.perf_counter() - start
+    with pycolmap.Database.open(str(database)) as db:
+        _, geometries = db.read_two_view_geometries()
+        kinds = [int(g.config) for g in geometries]
+    general = sum(kind in GENERAL_GEOMETRIES for kind in kinds) / max(1, len(kinds))
     options = pycolmap.IncrementalPipelineOptions()
     options.num_threads = threads
     options.multiple_models = True
@@ -198,17 +225,15 @@ def reconstruct(images: Path, masks: Path | None, work: Path, names: list[str],
     if not ranked:
         raise InputError(f'no reconstruction: no two of the {len(names)} keyframes could start '
                          'one (too little texture, too little motion, or frames too far apart)')
-    return _read(ranked[0], names, [r.num_reg_images() for r in ranked], K is None, seconds)
+    model = _read(ranked[0], names, [r.num_reg_images() for r in ranked], K is None, seconds)
+    model.general_pairs = general
+    return model
 
 
 def _sequential_pairs(n: int) -> int:
-    """The image pairs sequential matching tries for ``n`` keyframes: each against the next
-    OVERLAP and, quadratically, the next 2^k for k < OVERLAP."""
-    pairs: set[tuple[int, int]] = set()
-    for i in range(n):
-        for k in range(1, OVERLAP + 1):
-            pairs.update((i, j) for j in (i + k, i + 2 ** (k - 1)) if j < n)
-    return len(pairs)
+    """The image pairs sequential matching tries for ``n`` keyframes with a quadratic overlap:
+    each against the next 1, 2, 4, ... 2^(OVERLAP - 1)."""
+    return sum(1 for i in range(n) for k in range(OVERLAP) if i + 2 ** k < n)
 
 
 def _cancellable(pycolmap: Any, call: Callable[[Any], Any],
