@@ -341,14 +341,13 @@ def _between(A: np.ndarray, B: np.ndarray, w: float) -> np.ndarray:
     return Slerp([0.0, 1.0], Rotation.from_matrix(np.stack([A, B])))([w]).as_matrix()[0]
 
 
-def people_alone(scene: VideoScene, joints: Path, work: Path, stamps_fps: float | None = None
-                 ) -> float:
+def people_alone(scene: VideoScene, joints: Path, work: Path, stamps_fps: float | None = None,
+                 params: Any = None) -> float:
     """The scale (metres per metre) the people alone allow: the joints ``hac video`` lifted
     (its ``inputs/joints.npz``) replayed with the true camera poses and the true map (the room's
     planes, every 10 cm) in ``work``. Its error from 1 is the body-size prior's (the statures
     against the model's), with nothing of the reconstruction in it. ``stamps_fps``: frame i of the
-    truth at i / this (default the scene's fps)."""
-    from hac_ros.core.params import HacParams
+    truth at i / this (default the scene's fps); ``params``: the replay's (default hac video's)."""
     from hac_ros.files.importer import import_files
     from hac_ros.files.map_files import write_ply
     from hac_ros.replay.replayer import replay
@@ -368,7 +367,9 @@ def people_alone(scene: VideoScene, joints: Path, work: Path, stamps_fps: float 
     import_files(work / 'recording', truth, work / 'room.ply', joints,
                  camera=f'{K[0, 0]},{K[1, 1]},{K[0, 2]},{K[1, 2]},{width},{height}',
                  joint_layout='blazepose33')
-    summary = replay(work / 'recording', work / 'replayed', HacParams(joint_layout='blazepose33'))
+    from hac_ros.video.pipeline import VIDEO_PARAMS
+
+    summary = replay(work / 'recording', work / 'replayed', params or VIDEO_PARAMS)
     if summary.final_scale is None:
         raise RuntimeError(f'the people alone calibrated nothing: {summary.why_not_calibrated()}')
     return summary.final_scale

@@ -65,8 +65,8 @@ def one_run(path: str, seed: int, frames: int, work: Path) -> dict[str, Any]:
     stamps_ns, positions, quats = read_tum(out / 'camera_slam.tum')
     slam = vs.aligned(scene, stamps_ns / 1e9, positions, quats_to_rotations(quats))
     alone = vs.people_alone(scene, out / 'inputs' / 'joints.npz', work / 'alone')
+    assert result.replay is not None and result.replay.final_scale is not None
     scale = result.replay.final_scale
-    assert scale is not None
     return {
         'path': path, 'seed': seed, 'stature_m': stature, 'blur_noise': noisy,
         'frames': frames, 'keyframes': result.keyframes,

@@ -93,7 +93,7 @@ def test_an_interrupted_run_leaves_nothing_and_the_next_resumes(interrupted_then
     assert not out_existed and left == ['cache']  # no OUT, no partial OUT beside it
     assert not list(cache.glob('*/.*.partial'))  # nor a partial stage in the cache
     assert result.resumed[:2] == ['keyframes', 'people']
-    assert result.replay.calibrated
+    assert result.replay is not None and result.replay.calibrated
 
 
 def test_a_video_alone_gives_the_metric_path_map_and_people(scene, interrupted_then_done,
@@ -118,6 +118,7 @@ def test_a_video_alone_gives_the_metric_path_map_and_people(scene, interrupted_t
     # the scale against what the people alone allow (the module docstring)
     stamps_ns, positions, quats = read_tum(out / 'camera_slam.tum')
     slam = vs.aligned(built, stamps_ns / 1e9, positions, quats_to_rotations(quats))
+    assert result.replay is not None and result.replay.final_scale is not None
     measured = result.replay.final_scale / slam['scale']
     prior = vs.people_alone(built, out / 'inputs' / 'joints.npz', tmp_path)
     assert abs(measured / prior - 1) <= 0.01, (measured, prior)
@@ -134,6 +135,8 @@ def test_a_video_alone_gives_the_metric_path_map_and_people(scene, interrupted_t
     assert np.median(distance[nearest == 0]) < 0.03  # the floor, which the people measure
     text = (out / 'summary.txt').read_text()
     assert re.search(r'final scale [0-9.]+ m/SLAM unit', text)
+    assert re.search(r'scale [0-9.]+ m per reconstruction unit \+- [0-9.e-]+ \([0-9.]+%: the '
+                     r"people's [0-9.]+% and the reconstruction's 1.0%", text)
     assert str(out) in text and '.partial' not in text
 
 

@@ -49,8 +49,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--person-detector', choices=PERSON_DETECTORS,
                         default=default.person_detector,
                         help=f'as hac people\'s (default {default.person_detector})')
-    add_params(parser, 'the replay\'s parameters file (hac_node: ros__parameters:); '
-               'joint_layout is blazepose33')
+    add_params(parser, 'the replay\'s parameters file (hac_node: ros__parameters:; default: '
+               'reference_mode floor_plane, docs/video.md); joint_layout is blazepose33')
     parser.add_argument('--no-progress', action='store_true', help='no progress bar')
 
 
@@ -72,11 +72,13 @@ def run(args: argparse.Namespace) -> int:
                            keyframe_rate=args.keyframe_rate,
                            keyframe_motion=args.keyframe_motion, threads=args.threads,
                            cache=Path(args.cache) if args.cache else None)
-    result = video(args.source, args.output, options, load_params(args.params),
+    result = video(args.source, args.output, options,
+                   load_params(args.params) if args.params else None,
                    PeopleParams().replace(person_detector=args.person_detector),
                    progress=None if args.no_progress else progress_bar('step'))
     show(result.text())
-    if not result.replay.calibrated:
-        show(f'hac video: {result.replay.why_not_calibrated()}', sys.stderr)
+    if result.replay is None or not result.replay.calibrated:
+        why = result.replay.why_not_calibrated() if result.replay else 'nothing calibrated'
+        show(f'hac video: {why}', sys.stderr)
         return NOT_CALIBRATED
     return 0

@@ -19,7 +19,7 @@ from hac_ros.core.layouts import BUILT_IN, CUSTOM_ROLES, LAYOUTS, JointLayout, c
 NODE_NAME = 'hac_node'
 
 CONTACT_MODES = ('lowest', 'max_ratio', 'lowest_gravity', 'feet', 'pelvis', 'head')
-REFERENCE_MODES = ('cone_median', 'nearest_to_ray', 'cone_plane')
+REFERENCE_MODES = ('cone_median', 'nearest_to_ray', 'cone_plane', 'floor_plane')
 GROUND_MODES = ('hmr', 'slam_y', 'largest_plane', 'none')
 POSE_TYPES = ('PoseStamped', 'Odometry')
 POSE_SOURCES = ('topic', 'tf')
@@ -75,7 +75,9 @@ class HacParams:
     # --- method (docs/method.md)
     contact_mode: str = _p('lowest_gravity', 'how the contact joint is chosen',
                            choices=CONTACT_MODES)
-    reference_mode: str = _p('cone_plane', 'map ray query', choices=REFERENCE_MODES)
+    reference_mode: str = _p('cone_plane', 'map ray query (floor_plane: the floor plane found in '
+                             'the map, no points near the contact: a sparse map)',
+                             choices=REFERENCE_MODES)
     sole_correction: bool = _p(True, 'cast the contact joint\'s ray from the surface it touches: '
                                'the joint moved down by its height above the sole (a fraction of '
                                'the leg length per joint)')

@@ -94,7 +94,7 @@ def person_sample(params: HacParams, layout: JointLayout, scene: Scene, R_wc: np
         direction_map = R_wc @ (point / distance_metric)
         plane_distance = plane.ray_distance(c_map, direction_map) if plane is not None else math.nan
         floor_ratios[k] = distance_metric / plane_distance
-        if visible[k] and scene.map is not None:
+        if visible[k] and scene.map is not None and params.reference_mode != 'floor_plane':
             d_slam = _map_distance(params, scene, c_map, direction_map, distance_metric)
             if d_slam is not None and _plausible(params, scene, d_slam, distance_metric,
                                                  plane_distance):

@@ -13,6 +13,7 @@ from __future__ import annotations
 import hashlib
 import json
 import logging
+import math
 import os
 import time
 from collections import Counter
@@ -36,8 +37,17 @@ from hac_ros.video.stages import STILL, Keyframes, People
 log = logging.getLogger(__name__)
 
 LAYOUT = 'blazepose33'  # the people front end's
+# The replay's parameters without --params: a reconstruction's map is sparse next to the people
+# (they are masked out of it), and there the points near a contact's ray say its depth poorly:
+# paired on the same people with the true geometry, the floor plane found in the map added
+# -0.7 % and +0.7 % to the scale, cone_plane -1.5 % and +0.9 %, nearest_to_ray +2.0 % and +1.3 %
+# (bench/video.py runs; docs/video.md, "Accuracy")
+VIDEO_PARAMS = HacParams(joint_layout=LAYOUT, reference_mode='floor_plane')
 MIN_KEYFRAMES = 3
 CACHE_VERSION = 1  # bumped when a stage's files change meaning
+# the reconstruction's share of the scale's uncertainty (relative, one sigma): what it adds to the
+# people's error, paired on the same people with the true geometry (bench/video.py, docs/video.md)
+RECONSTRUCTION_REL = 0.01
 FILES = {'recording': 'recording', 'replay': 'replay', 'people': 'people.npz',
          'map': 'map_metric.ply', 'summary': 'summary.txt', 'figures': 'figures',
          'inputs': 'inputs'}  # inputs: the files hac import took (SLAM units, metres)
@@ -72,11 +82,23 @@ class VideoResult:
     keyframes: int
     model: Reconstruction
     gates: list[Gate]
-    people: int
-    dropped: Counter[str]
-    replay: ReplaySummary
+    people: int = 0
+    dropped: Counter[str] = field(default_factory=Counter)
+    replay: ReplaySummary | None = None
     resumed: list[str] = field(default_factory=list)
     seconds: dict[str, float] = field(default_factory=dict)
+
+    def uncertainty(self) -> tuple[float, float, float] | None:
+        """(scale, its relative ±, the people's relative ±): the replay's standard error of the
+        scale (the people's) and the reconstruction's RECONSTRUCTION_REL, in quadrature; None
+        when nothing was calibrated."""
+        if self.replay is None or self.replay.final_scale is None:
+            return None
+        scale = self.replay.final_scale
+        segments = self.replay.offline.segments if self.replay.offline is not None else []
+        error = segments[-1].error if segments else math.nan
+        people = error / scale if math.isfinite(error) and scale > 0 else 0.0
+        return scale, math.hypot(people, RECONSTRUCTION_REL), people
 
     def text(self) -> str:
         m = self.model
@@ -94,7 +116,13 @@ class VideoResult:
                  + (f' (dropped: {dict(self.dropped)})' if self.dropped else ''),
                  '  stages: ' + ', '.join(f'{name} {s:.0f} s' for name, s in self.seconds.items())
                  + (f' (from the cache: {", ".join(self.resumed)})' if self.resumed else '')]
-        return '\n'.join(lines) + '\n' + self.replay.text()
+        known = self.uncertainty()
+        if known is not None:
+            scale, total, people = known
+            lines.append(f'  scale {scale:.6g} m per reconstruction unit +- {scale * total:.2g} '
+                         f'({total:.1%}: the people\'s {people:.1%} and the reconstruction\'s '
+                         f'{RECONSTRUCTION_REL:.1%}, docs/video.md, "Accuracy")')
+        return '\n'.join(lines) + ('\n' + self.replay.text() if self.replay else '')
 
 
 def default_cache() -> Path:
@@ -121,9 +149,10 @@ def _key(*parts: Any) -> str:
 def video(source: str | Path, output: str | Path, options: VideoOptions | None = None,
           params: HacParams | None = None, people_params: PeopleParams | None = None,
           progress: Progress | None = None) -> VideoResult:
-    """Run ``hac video`` (module docstring). ``params``: the replay's (``joint_layout`` is set to
-    ``blazepose33``); ``people_params``: the model's. Raises HacError (InputError: what cannot
-    work, one line naming why; ArgumentError naming the option) before OUT is written."""
+    """Run ``hac video`` (module docstring). ``params``: the replay's (default VIDEO_PARAMS;
+    ``joint_layout`` is set to ``blazepose33``); ``people_params``: the model's. Raises HacError
+    (InputError: what cannot work, one line naming why; ArgumentError naming the option) before
+    OUT is written."""
     from hac_ros.people.offline import check_camera, parse_camera
     from hac_ros.video.stages import choose_keyframes, find_people
 
@@ -194,12 +223,13 @@ def video(source: str | Path, output: str | Path, options: VideoOptions | None =
     if len(model.model_sizes) > 1:
         log.warning('the reconstruction broke into %d models (%s keyframes): the largest is used',
                     len(model.model_sizes), ', '.join(map(str, model.model_sizes)))
+    result = VideoResult(output, keyframes.frames, len(keyframes.names), model, gates,
+                         resumed=resumed, seconds=seconds)
     start = time.perf_counter()
-    result = _calibrate(output, keyframes, people, model, params or HacParams(),
-                        people_params.landmark_min_visibility, progress)
+    _calibrate(result, keyframes, people, params or VIDEO_PARAMS,
+               people_params.landmark_min_visibility, progress)
     seconds['calibration'] = time.perf_counter() - start
-    return VideoResult(output, keyframes.frames, len(keyframes.names), model, gates,
-                       result[0], result[1], result[2], resumed, seconds)
+    return result
 
 
 def _frame_size(source: Path) -> tuple[int, int]:
@@ -257,12 +287,11 @@ class _stages:
         self._close()
 
 
-def _calibrate(output: Path, keyframes: Keyframes, people: People, model: Reconstruction,
-               params: HacParams, min_visibility: float, progress: Progress | None
-               ) -> tuple[int, Counter[str], ReplaySummary]:
+def _calibrate(result: VideoResult, keyframes: Keyframes, people: People, params: HacParams,
+               min_visibility: float, progress: Progress | None) -> None:
     """OUT from the reconstruction and the people: the importer's files (``inputs/``), the
-    recording, the replay (with its TUM files), the export, the metric map and
-    the figures."""
+    recording, the replay (with its TUM files), the export, the metric map, the figures and the
+    summary; ``result`` gets the people lifted and the replay's summary."""
     from hac_ros.evaluation.plots import make_plots
     from hac_ros.files.exporter import export
     from hac_ros.files.importer import import_files
@@ -272,6 +301,7 @@ def _calibrate(output: Path, keyframes: Keyframes, people: People, model: Recons
     from hac_ros.replay.replayer import replay
     from hac_ros.video.stages import lift_people
 
+    model, output = result.model, result.output
     stamp_of = dict(zip(keyframes.names, keyframes.stamps))
     stamps = np.array([stamp_of[name] for name in model.names])
     camera = Camera(K=model.K, width=model.width, height=model.height, D=model.D)
@@ -280,6 +310,7 @@ def _calibrate(output: Path, keyframes: Keyframes, people: People, model: Recons
     if not lifted:
         raise InputError(f'nobody could be lifted in the {len(model.names)} registered keyframes '
                          f'(dropped: {dict(dropped) or "none"}): no one to calibrate from')
+    result.people, result.dropped = lifted, dropped
     params = params.replace(joint_layout=LAYOUT)
     with staged_output(output) as staged:
         files = staged / FILES['inputs']
@@ -301,9 +332,8 @@ def _calibrate(output: Path, keyframes: Keyframes, people: People, model: Recons
             export(staged / FILES['replay'], staged / FILES['people'], LAYOUT)
             _write_metric_map(staged / FILES['replay'], staged / FILES['map'])
         make_plots(staged / FILES['replay'], staged / FILES['figures'])
-        summary = _moved(summary, staged, output)
-        (staged / FILES['summary']).write_text(summary.text() + '\n')
-    return lifted, dropped, summary
+        result.replay = _moved(summary, staged, output)
+        (staged / FILES['summary']).write_text(result.text() + '\n')
 
 
 def _moved(summary: ReplaySummary, staged: Path, output: Path) -> ReplaySummary:
