@@ -25,7 +25,7 @@ def available() -> bool:
 
 
 def require_pycolmap() -> ModuleType:
-    """pycolmap, imported, its own log quiet below errors; ExtraMissing naming the install
+    """pycolmap, imported, its own log quiet below fatal errors; ExtraMissing naming the install
     command when it is missing."""
     if not available():
         raise ExtraMissing(f'hac video needs pycolmap (the [video] extra, {PACKAGE}): {INSTALL}')
@@ -34,6 +34,6 @@ def require_pycolmap() -> ModuleType:
     except ImportError as exc:
         raise ExtraMissing(f'pycolmap is installed but does not import ({exc}): {INSTALL}'
                            ) from exc
-    pycolmap.logging.minloglevel = 2  # glog: errors only (its INFO lines are per image)
-    pycolmap.logging.stderrthreshold = 2
+    pycolmap.logging.minloglevel = 3  # glog: fatal only (INFO per image; its errors are ours)
+    pycolmap.logging.stderrthreshold = 3
     return pycolmap

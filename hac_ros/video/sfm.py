@@ -32,6 +32,11 @@ POLL_S = 0.5  # seconds between looks at a running pycolmap stage
 # images this large (longer side, pixels) are described at their own size, not doubled first:
 # a third of the time for the same trajectory at 640 x 480 (doubling helps small images)
 NATIVE_OCTAVE_PX = 640
+# The mapping's start, as given, then looser: COLMAP wants an initial pair seen 16° apart and not
+# walking straight ahead (forward motion 0.95); a camera walking toward the people found none
+# (with its intrinsics given) and started with these
+RELAXED: tuple[dict[str, float], ...] = (
+    {}, {'init_min_tri_angle': 4.0, 'init_max_forward_motion': 0.99, 'init_min_num_inliers': 50})
 # COLMAP's two-view geometry kinds that constrain a focal: a fundamental or essential matrix
 # (UNCALIBRATED 3, CALIBRATED 2); a plane or a pure rotation (PLANAR_OR_PANORAMIC ...) do not
 GENERAL_GEOMETRIES = (2, 3)
@@ -216,10 +221,23 @@ def reconstruct(images: Path, masks: Path | None, work: Path, names: list[str],
     options.ba_refine_extra_params = K is None
     tick = _stage(stage, 'mapping', len(names))
     start = time.perf_counter()
-    models = _cancellable(pycolmap, lambda token: pycolmap.incremental_mapping(
-        str(database), str(images), str(work / 'models'), options=options,
-        initial_image_pair_callback=lambda: tick(2), next_image_callback=lambda: tick(1),
-        cancellation_token=token))
+    for attempt, relax in enumerate(RELAXED):  # as COLMAP's own mapper: looser when nothing starts
+        if relax:
+            log.info('no two keyframes started a model: again with a looser start (%s)',
+                     ', '.join(f'{k} {v:g}' for k, v in relax.items()))
+            for name, value in relax.items():
+                setattr(options.mapper, name, value)
+
+        def mapping(token: Any, folder: Path = work / f'models{attempt}') -> Any:
+            folder.mkdir(parents=True, exist_ok=True)
+            return pycolmap.incremental_mapping(
+                str(database), str(images), str(folder), options=options,
+                initial_image_pair_callback=lambda: tick(2),
+                next_image_callback=lambda: tick(1), cancellation_token=token)
+
+        models = _cancellable(pycolmap, mapping)
+        if models:
+            break
     seconds['mapping'] = time.perf_counter() - start
     ranked = sorted(models.values(), key=lambda r: r.num_reg_images(), reverse=True)
     if not ranked:
