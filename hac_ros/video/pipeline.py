@@ -48,7 +48,7 @@ CACHE_VERSION = 1  # bumped when a stage's files change meaning
 # the reconstruction's share of the scale's uncertainty (relative, one sigma), paired on the same
 # people with the true geometry (bench/video.py; docs/video.md, "Accuracy"): self-calibrated,
 # its focal errs up to 1 % and the floor, and so the scale, follow it; with the intrinsics given
-RECONSTRUCTION_REL = {'self_calibrated': 0.01, 'given': 0.003}
+RECONSTRUCTION_REL = {'self_calibrated': 0.01, 'given': 0.005}
 FILES = {'recording': 'recording', 'replay': 'replay', 'people': 'people.npz',
          'map': 'map_metric.ply', 'summary': 'summary.txt', 'figures': 'figures',
          'inputs': 'inputs'}  # inputs: the files hac import took (SLAM units, metres)
