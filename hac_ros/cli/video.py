@@ -18,7 +18,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         'Keyframes of the video, the people in them (masked out of the features), pycolmap\'s '
         'structure from motion on the CPU, then hac import and hac replay in this process. OUT '
         'gets the recording made (recording/), the replay (replay/), camera_metric.tum and '
-        'camera_slam.tum, people.npz (hac export), map_metric.ply, summary.txt and figures/. '
+        'camera_slam.tum, people.npz (hac export), map_metric.ply, summary.txt, figures/ and '
+        'the files hac import took (inputs/). '
         'The stages before the calibration are cached (an interrupted run resumes); OUT appears '
         'whole or not at all. Needs the [video] extra (docs/video.md).')
     parser.add_argument('source', metavar='VIDEO|IMAGE_DIR', help='a video file or a folder of '
