@@ -13,11 +13,10 @@ from __future__ import annotations
 import functools
 import math
 from collections import Counter, deque
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
-from hac_ros.core.contact import contact_seen
 from hac_ros.core.convention_check import ConventionCheck
 from hac_ros.core.conventions import Conventions
 from hac_ros.core.estimator import RollingScale
@@ -27,7 +26,7 @@ from hac_ros.core.map_book import MapBook
 from hac_ros.core.map_shape import PLANE_JUDGE_BODIES, MapShape, plane_problem
 from hac_ros.core.metric_stage import MetricStage, ScaleAt, StageConfig, finite_scale
 from hac_ros.core.numeric import NS
-from hac_ros.core.outputs import MapRescaleOut, NoticeOut, ResetOut, SampleOut, Status
+from hac_ros.core.outputs import MapRescaleOut, NoticeOut, ResetOut, Status
 from hac_ros.core.params import HacParams
 from hac_ros.core.pending import (
     Pending,
@@ -38,12 +37,10 @@ from hac_ros.core.pending import (
     PendingStatus,
     Record,
 )
-from hac_ros.core.plausibility import body_unit_problem, seen_problem
+from hac_ros.core.person_step import PersonStep
 from hac_ros.core.pose_stream import FreezeWatch, Pose, PoseTrack, ZigzagWatch
-from hac_ros.core.posture import posture_problem
 from hac_ros.core.reasons import text as reason_text
 from hac_ros.core.reference import MapIndex
-from hac_ros.core.sample import Scene, person_sample
 from hac_ros.core.services import ServiceRequests
 from hac_ros.core.stamp_reach import UNMATCHED, StampReach
 from hac_ros.core.timeline import Stamped, Timeline
@@ -62,12 +59,11 @@ class Frame:
     """One image's HMR joints, waiting for (or matched to) its SLAM pose."""
     stamp_ns: int
     joints_cam: np.ndarray  # (P, K, 3) metres, camera optical frame (K: the joint layout's)
-STATIC_TURN_DEG = 1.0  # a fixed camera's floor turned by more: the estimate restarts
 
 
-class FrameLoop:
+class FrameLoop(PersonStep):
     """The state of one calibration and the per-frame loop (the base of Calibrator, which
-    documents ``schedule`` and ``offline``)."""
+    documents ``schedule`` and ``offline``); each person's sample is :class:`PersonStep`'s."""
 
     def __init__(self, params: HacParams | None = None, schedule: ScaleAt | None = None,
                  offline: bool = False) -> None:
@@ -392,119 +388,6 @@ class FrameLoop:
             out += self._metric(PendingFrame(stamp, self.segment, R_wc, c_map, frame.joints_cam,
                                              self.published_spread(), plane))
         return out
-
-    def _person(self, stamp: int, person: int, R_wc: np.ndarray, c_map: np.ndarray,
-                joints: np.ndarray, followed: int = -1) -> list[Record]:
-        """One person's scale sample (docs/method.md, steps 1–5; hac_ros.core.sample) and its
-        bookkeeping; ``followed``: who they are across frames (a fixed camera without a map:
-        their contacts refine the floor's normal person by person), -1 unknown."""
-        self.people += 1
-        seen = np.isfinite(joints).all(axis=1)  # NaN joints are not seen (docs/inputs.md)
-        every = bool(seen.all())
-        if not every:
-            if np.isinf(joints).any():
-                return self._rejected_sample(stamp, person, 'nonfinite_joints')
-            problem = seen_problem(self.layout, seen)
-            if problem:
-                return self._rejected_sample(stamp, person, 'too_little_seen', problem)
-        visible = joints if every else joints[seen]
-        unit = body_unit_problem(visible)
-        if unit:
-            return self._rejected_sample(stamp, person, 'joints_not_metres', unit)
-        if not (visible[:, 2] > 0.0).any():
-            return self._rejected_sample(stamp, person, 'behind_camera')
-        up_cam = self.layout.up_axis(joints)
-        notes = self._vote_down(stamp, R_wc, c_map, joints, up_cam)
-        down = self.ground.rough_down()
-        self.check.add_person(stamp, self.layout, R_wc, joints, up_cam, down, self._K,
-                              self._image_size)
-        if not (every or contact_seen(self.params.contact_mode, self.layout, joints)):
-            return notes + self._rejected_sample(stamp, person, 'contact_unseen')
-        if posture_problem(self.layout, joints, up_cam, None if down is None else R_wc.T @ down):
-            # only standing people measure (hac_ros.core.posture)
-            return notes + self._rejected_sample(stamp, person, 'not_standing')
-        self.ground.add_body(R_wc, up_cam)
-        up_norm = float(np.linalg.norm(up_cam))
-        if down is None and math.isfinite(up_norm) and up_norm > 0.0:
-            down = -(R_wc @ up_cam) / up_norm  # until the scene says: the body's own down
-        scale_now = self.online_scale()
-        scene = Scene(self.map, self.ground.plane(self.map), down, self.ground.trusted, self._K,
-                      self._image_size, scale_now, self._cos_min)
-        sample = person_sample(self.params, self.layout, scene, R_wc, c_map, joints)
-        relock: list[Record] = notes
-        if self.ground.judge_window(sample.floor_scale, scale_now, self.estimator.samples,
-                                    self.params.min_samples, self.params.plausibility_rel_tol):
-            self.estimator.restart()  # it locked on what the floor now refuses: judged afresh
-            relock.append(NoticeOut(stamp, 'floor_relock', 'the floor found in the map disagrees '
-                                    'with the estimate (an occluder taken for the contact?): '
-                                    'estimate restarted', 'warn'))
-            scale_now = None
-            scene = replace(scene, scale=None)
-            sample = person_sample(self.params, self.layout, scene, R_wc, c_map, joints)
-        if self.params.static_camera and self.map is None and sample.contact_cam is not None:
-            self.ground.camera_map = c_map
-            self.ground.add_sole(R_wc @ sample.contact_cam, followed)  # metres: its normal
-            relock += self._floor_turned(stamp)
-        if sample.reason:
-            return relock + self._rejected_sample(stamp, person, sample.reason)
-        if sample.source == 'map':
-            self.map_hits += 1
-        else:
-            self.ground_fallbacks += 1
-        if self.services.holding:  # counted, not used
-            self.services.samples += 1
-            return [*relock, SampleOut(stamp, person, sample.scale, sample.source, False)]
-        accepted = self.estimator.add(stamp, sample.scale)
-        out: list[Record] = [*relock, SampleOut(stamp, person, sample.scale, sample.source,
-                                                accepted)]
-        if not accepted:
-            out += self._reject('gated', stamp)
-        else:
-            self._sources.append(sample.source == 'ground')
-            if sample.source == 'map' and scale_now is not None:
-                contact_map = c_map + R_wc @ sample.contact_cam / scale_now
-                self.ground.add_contact(contact_map, scale_now, followed)
-        return out
-
-    def _floor_turned(self, stamp: int) -> list[Record]:
-        """A fixed camera without a map: its floor is one unit below it across the normal the
-        people's contacts refine; when that normal turns by more than STATIC_TURN_DEG the samples
-        taken against the old floor are another floor's, and the estimate restarts."""
-        if not (self.params.static_camera and self.map is None):
-            return []
-        normal = self.ground.normal()
-        before, self._static_normal = self._static_normal, normal
-        if normal is None or before is None:
-            return []
-        turned = math.degrees(math.acos(max(-1.0, min(1.0, float(normal @ before)))))
-        if turned <= STATIC_TURN_DEG:
-            self._static_normal = before  # small turns add up until they count
-            return []
-        self.estimator.restart()
-        return [NoticeOut(stamp, 'floor_refined', f'the floor the people walk on turned '
-                          f'{turned:.1f} deg as their contacts came: estimate restarted', 'info')]
-
-    def _vote_down(self, stamp: int, R_wc: np.ndarray, c_map: np.ndarray, joints: np.ndarray,
-                   up_cam: np.ndarray) -> list[Record]:
-        """Every person (standing or not) tells which way is down while the scene has not said
-        (hac_ros.core.down_vote); when it says that down is along the bodies' up (people on their
-        hands), the samples taken with the bodies' own down are dropped."""
-        up_norm = float(np.linalg.norm(up_cam))
-        if not (self.ground.down.wanted and self.map is not None and math.isfinite(up_norm)
-                and up_norm > 0.0):
-            return []
-        self.ground.down.add(self.layout, joints, R_wc, c_map, self.map, R_wc @ up_cam / up_norm,
-                             self.maps.shape)
-        if not (self.ground.down.along_up and self.estimator.samples):
-            return []
-        self.estimator.restart()
-        return [NoticeOut(stamp, 'down_found', 'down is along the bodies\' up axis (people on '
-                          'their hands): the estimate restarted', 'info')]
-
-    def _rejected_sample(self, stamp: int, person: int, reason: str, detail: str = ''
-                         ) -> list[Record]:
-        return [SampleOut(stamp, person, float('nan'), reason, False),
-                *self._reject(reason, stamp, detail)]
 
     # ================================================================== outputs
     def _odometry(self, pose: Pose) -> list[Record]:
