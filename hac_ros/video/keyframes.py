@@ -14,7 +14,6 @@ Frame i is stamped ``start + i / fps`` seconds, as ``hac people`` stamps it.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
@@ -131,8 +130,3 @@ class MotionKeyframes:
             self.why.append('last')
             self._pending = -1
         return KeyframeChoice(np.array(self.index, dtype=int), self._count, list(self.why))
-
-
-def stamps_of(index: Iterable[int], fps: float, start: float = 0.0) -> np.ndarray:
-    """(N,) float seconds: frame i at ``start + i / fps``."""
-    return start + np.asarray(list(index), dtype=float) / fps

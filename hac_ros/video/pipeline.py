@@ -261,7 +261,8 @@ def _reconstruct(folder: Path, keyframes: Keyframes, masks: Path,
         staged.mkdir()
         with _stages(progress) as stage:
             model = reconstruct(keyframes.folder, masks, staged / 'colmap', keyframes.names,
-                                K=K, D=D, threads=cores, stage=stage)
+                                (keyframes.width, keyframes.height), K=K, D=D, threads=cores,
+                                stage=stage)
         model.save(staged / 'reconstruction.npz')
     return model
 

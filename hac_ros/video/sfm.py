@@ -112,17 +112,6 @@ def _camera_options(pycolmap: Any, K: np.ndarray | None, D: np.ndarray | None) -
     return reader
 
 
-def _longer_side(image: Path) -> int:
-    """The longer side in pixels of an image file."""
-    from hac_ros.people.extra import opencv
-
-    cv2 = opencv()
-    grey = cv2.imread(str(image), cv2.IMREAD_GRAYSCALE)
-    if grey is None:
-        raise InputError(f'{image}: not an image OpenCV can read')
-    return int(max(grey.shape))
-
-
 def _intrinsics(camera: Any) -> tuple[np.ndarray, np.ndarray]:
     """COLMAP's camera -> K (3, 3), D (4,) plumb_bob."""
     model, p = camera.model.name, np.asarray(camera.params, dtype=float)
@@ -140,11 +129,13 @@ def _intrinsics(camera: Any) -> tuple[np.ndarray, np.ndarray]:
 
 
 def reconstruct(images: Path, masks: Path | None, work: Path, names: list[str],
-                K: np.ndarray | None = None, D: np.ndarray | None = None, threads: int = 2,
+                size: tuple[int, int], K: np.ndarray | None = None,
+                D: np.ndarray | None = None, threads: int = 2,
                 stage: Callable[[str, int], Any] | None = None) -> Reconstruction:
     """The keyframes ``names`` (files in ``images``, in keyframe order; their masks, when given,
     ``masks/<name>.png``, 0 where people are) reconstructed in ``work`` (its database and
-    models). K (3, 3) pixels and D (4,) plumb_bob: given intrinsics, kept; None: self-calibrated.
+    models); ``size`` (width, height) their pixels. K (3, 3) pixels and D (4,) plumb_bob: given
+    intrinsics, kept; None: self-calibrated.
     ``stage(label, total)`` is called as each stage starts and returns a callable advanced once
     per unit done (keyframes registered, for the mapping). Raises InputError when nothing could be
     reconstructed."""
@@ -156,7 +147,7 @@ def reconstruct(images: Path, masks: Path | None, work: Path, names: list[str],
     database.unlink(missing_ok=True)
     seconds: dict[str, float] = {}
     reader = _camera_options(pycolmap, K, D)
-    large = _longer_side(images / names[0]) >= NATIVE_OCTAVE_PX
+    large = max(size) >= NATIVE_OCTAVE_PX
     if masks is not None:
         reader.mask_path = str(masks)
     extraction = pycolmap.FeatureExtractionOptions()
