@@ -24,6 +24,7 @@ plane of the map), ``none``.
 from __future__ import annotations
 
 import math
+from collections import deque
 
 import numpy as np
 
@@ -129,13 +130,13 @@ class GroundModel:
         self._body_frames = 0
         self._body_cache: tuple[int, np.ndarray | None] = (0, None)
         # ring buffer of the last CONTACT_BUFFER contact joints, SLAM units, map frame
-        self._soles: list[np.ndarray] = []  # a fixed camera's sole points, metres, map axes,
-        # from the camera (static_camera without a map)
+        # a fixed camera's sole points, metres, map axes, from the camera (static_camera
+        # without a map), and whose each is (-1: not followed)
+        self._soles: deque[np.ndarray] = deque(maxlen=CONTACT_BUFFER)
+        self._sole_people: deque[int] = deque(maxlen=CONTACT_BUFFER)
         self._soles_since_fit = 0
-        self._sole_people: list[int] = []
         self.camera_map: np.ndarray | None = None  # a fixed camera's centre, SLAM units
         self._contacts = np.empty((CONTACT_BUFFER, 3))
-        self._groups = np.full(CONTACT_BUFFER, -1, dtype=np.int64)  # whose contact (-1: unknown)
         self._contact_count = 0
         self._contacts_since_fit = 0
         self._contact_normal: np.ndarray | None = None
@@ -158,15 +159,12 @@ class GroundModel:
         self._scatter += np.outer(up_map, up_map)
         self._body_frames += 1
 
-    def add_contact(self, contact_map: np.ndarray, scale: float, person: int = -1) -> None:
-        """A contact joint placed in the map with the current scale (SLAM units, map frame), of
-        the person followed as ``person`` (-1: not followed).
+    def add_contact(self, contact_map: np.ndarray, scale: float) -> None:
+        """A contact joint placed in the map with the current scale (SLAM units, map frame).
 
-        Every CONTACT_REFIT_EVERY contacts the plane is refitted (RANSAC, then least squares; a
-        fixed camera without a map: :meth:`_refine_by_people`)."""
+        Every CONTACT_REFIT_EVERY contacts the plane is refitted (RANSAC, then least squares)."""
         if self.mode != 'hmr' or not np.all(np.isfinite(contact_map)):
             return
-        self._groups[self._contact_count % CONTACT_BUFFER] = person
         self._contacts[self._contact_count % CONTACT_BUFFER] = contact_map
         self._contact_count += 1
         self._contacts_since_fit += 1
@@ -184,9 +182,6 @@ class GroundModel:
             return
         self._soles.append(np.asarray(sole_map, dtype=float))
         self._sole_people.append(person)
-        if len(self._soles) > CONTACT_BUFFER:
-            self._soles.pop(0)
-            self._sole_people.pop(0)
         self._soles_since_fit += 1
         body = self._body_normal()
         if (body is None or len(self._soles) < SOLE_MIN_POINTS
@@ -207,14 +202,7 @@ class GroundModel:
         if fitted is None:
             return
         normal, _, sing = fitted
-        if sing[1] < CONTACT_LINE_RATIO * sing[0]:  # everyone walked one way: across it only
-            line = np.linalg.svd(points - points.mean(axis=0), full_matrices=False)[2][0]
-            normal = body - (body @ line) * line
-            normal /= np.linalg.norm(normal)
-        oriented = self._orient_down(normal)
-        if oriented is not None and (np.degrees(np.arccos(np.clip(oriented @ body, -1, 1)))
-                                     <= STATIC_MAX_TILT_DEG):
-            self._contact_normal = oriented
+        self._adopt_normal(points, normal, sing, body)  # everyone walked one way: across it
 
     # ------------------------------------------------------------------ queries
     @property
@@ -365,7 +353,6 @@ class GroundModel:
         body = self._body_normal()
         if body is None:
             return
-
         points = self._contact_points()
         sample = points
         if len(points) > RANSAC_SAMPLE:  # RANSAC on a subset; the refit uses every inlier
@@ -378,10 +365,17 @@ class GroundModel:
         if mask.sum() < CONTACT_MIN_POINTS:
             return
         normal, _, sing = fit_plane_lsq(points[mask])
+        self._adopt_normal(points[mask], normal, sing, body)
+
+    def _adopt_normal(self, points: np.ndarray, normal: np.ndarray, sing: np.ndarray,
+                      body: np.ndarray) -> None:
+        """The floor's normal refined to ``normal``, the plane fitted to ``points`` (with its
+        singular values ``sing``), once turned down and within the tilt allowed from the bodies'
+        axis ``body``: CONTACT_MAX_TILT_DEG, STATIC_MAX_TILT_DEG for a fixed camera. Points along
+        a line (people who all walked one way) say only the line's direction: the normal is then
+        the bodies' axis made square to it."""
         if sing[1] < CONTACT_LINE_RATIO * sing[0]:
-            # contacts along a line: trust only the line's direction; the body normal across it
-            centred = points[mask] - points[mask].mean(axis=0)
-            line = np.linalg.svd(centred, full_matrices=False)[2][0]
+            line = np.linalg.svd(points - points.mean(axis=0), full_matrices=False)[2][0]
             normal = body - (body @ line) * line
             normal /= np.linalg.norm(normal)
         oriented = self._orient_down(normal)
@@ -389,14 +383,6 @@ class GroundModel:
         if oriented is not None and (np.degrees(np.arccos(np.clip(oriented @ body, -1, 1)))
                                      <= limit):
             self._contact_normal = oriented
-
-    def _contact_groups(self) -> np.ndarray:
-        """The person of each buffered contact (M,), in :meth:`_contact_points`' order."""
-        n = self._contact_count
-        if n <= CONTACT_BUFFER:
-            return self._groups[:n]
-        start = n % CONTACT_BUFFER
-        return np.concatenate([self._groups[start:], self._groups[:start]])
 
     def _contact_points(self) -> np.ndarray:
         """The buffered contact joints (M, 3), oldest first, SLAM units, map frame."""

@@ -133,7 +133,7 @@ class PersonStep:
             self._sources.append(sample.source == 'ground')
             if sample.source == 'map' and scale_now is not None:
                 contact_map = c_map + R_wc @ sample.contact_cam / scale_now
-                self.ground.add_contact(contact_map, scale_now, followed)
+                self.ground.add_contact(contact_map, scale_now)
         return out
 
     def _floor_turned(self, stamp: int) -> list[Record]:
