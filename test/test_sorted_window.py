@@ -1,5 +1,6 @@
 """The estimator's streaming median (hac_ros.core.sorted_window) equals numpy's median and MAD
-exactly, through additions and removals, duplicates included."""
+exactly, through additions and removals, duplicates included; so does the core's median of a few
+values (hac_ros.core.numeric.median_of)."""
 from __future__ import annotations
 
 import math
@@ -7,6 +8,7 @@ import math
 import numpy as np
 import pytest
 
+from hac_ros.core.numeric import median_of
 from hac_ros.core.sorted_window import SortedWindow
 
 
@@ -39,3 +41,15 @@ def test_empty_and_missing():
     assert (window.median(), window.mad()) == (1.0, 0.0)
     with pytest.raises(ValueError):
         window.remove(2.0)
+
+
+def test_median_of_equals_numpy_bit_for_bit():
+    rng = np.random.default_rng(3)
+    for n in (1, 2, 3, 4, 17, 40, 41, 1000):
+        for values in (rng.normal(size=n), np.round(rng.normal(size=n), 1),  # with duplicates
+                       rng.normal(size=(n, 3)), [float(v) for v in rng.normal(size=n)]):
+            assert median_of(values) == float(np.median(values))
+    assert median_of(np.array([1.0, np.inf, 2.0])) == 2.0
+    assert math.isnan(median_of([np.inf, -np.inf])) and math.isnan(np.median([np.inf, -np.inf]))
+    for no_median in ([], np.array([1.0, np.nan, 2.0]), np.array([np.nan])):
+        assert math.isnan(median_of(no_median)) and isinstance(median_of(no_median), float)

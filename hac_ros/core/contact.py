@@ -17,6 +17,7 @@ import math
 import numpy as np
 
 from hac_ros.core.layouts import JointLayout
+from hac_ros.core.numeric import median_of
 
 
 def candidate_joints(mode: str, layout: JointLayout, joints_cam: np.ndarray, R_wc: np.ndarray,
@@ -108,7 +109,7 @@ def combine_ratios(mode: str, ratios: list[float]) -> float:
         return float('nan')
     if mode == 'max_ratio':
         return max(finite)
-    return float(np.median(finite))
+    return median_of(finite)
 
 
 def in_view(joints_cam: np.ndarray, K: np.ndarray | None, width: int, height: int) -> list[bool]:

@@ -46,7 +46,7 @@ import numpy as np
 
 from hac_ros.core.contact import in_view, leg_lengths
 from hac_ros.core.layouts import JointLayout
-from hac_ros.core.numeric import NS
+from hac_ros.core.numeric import NS, median_of
 from hac_ros.core.outputs import NoticeOut
 from hac_ros.core.reference import MapIndex
 
@@ -201,7 +201,7 @@ class ConventionCheck:
         if not self._legs_seen:  # a layout without legs: the body axis alone
             return f'{inverted:.0%} of people upside down' if inverted > INVERTED_MAX else None
         table = self._legs[:min(self._legs_seen, LEG_HISTORY)]
-        leg, asymmetry = float(np.median(table[:, 0])), float(np.median(table[:, 1]))
+        leg, asymmetry = median_of(table[:, 0]), median_of(table[:, 1])
         if asymmetry > LEG_ASYMMETRY_MAX:
             return f'left and right legs differ by {asymmetry:.0%}'
         if not LEG_RANGE_M[0] <= leg <= LEG_RANGE_M[1] or (inverted > INVERTED_MAX
@@ -214,7 +214,7 @@ class ConventionCheck:
         """A warning for each check that has become conclusive (once per check)."""
         found: dict[str, Any] = {}
         if len(self._map_views) == MAP_CHECKS:
-            share = float(np.median(self._map_views))  # of the map's points in view
+            share = median_of(self._map_views)  # of the map's points in view
             if share < MAP_IN_VIEW_MIN:
                 found['pose_convention'] = share
         map_seen = (len(self._map_views) == MAP_CHECKS and 'pose_convention' not in found

@@ -37,6 +37,7 @@ import numpy as np
 
 from hac_ros.core.layouts import JointLayout
 from hac_ros.core.map_shape import PLANE_TILT_MAX_DEG, MapShape, tilt_deg
+from hac_ros.core.numeric import median_of
 from hac_ros.core.reference import MapIndex
 
 DOWN_BODIES_MIN = 5  # bodies before down is decided
@@ -135,5 +136,5 @@ def _relative_spread(values: list[float]) -> float:
     if len(values) < 3:
         return math.inf
     array = np.asarray(values)
-    median = float(np.median(array))
-    return float(np.median(np.abs(array - median))) / median if median > 0.0 else math.inf
+    median = median_of(array)
+    return median_of(np.abs(array - median)) / median if median > 0.0 else math.inf

@@ -63,7 +63,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from hac_ros.core.numeric import MAD_TO_SIGMA, MEDIAN_STD_ERROR, NS
+from hac_ros.core.numeric import MAD_TO_SIGMA, MEDIAN_STD_ERROR, NS, median_of
 from hac_ros.core.scale_filter import DRIFT_RATE_PRIOR, LogScaleFilter, Noise
 from hac_ros.core.sorted_window import SortedWindow
 from hac_ros.core.stamp_weights import WEIGHT_MIN_S, sample_weight
@@ -355,7 +355,7 @@ class RollingScale:
         gap = self._map_step  # the map moved by this much: the next one may move as much
         if self._gated_run and (self._run_has_evidence()
                                 or self._run_lasts(RELOCK_WARN_S * NS, RELOCK_WARN_SAMPLES)):
-            gap = max(gap, abs(math.log(float(np.median([v for _, v, _ in self._gated_run])))
+            gap = max(gap, abs(math.log(median_of([v for _, v, _ in self._gated_run]))
                                - mean))
         lag = self._lag(mean, now_ns)
         rel_sigma = math.sqrt(core * core + age * age + gap * gap + lag * lag)
@@ -418,8 +418,8 @@ class RollingScale:
                 RELOCK_FALLBACK_WINDOW_SHARE * self.window_ns, self.min_samples)):
             return False
         values = np.array([v for _, v, _ in run])
-        med = float(np.median(values))
-        spread = MAD_TO_SIGMA * float(np.median(np.abs(values - med)))
+        med = median_of(values)
+        spread = MAD_TO_SIGMA * median_of(np.abs(values - med))
         return spread <= 0.5 * max(self.gate_min_rel, 1e-3) * med
 
     def _take(self, stamp_ns: int, scale: float, weight: float) -> None:
@@ -470,4 +470,4 @@ def sequence_scale(samples: np.ndarray) -> float:
     """The paper's offline estimate: the median of every per-frame scale of the sequence."""
     samples = np.asarray(samples, dtype=float)
     samples = samples[np.isfinite(samples) & (samples > 0)]
-    return float(np.median(samples)) if samples.size else float('nan')
+    return median_of(samples) if samples.size else float('nan')

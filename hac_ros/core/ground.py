@@ -29,6 +29,7 @@ from collections import deque
 import numpy as np
 
 from hac_ros.core.down_vote import DownVote
+from hac_ros.core.numeric import median_of
 from hac_ros.core.plane import Plane, fit_plane_lsq, ransac_plane, robust_plane
 from hac_ros.core.reference import MapIndex
 
@@ -198,7 +199,7 @@ class GroundModel:
         if len(parts) < 2:
             return
         points = np.concatenate(parts)
-        fitted = robust_plane(points, body, float(np.median(points @ body)))
+        fitted = robust_plane(points, body, median_of(points @ body))
         if fitted is None:
             return
         normal, _, sing = fitted
@@ -244,7 +245,7 @@ class GroundModel:
         self._readings.append(floor_scale)
         if len(self._readings) < needed:
             return False
-        floor, self._readings = float(np.median(self._readings)), None
+        floor, self._readings = median_of(self._readings), None
         return estimate is not None and abs(estimate / floor - 1.0) > tolerance
 
     def normal(self) -> np.ndarray | None:

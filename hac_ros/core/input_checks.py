@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from hac_ros.core.errors import InputError
-from hac_ros.core.numeric import NS
+from hac_ros.core.numeric import NS, median_of
 from hac_ros.core.plausibility import body_spans, span_problem
 
 MAX_STAMP_S = 2.0**31  # builtin_interfaces/Time's sec is an int32; no ROS time is negative
@@ -99,7 +99,7 @@ def joints_unit(array: np.ndarray, where: str) -> int:
     """The people of (T, P, K, 3) joints are metres: InputError when the median person is not the
     size of a body in metres (naming the likely unit); the number of people who are not."""
     spans = body_spans(array)
-    problem = span_problem(float(np.median(spans))) if len(spans) else ''
+    problem = span_problem(median_of(spans)) if len(spans) else ''
     if problem:
         raise InputError(f'{where}: {problem} (the median of {len(spans)} people)')
     return sum(bool(span_problem(float(span))) for span in spans)

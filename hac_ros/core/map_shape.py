@@ -26,6 +26,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hac_ros.core.numeric import median_of
+
 POINT_SPREAD_REL = 1e-4  # largest spread / distance from the camera below this: a point
 FLAT_SPREAD_REL = 0.02  # a spread below this fraction of the next larger one: flat that way
 PLANE_CAMERA_MIN_REL = 0.02  # the camera above a plane map by at least this of the median depth
@@ -54,7 +56,7 @@ def map_shape(sample_map: np.ndarray, camera_map: np.ndarray | None) -> MapShape
     eigval, eigvec = np.linalg.eigh(centred.T @ centred / len(sample_map))
     spread = np.sqrt(np.clip(eigval, 0.0, None))  # ascending: smallest first
     origin = np.zeros(3) if camera_map is None else np.asarray(camera_map, dtype=np.float64)
-    distance = float(np.median(np.linalg.norm(sample_map - origin, axis=1)))
+    distance = median_of(np.linalg.norm(sample_map - origin, axis=1))
     if spread[2] <= POINT_SPREAD_REL * max(distance, float(np.linalg.norm(centroid)), 1e-300):
         return MapShape('point', nan3, math.nan)
     if spread[1] < FLAT_SPREAD_REL * spread[2]:
@@ -74,7 +76,7 @@ def plane_problem(shape: MapShape, sample_map: np.ndarray, camera_map: np.ndarra
         return ''
     if camera_map is not None:
         height = abs(float(shape.normal @ camera_map) - shape.offset)
-        depth = float(np.median(np.linalg.norm(sample_map - camera_map, axis=1)))
+        depth = median_of(np.linalg.norm(sample_map - camera_map, axis=1))
         if height < PLANE_CAMERA_MIN_REL * depth:
             return 'its plane passes through the camera'
     if body_axis_map is not None:

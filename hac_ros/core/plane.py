@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hac_ros.core.numeric import MAD_TO_SIGMA
+from hac_ros.core.numeric import MAD_TO_SIGMA, median_of
 
 # A ray within 3° of parallel to a plane meets it too far away to be measured: no answer.
 COS_MIN_RAY_PLANE = math.cos(math.radians(87.0))
@@ -118,7 +118,7 @@ def local_plane(points: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
             return None
         normal = eigvec[:, 0]
         residual = np.abs((points - centroid) @ normal)
-        sigma = MAD_TO_SIGMA * float(np.median(residual[keep]))
+        sigma = MAD_TO_SIGMA * median_of(residual[keep])
         keep = residual <= PLANE_INLIER_MADS * sigma if sigma > 0.0 else keep
     return normal, centroid
 
@@ -142,13 +142,13 @@ def lowest_segment_offset(points_map: np.ndarray, normal: np.ndarray) -> float:
         return float('nan')
     lo, hi = (float(v) for v in np.quantile(h, OFFSET_RANGE_QUANTILES))
     if not hi - lo > 1e-9 * max(abs(lo), abs(hi), 1e-300):  # flat to rounding: one segment
-        return float(np.median(h))
+        return median_of(h)
     counts, edges = np.histogram(h, bins=OFFSET_BINS, range=(lo, hi))
     width = edges[1] - edges[0]
     nonempty = counts[counts > 0]
     threshold = float(OFFSET_MIN_COUNT)  # also when every value is outside the range (tiny maps)
     if nonempty.size:
-        threshold = max(threshold, OFFSET_DENSE_FACTOR * float(np.median(nonempty)))
+        threshold = max(threshold, OFFSET_DENSE_FACTOR * median_of(nonempty))
     dense = np.flatnonzero(counts >= threshold)
     if dense.size == 0:
         return float(np.quantile(h, OFFSET_FALLBACK_QUANTILE))
@@ -163,7 +163,7 @@ def lowest_segment_offset(points_map: np.ndarray, normal: np.ndarray) -> float:
         segment = h[np.abs(h - centre) <= OFFSET_WINDOW_BINS * width]
         if segment.size == 0:
             break
-        centre = float(np.median(segment))
+        centre = median_of(segment)
     return centre
 
 
@@ -180,7 +180,7 @@ def robust_plane(points: np.ndarray, normal: np.ndarray, offset: float
     """
     residual = points @ normal - offset
     for _ in range(ROBUST_PLANE_ITERS):
-        sigma = MAD_TO_SIGMA * float(np.median(np.abs(residual)))
+        sigma = MAD_TO_SIGMA * median_of(np.abs(residual))
         if not sigma > 0.0:
             weights = (residual == 0.0).astype(np.float64)
         else:

@@ -23,6 +23,7 @@ import math
 import numpy as np
 
 from hac_ros.core.layouts import JointLayout
+from hac_ros.core.numeric import median_of
 
 CLOUD_DEPTH_DECADES = 3.0  # a point 1000x nearer or further than the median depth ...
 CLOUD_IMPLAUSIBLE_SHARE = 0.25  # ... for more than this share of a map's points: refused
@@ -48,7 +49,7 @@ def implausible(points_map: np.ndarray, camera_map: np.ndarray | None,
     centre = np.median(points, axis=0) if camera_map is None else np.asarray(camera_map)
     with np.errstate(over='ignore', invalid='ignore'):
         depth = np.linalg.norm(points - centre, axis=1)
-    median = float(np.median(depth)) if median_depth is None else median_depth
+    median = median_of(depth) if median_depth is None else median_depth
     if camera_map is None and median == 0.0:  # most points on one: nothing to judge them by
         return np.zeros(len(points), dtype=bool), median
     if not math.isfinite(median) or median <= 0.0:  # most points at the camera, or overflowing

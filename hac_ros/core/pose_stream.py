@@ -29,6 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hac_ros.core.numeric import median_of
 from hac_ros.core.transforms import interpolate_pose
 
 JUMP_HISTORY = 30  # recent pose speeds whose median is the "normal" speed
@@ -132,7 +133,7 @@ class PoseTrack:
         if not poses or (not final and len(poses) < enough):
             return None
         speeds = [_speed(a, b) for a, b in itertools.pairwise(poses)]
-        typical = float(np.median(speeds)) if speeds else 0.0
+        typical = median_of(speeds) if speeds else 0.0
         run = [poses[-1]]
         for earlier in reversed(poses[:-1]):  # the newest run: back to the last jump
             if self._start_jump(earlier, run[0], typical, map_extent):
@@ -191,7 +192,7 @@ class PoseTrack:
         if move is None or len(self._speeds) < JUMP_MIN_HISTORY:
             return False
         step, speed = move
-        typical = float(np.median(self._speeds))
+        typical = median_of(self._speeds)
         assert self._bbox is not None  # set with the first accepted pose
         extent = float(np.linalg.norm(self._bbox[1] - self._bbox[0]))
         return (speed > self.jump_factor * typical and step > self.jump_min_rel * extent

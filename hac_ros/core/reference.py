@@ -30,6 +30,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from hac_ros.core.errors import InputError
+from hac_ros.core.numeric import median_of
 from hac_ros.core.plane import local_plane, lowest_segment_offset, ray_plane_distance
 
 # The chain's balls advance geometrically by (1 + 2 tan θ): each ball then covers one cone segment
@@ -233,7 +234,7 @@ class MapIndex:
             return None
         if mode == 'nearest_to_ray':
             return RayHit(float(dist[int(np.argmax(cos))]), count)
-        median = float(np.median(dist))
+        median = median_of(dist)
         if mode == 'cone_plane':
             exact = self.surface_distance(origin_map, direction_map, median)
             if exact is not None:

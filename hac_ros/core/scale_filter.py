@@ -36,7 +36,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hac_ros.core.numeric import MAD_TO_SIGMA, NS
+from hac_ros.core.numeric import MAD_TO_SIGMA, NS, median_of
 from hac_ros.core.stamp_weights import stamp_weights, weighted_median
 
 # The prior on drift. A monocular SLAM's scale drifts as it maps new ground; 40 % in 90 s
@@ -91,7 +91,7 @@ def noise_density(stamps_ns: np.ndarray, residuals: np.ndarray) -> Noise | None:
     t = (stamps_ns - stamps_ns[0]) / NS
     span = float(t[-1])
     weights = stamp_weights(stamps_ns)
-    weights = np.minimum(weights, np.median(weights))
+    weights = np.minimum(weights, median_of(weights))
     centre = weighted_median(residuals, weights)
     sigma2 = max(MAD_TO_SIGMA * weighted_median(np.abs(residuals - centre), weights),
                  SAMPLE_SIGMA_FLOOR) ** 2
@@ -165,7 +165,7 @@ class LogScaleFilter:
         values = np.asarray(log_scales, dtype=float)
         self._stamps.extend(stamps.tolist())
         self._values.extend(values.tolist())
-        self.level = float(np.median(values))
+        self.level = median_of(values)
         self.noise = self.level_noise = noise_density(stamps, values - self.level)
         self.stamp_ns, self._noise_ns = int(stamps[-1]), int(stamps[-1])
         self.p_ll = self.mean_variance(len(values), float(stamps[-1] - stamps[0]) / NS)

@@ -39,7 +39,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from hac_ros.core.estimator import DRIFT_EVIDENCE
-from hac_ros.core.numeric import MEDIAN_STD_ERROR, NS
+from hac_ros.core.numeric import MEDIAN_STD_ERROR, NS, median_of
 from hac_ros.core.scale_filter import drift_probability, noise_density, smooth
 from hac_ros.core.stamp_weights import stamp_weights, weighted_median
 
@@ -162,10 +162,10 @@ def segment_scale(stamps_ns: np.ndarray, scales: np.ndarray, start_ns: int, wind
         step = max(1, int(2 * half_ns / KNOTS_PER_WINDOW))
         knots = np.unique(np.r_[np.arange(int(stamps_ns[0]), int(stamps_ns[-1]), step,
                                           dtype=np.int64), int(stamps_ns[-1])])
-        offset = float(np.median(log_scales - smoothed.level))
+        offset = median_of(log_scales - smoothed.level)
         t = stamps_ns.astype(np.float64)
         values = np.interp(knots.astype(np.float64), t, smoothed.level) + offset
-        error = median * math.sqrt(float(np.median(smoothed.level_var)))
+        error = median * math.sqrt(median_of(smoothed.level_var))
     else:
         knots, values = np.array([stamps_ns[0]], dtype=np.int64), np.array([math.log(median)])
         variance = 0.0
@@ -245,7 +245,7 @@ def follow_shape(stamps_ns: np.ndarray, log_scales: np.ndarray, weights: np.ndar
     values = np.interp(knots.astype(np.float64), knots[ok].astype(np.float64), values[ok])
     base_at = (np.full(len(knots), knots_log[0]) if len(knots_ns) == 1
                else np.interp(knots.astype(np.float64), knots_ns.astype(np.float64), knots_log))
-    error = float(np.median([math.sqrt(f[1]) for f in found if f is not None]))
+    error = median_of([math.sqrt(f[1]) for f in found if f is not None])
     return knots, base_at + values, error
 
 
@@ -293,6 +293,6 @@ def centred_medians(stamps_ns: np.ndarray, scales: np.ndarray, query_ns: np.ndar
             j = min(int(a), len(scales) - 1)
             out[i] = scales[j]
         else:
-            out[i] = np.median(scales[a:b])
+            out[i] = median_of(scales[a:b])
     return out
 
