@@ -142,6 +142,34 @@ def test_pose_coalesce_s_zero_never_coalesces():
     assert len(drain(inbox)[0]) == 30
 
 
+# ================================================================================ maps
+def test_a_map_supersedes_the_maps_waiting_that_no_joints_frame_waits_behind():
+    """A node behind its maps (maps every 100 ms of wall time on a slow machine): each new map
+    replaces the waiting maps no joints frame needs, keeping the poses and the frames in order;
+    a map a waiting joints frame follows is kept (that frame is measured against it). Without
+    ``supersede`` (cloud_mode accumulate) every map waits. Nothing is lost from the count."""
+    inbox = Inbox(backlog_max=100)
+    for k in range(5):  # maps and poses only: each map replaces the one before
+        inbox.put('pose', ('pose', k), stamp_ns=k * NS)
+        inbox.put('map', ('map', k), supersede=True)
+    inbox.put('joints', 'frame')  # measured against map 4
+    inbox.put('pose', ('pose', 5), stamp_ns=5 * NS)
+    inbox.put('map', ('map', 5), supersede=True)
+    inbox.put('map', ('map', 6), supersede=True)  # replaces map 5, not map 4
+    taken, _, _ = drain(inbox)
+    assert taken == [('pose', ('pose', 0)), ('pose', ('pose', 1)), ('pose', ('pose', 2)),
+                     ('pose', ('pose', 3)), ('pose', ('pose', 4)), ('map', ('map', 4)),
+                     ('joints', 'frame'), ('pose', ('pose', 5)), ('map', ('map', 6))]
+    counts = inbox.counts()
+    assert counts.superseded == 5
+    assert counts.received['map'] == counts.processed['map'] + counts.superseded == 7
+    accumulating = Inbox(backlog_max=100)
+    for k in range(3):
+        accumulating.put('map', k)
+    assert [data for _, data in drain(accumulating)[0]] == [0, 1, 2]
+    assert accumulating.counts().superseded == 0
+
+
 # ================================================================================ lag
 def test_the_lag_is_from_the_oldest_input_waiting_and_warns_over_latency_warn_s():
     """How far behind the node is: now minus the arrival of the oldest input not yet processed,

@@ -5,7 +5,8 @@ A cloud arrives as raw CDR bytes. Its header is read at once (microseconds); dec
 finished maps go into the node's inbox in arrival order (:mod:`hac_ros.ros.intake`), where the
 processing thread hands them to the calibrator between the other inputs. A cloud still waiting for
 the builder when a newer one arrives is superseded in ``cloud_mode: replace`` (it would be replaced
-anyway); ``accumulate`` keeps up to MAPS_WAITING_MAX waiting.
+anyway), and so is a built map waiting in the inbox with no joints frame behind it
+(:mod:`hac_ros.ros.intake`); ``accumulate`` keeps up to MAPS_WAITING_MAX waiting for the builder.
 """
 from __future__ import annotations
 
@@ -41,6 +42,7 @@ class MapIntake:
         self._wake = wake
         self._builder = MapBuilder(build_index, workers=1)
         self._building: deque[Future[MapBuilt]] = deque()  # in arrival order
+        self._replace = True  # cloud_mode replace: a newer map supersedes the ones waiting
 
     def receive(self, data: bytes, cloud_mode: str) -> bool:
         """Executor thread: the header of a cloud's CDR bytes read, the cloud queued for the
@@ -58,7 +60,8 @@ class MapIntake:
     def submit(self, cloud: RawCloud, cloud_mode: str) -> None:
         """Queue ``cloud`` for the builder; what ``cloud_mode`` no longer needs is superseded."""
         waiting = [f for f in self._building if not f.done()]
-        if cloud_mode == 'replace':
+        self._replace = cloud_mode == 'replace'
+        if self._replace:
             superseded = waiting
         else:
             superseded = waiting[:max(0, len(waiting) - MAPS_WAITING_MAX + 1)]
@@ -80,7 +83,7 @@ class MapIntake:
             else:
                 self.indexed += 1
                 self.last_index = built.index
-            self._inbox.put('map', built)
+            self._inbox.put('map', built, supersede=self._replace)
 
     @property
     def done(self) -> int:

@@ -129,6 +129,8 @@ class Story:
         poses = self._count['pose']  # also the transforms of pose_source tf
         poses_text = f'; SLAM poses received {poses}' + (
             f', coalesced {counts.coalesced}' if counts.coalesced else '')
+        if counts.superseded:  # the node was behind the maps (hac_ros.ros.intake)
+            poses_text += f'; maps superseded while waiting {counts.superseded}'
         s, health = self.status, self.health
         if s is None or health is None:
             state = 'no status yet (no SLAM pose processed)' if self._first else 'no input yet'
