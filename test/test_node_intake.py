@@ -147,7 +147,8 @@ def test_a_map_supersedes_the_maps_waiting_that_no_joints_frame_waits_behind():
     """A node behind its maps (maps every 100 ms of wall time on a slow machine): each new map
     replaces the waiting maps no joints frame needs, keeping the poses and the frames in order;
     a map a waiting joints frame follows is kept (that frame is measured against it). Without
-    ``supersede`` (cloud_mode accumulate) every map waits. Nothing is lost from the count."""
+    ``supersede`` (cloud_mode accumulate, or a cloud that could not be built: its rejection is
+    counted by the calibrator) a map waits and is not replaced. Nothing is lost from the count."""
     inbox = Inbox(backlog_max=100)
     for k in range(5):  # maps and poses only: each map replaces the one before
         inbox.put('pose', ('pose', k), stamp_ns=k * NS)
@@ -168,6 +169,11 @@ def test_a_map_supersedes_the_maps_waiting_that_no_joints_frame_waits_behind():
         accumulating.put('map', k)
     assert [data for _, data in drain(accumulating)[0]] == [0, 1, 2]
     assert accumulating.counts().superseded == 0
+    rejected = Inbox(backlog_max=100)
+    rejected.put('map', 'built', supersede=True)
+    rejected.put('map', 'empty cloud')  # its rejection must reach the calibrator
+    rejected.put('map', 'newer', supersede=True)
+    assert [data for _, data in drain(rejected)[0]] == ['empty cloud', 'newer']
 
 
 # ================================================================================ lag

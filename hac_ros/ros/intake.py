@@ -101,6 +101,7 @@ class Item:
     data: Any
     arrived_s: float
     stamp_ns: int | None = None
+    supersedable: bool = False  # a map a newer one may replace (module docstring)
 
 
 @dataclass
@@ -161,10 +162,12 @@ class Inbox:
             arrived_s: float | None = None, supersede: bool = False) -> None:
         """An input arrived (``arrived_s``, time.monotonic: now by default); ``stamp_ns``: a
         pose's header stamp, for coalescing; ``supersede``: a map that replaces the maps waiting
-        with no joints frame behind them (module docstring)."""
+        with no joints frame behind them, and that a newer one may replace (module docstring;
+        not a map that carries a rejection to count)."""
         with self._ready:
             self.received[kind] += 1
-            item = Item(kind, data, time.monotonic() if arrived_s is None else arrived_s, stamp_ns)
+            item = Item(kind, data, time.monotonic() if arrived_s is None else arrived_s, stamp_ns,
+                        supersede)
             if kind == 'pose':
                 self._pose(item)
             else:
@@ -209,11 +212,12 @@ class Inbox:
                 return
 
     def _supersede_maps(self) -> None:
-        """Drop the maps waiting behind the last joints frame waiting (all, when none waits)."""
+        """Drop the supersedable maps waiting behind the last joints frame waiting (all of them,
+        when none waits)."""
         kept: list[Item] = []
         while self._items and self._items[-1].kind != 'joints':
             item = self._items.pop()
-            if item.kind == 'map':
+            if item.supersedable:
                 self.superseded_total += 1
             else:
                 kept.append(item)

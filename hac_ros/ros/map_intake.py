@@ -83,7 +83,8 @@ class MapIntake:
             else:
                 self.indexed += 1
                 self.last_index = built.index
-            self._inbox.put('map', built, supersede=self._replace)
+            # a map that could not be built carries its rejection to the calibrator: kept
+            self._inbox.put('map', built, supersede=self._replace and built.index is not None)
 
     @property
     def done(self) -> int:
