@@ -62,7 +62,7 @@ setup(
         'console_scripts': [
             'hac_node = hac_ros.ros.node:main',
             'hac_lifecycle_node = hac_ros.ros.lifecycle_node:main',
-            'hac_people_node = hac_ros.people.node:main',
+            'hac_people_node = hac_ros.ros.people_node:main',
             'hac = hac_ros.cli:main',
         ],
     },

@@ -76,7 +76,7 @@ class NodeRun:
 
         self.types = rclpy_types()
         self.process = subprocess.Popen(
-            [sys.executable, '-m', 'hac_ros.people.node', '--ros-args', '-p', 'num_threads:=1',
+            [sys.executable, '-m', 'hac_ros.ros.people_node', '--ros-args', '-p', 'num_threads:=1',
              '-p', 'max_rate_hz:=0.0', '-p', f'person_detector:={detector}'],
             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
         rclpy.init()

@@ -105,7 +105,7 @@ def opencv_images(people_extra) -> dict[str, object]:
 
 # ================================================================ no node outlives its test
 NODE_COMMANDS = ('hac_node', 'hac_lifecycle_node', 'hac_ros.ros.node', 'hac_ros.ros.lifecycle_node',
-                 'hac_ros.cli play', 'hac_ros.cli demo', 'hac_people_node', 'hac_ros.people.node')
+                 'hac_ros.cli play', 'hac_ros.cli demo', 'hac_people_node', 'hac_ros.ros.people_node')
 
 
 def _live_children() -> dict[int, str]:

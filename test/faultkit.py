@@ -12,6 +12,7 @@ from typing import Any, ClassVar
 import numpy as np
 from injected import finite_abs_max
 
+from hac_ros.bridge.topics import BY_KEY
 from hac_ros.core.calibrator import Calibrator
 from hac_ros.core.numeric import NS
 from hac_ros.core.outputs import (
@@ -98,9 +99,8 @@ class LiveNode:
     """hac_node in this process (its own context, this process's domain) beside a node that
     publishes inputs and records outputs, spun on one thread."""
 
-    OUTPUTS: ClassVar[dict[str, str]] = {'/hac/scale': 'std_msgs/msg/Float64',
-                                         '/hac/human_joints': 'geometry_msgs/msg/PoseArray',
-                                         '/diagnostics': 'diagnostic_msgs/msg/DiagnosticArray'}
+    OUTPUTS: ClassVar[dict[str, str]] = {BY_KEY[key].rooted: BY_KEY[key].msgtype
+                                         for key in ('scale', 'human_joints', 'diagnostics')}
 
     def __init__(self, **params: Any) -> None:
         import rclpy

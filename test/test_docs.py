@@ -282,10 +282,26 @@ def test_config_comments_list_each_parameters_choices():
 
 
 def test_the_generated_blocks_of_the_docs_are_up_to_date():
-    """docs/node.md's reason table is made from hac_ros/core/reasons.py: `make docs` rewrites it."""
+    """The reason table, the layouts, the people node's tables, the output topics (README,
+    docs/interface.md, docs/node.md's QoS) are made from their one source: `make docs` rewrites
+    them."""
     from regen_docs import stale
 
     assert stale() == [], 'run `make docs` (test/regen_docs.py)'
+
+
+def test_every_output_topic_the_docs_and_files_name_is_in_the_table():
+    """A renamed or removed output topic shows wherever it is still named by hand: README, the
+    docs, the RViz config and robot_localization's example (hac_ros.bridge.topics)."""
+    from hac_ros.bridge.topics import TOPICS
+
+    known = {t.name for t in TOPICS}
+    pages = [REPO / 'README.md', *sorted((REPO / 'docs').glob('*.md')),
+             REPO / 'rviz' / 'hac.rviz', REPO / 'config' / 'robot_localization.yaml']
+    named = {(page.name, name) for page in pages
+             for name in re.findall(r'(?<![\w/.~])/?(hac/[a-z_]+)\b', page.read_text())}
+    assert len(named) > 20
+    assert {(page, name) for page, name in named if name not in known} == set()
 
 
 # the calls that count, announce or find a reason, with the reason as a string literal
@@ -301,7 +317,7 @@ def test_every_reason_the_code_gives_is_in_the_one_table():
 
     used: set[str] = set()
     for path in (REPO / 'hac_ros').rglob('*.py'):
-        if 'people' not in path.relative_to(REPO / 'hac_ros').parts:  # its own table, below
+        if path not in people_node_files():  # its own table, below
             used.update(_REASON_CALLS.findall(_text(path)))
     used.update(f'{kind}_{what}' for kind in ('pose', 'joints', 'camera_info', 'cloud')
                 for what in ('lost', 'wrong_type'))
@@ -321,12 +337,19 @@ def test_every_reason_that_can_warn_says_what_to_do():
     assert all(r.remedy in table for r in warning.values())
 
 
+def people_node_files() -> set[Path]:
+    """The people front end and its node: their reasons are hac_ros/people/reasons.py's."""
+    return {*(REPO / 'hac_ros' / 'people').rglob('*.py'),
+            REPO / 'hac_ros' / 'ros' / 'people_node.py'}
+
+
 def test_every_reason_the_people_node_gives_is_in_its_table():
-    """hac_people_node's reasons (hac_ros/people/): its own one table."""
+    """hac_people_node's reasons (hac_ros/people/ and the node, hac_ros/ros/people_node.py): its
+    own one table."""
     from hac_ros.people.reasons import REJECTIONS
 
     used: set[str] = set()
-    for path in (REPO / 'hac_ros' / 'people').rglob('*.py'):
+    for path in people_node_files():
         used.update(_REASON_CALLS.findall(_text(path)))
     assert len(used) >= 5
     assert sorted(used - set(REJECTIONS)) == []

@@ -87,7 +87,7 @@ def faulty(walk: Path, tmp_path: Path, *edits: Any) -> Path:
 
 
 def ate_s(output: Path, truth: Path) -> float:
-    result = evaluate(output, truth, references=False)
+    result = evaluate(output, truth)
     return float(result.rows['hac']['ate_s_m'])
 
 
@@ -375,7 +375,7 @@ def test_every_report_gives_the_last_scale_written(tmp_path):
     assert abs(summary.status.scale / written[-1] - 1) > 1e-3  # the case the issue saw
     result = batch([drift], tmp_path / 'batch', workers=1)
     assert result.rows[0].final_scale == pytest.approx(written[-1], rel=1e-12)
-    evaluation = evaluate(tmp_path / 'out', drift, references=False)
+    evaluation = evaluate(tmp_path / 'out', drift)
     assert evaluation.rows['hac']['scale_final'] == pytest.approx(written[-1], rel=1e-12)
 
 

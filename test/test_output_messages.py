@@ -25,6 +25,7 @@ from hac_ros.bridge.messages import (
     OutputMessages,
     samples_message,
 )
+from hac_ros.bridge.topics import BY_NAME, NODE_TOPICS
 from hac_ros.core.calibrator import Calibrator
 from hac_ros.core.outputs import (
     CloudOut,
@@ -193,9 +194,11 @@ def test_samples_message():
 @pytest.mark.parametrize('name', ['walk', 'reset', 'crowd'])
 def test_every_output_message_of_a_scenario(name):
     """The node's and the replay's messages for a whole simulated run (markers with the path and
-    the ground plane, diagnostics with rejections, odometry across a SLAM reset)."""
+    the ground plane, diagnostics with rejections, odometry across a SLAM reset): each on a topic
+    of the table (hac_ros.bridge.topics), in the frame its parameter names."""
     sc = make_scenario(name, seed=1, duration=12.0)
-    params = HacParams(converged_max_rel_sigma=QUICK_CONVERGENCE)  # publishing from early on
+    params = HacParams(converged_max_rel_sigma=QUICK_CONVERGENCE,  # publishing from early on
+                       metric_frame='world_metric', odom_frame='odom_metric')
     cal = Calibrator(params)
     messages = OutputMessages(params)
     seen: dict[str, int] = {}
@@ -207,6 +210,12 @@ def test_every_output_message_of_a_scenario(name):
             for m in messages.convert(output):
                 msg = read(m)
                 seen[m.topic] = seen.get(m.topic, 0) + 1
+                entry = BY_NAME[m.topic]
+                assert m.msgtype == entry.msgtype
+                if entry.frame:
+                    headers = ([mk.header for mk in msg.markers] if m.topic == MARKERS[0]
+                               else [msg.header])
+                    assert {h.frame_id for h in headers} == {getattr(params, entry.frame)}
                 if m.topic == MARKERS[0]:
                     kinds = {mk.ns for mk in msg.markers}
                     assert 'skeleton' in kinds
@@ -219,8 +228,7 @@ def test_every_output_message_of_a_scenario(name):
                     assert status.values[0].key == 'converged'
                     assert status.values[-1].key == 'reasons'
                     assert stamp_to_ns(msg.header.stamp) == m.stamp_ns
-    assert set(seen) == {'hac/odometry', 'hac/pose', 'hac/cloud', 'hac/human_joints',
-                         'hac/scale', 'hac/markers', '/diagnostics'}
+    assert set(seen) == {t.name for t in NODE_TOPICS if t.enabled(params)}
     # the path and the plane are refreshed about once a second of stamp time, not every frame
     for ns, stamps in slow.items():
         assert len(stamps) >= 5, ns

@@ -238,7 +238,7 @@ def test_num_threads_pins_the_node_process(people_extra):
     allowed = sorted(os.sched_getaffinity(0))
     if len(allowed) < 2:
         pytest.skip('this process has one core: there is nothing to pin')
-    process = subprocess.Popen([sys.executable, '-m', 'hac_ros.people.node', '--ros-args', '-p',
+    process = subprocess.Popen([sys.executable, '-m', 'hac_ros.ros.people_node', '--ros-args', '-p',
                                 'num_threads:=1', '-p', 'person_detector:=none'],
                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     status = Path(f'/proc/{process.pid}/status')
@@ -269,7 +269,7 @@ def test_without_the_extra_the_commands_exit_2_naming_the_install_command(tmp_pa
     block = "import sys; sys.modules['mediapipe'] = None; sys.modules['cv2'] = None\n"
     for call in ("from hac_ros.cli import main; sys.exit(main(['people', 'x', '--camera', "
                  "'1,1,1,1', '-o', 'y.npz']))",
-                 "from hac_ros.people.node import main; sys.exit(main(['hac_people_node']))"):
+                 "from hac_ros.ros.people_node import main; sys.exit(main(['hac_people_node']))"):
         run = subprocess.run([sys.executable, '-c', block + call], capture_output=True,
                              text=True, cwd=tmp_path, timeout=300)
         assert run.returncode == 2, run.stderr
@@ -290,7 +290,7 @@ class Graph:
         from rclpy.parameter import Parameter
         from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
-        from hac_ros.people.node import PeopleNode
+        from hac_ros.ros.people_node import PeopleNode
         from hac_ros.ros.spin_thread import SpinThread
         from msg_adapters import rclpy_types
 

@@ -27,6 +27,7 @@ import numpy as np
 import pytest
 from scenes import NS, QUICK_CONVERGENCE, Scene, walking_scene
 
+from hac_ros.bridge.topics import TOPICS
 from hac_ros.core.errors import ArgumentError, HacError
 from hac_ros.core.offline import offline_scale
 from hac_ros.core.params import HacParams
@@ -34,8 +35,8 @@ from hac_ros.replay.replayer import replay
 
 REPO = Path(__file__).resolve().parents[1]
 K = np.array([[500.0, 0.0, 320.0], [0.0, 500.0, 240.0], [0.0, 0.0, 1.0]])
-OUTPUT_TOPICS = ('/hac/odometry', '/hac/pose', '/hac/cloud', '/hac/human_joints', '/hac/scale',
-                 '/hac/markers', '/diagnostics', '/hac/samples')
+# what a replay with the default parameters writes (hac_ros.bridge.topics)
+OUTPUT_TOPICS = tuple(t.rooted for t in TOPICS if t.replay and t.enabled(HacParams()))
 
 
 # ============================================================================ recordings

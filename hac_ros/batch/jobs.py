@@ -207,7 +207,7 @@ def _calibrate(job: Job) -> Row:
               resets=status.resets, warn_pct=summary.statuses.warn_pct,
               reasons=summary.statuses.reasons_text())
     if has_ground_truth(job.input_path):
-        evaluation = evaluate(output, job.input_path, params, references=False)
+        evaluation = evaluate(output, job.input_path, params)
         log.info('%s', evaluation.text())
         for key, attr in METRICS.items():
             setattr(row, attr, evaluation.rows['hac'].get(key))

@@ -13,7 +13,7 @@ from hac_ros.batch.summary import medians_line, write_summary
 from hac_ros.core.errors import ArgumentError
 from hac_ros.core.params import HacParams
 from hac_ros.core.printable import printable
-from hac_ros.replay.feeder import Progress, progress_pass
+from hac_ros.progress import Progress, progress_pass
 
 MOSTLY_WARN_PCT = 50.0  # a recording WARN for more of its statuses is named in the summary
 

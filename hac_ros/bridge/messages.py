@@ -4,11 +4,8 @@ Both shells call :meth:`OutputMessages.convert` on every output of the
 :class:`~hac_ros.core.calibrator.Calibrator` and publish (``Publisher.publish(bytes)``) or write
 what comes back, so that the same recording gives the same bytes online and replayed. Each message
 is built as a rosbags ROS 2 Jazzy message object (by :mod:`msg_adapters` where it converts numpy)
-and serialized by rosbags' ``serialize_cdr``: CDR that rclpy reads as its own. Topics and types:
-docs/interface.md, "Topics".
-
-Topic names are relative (a namespaced node moves them all) except ``/diagnostics``; the replay
-writes them resolved against ``/`` (:func:`in_root`).
+and serialized by rosbags' ``serialize_cdr``: CDR that rclpy reads as its own. The topics: one
+table, :mod:`hac_ros.bridge.topics`; the (name, type) pairs below come from it.
 """
 from __future__ import annotations
 
@@ -21,6 +18,7 @@ import numpy as np
 from rosbags.typesys import Stores, get_typestore
 from scipy.spatial.transform import Rotation
 
+from hac_ros.bridge import topics
 from hac_ros.core.health import Finding, Health, HealthMonitor
 from hac_ros.core.numeric import NS
 from hac_ros.core.outputs import (
@@ -44,20 +42,11 @@ from msg_adapters import (
     xyz_to_cloud,
 )
 
-ODOMETRY = ('hac/odometry', 'nav_msgs/msg/Odometry')
-POSE = ('hac/pose', 'geometry_msgs/msg/PoseWithCovarianceStamped')
-HUMAN_JOINTS = ('hac/human_joints', 'geometry_msgs/msg/PoseArray')
-SCALE = ('hac/scale', 'std_msgs/msg/Float64')
-CLOUD = ('hac/cloud', 'sensor_msgs/msg/PointCloud2')
-OBSTACLES = ('hac/obstacles', 'sensor_msgs/msg/PointCloud2')  # publish_obstacles
-MARKERS = ('hac/markers', 'visualization_msgs/msg/MarkerArray')
-DIAGNOSTICS = ('/diagnostics', 'diagnostic_msgs/msg/DiagnosticArray')
-OUTPUT_TOPICS = (ODOMETRY, POSE, HUMAN_JOINTS, SCALE, CLOUD, OBSTACLES, MARKERS, DIAGNOSTICS)
-LATCHED_TOPICS = (CLOUD[0], OBSTACLES[0])  # reliable + transient local: late subscribers get them
-# Replay-only topic (not published by the node): one message per processed frame, at its stamp.
-# data = [person, scale, source, accepted] per person, scale in metres per SLAM unit (NaN when
-# rejected), source 0 = map hit, 1 = ground-plane fallback, 2 = rejected.
-SAMPLES = ('hac/samples', 'std_msgs/msg/Float64MultiArray')
+# (name, type) of each output (hac_ros.bridge.topics)
+ODOMETRY, POSE, HUMAN_JOINTS = topics.ODOMETRY.pair, topics.POSE.pair, topics.HUMAN_JOINTS.pair
+SCALE, CLOUD, OBSTACLES = topics.SCALE.pair, topics.CLOUD.pair, topics.OBSTACLES.pair
+MARKERS, DIAGNOSTICS, SAMPLES = topics.MARKERS.pair, topics.DIAGNOSTICS.pair, topics.SAMPLES.pair
+OUTPUT_TOPICS = tuple(topic.pair for topic in topics.NODE_TOPICS)  # what the node publishes
 # Inputs (docs/interface.md, "Topics"): kind -> message type; the pose's is the pose_type
 # parameter's
 INPUT_MSGTYPES = {'joints': 'geometry_msgs/msg/PoseArray', 'cloud': 'sensor_msgs/msg/PointCloud2',
@@ -93,14 +82,6 @@ TYPES = rosbags_types(TYPESTORE)  # its message classes (dataclasses), by ROS na
 def serialize(msg: Any, msgtype: str) -> bytes:
     """A message object of :data:`TYPES` of type ``msgtype`` -> its CDR bytes (little endian)."""
     return bytes(TYPESTORE.serialize_cdr(msg, msgtype))
-
-
-def in_root(topic: str) -> str:
-    """A topic name resolved in the root namespace (``hac/pose`` -> ``/hac/pose``), as the replay
-    writes and reads it; absolute names are kept. ``~`` (private) names have no meaning there."""
-    if topic.startswith('~'):
-        raise ValueError(f'{topic!r}: a private (~) topic name needs a node')
-    return topic if topic.startswith('/') else '/' + topic
 
 
 @dataclass
@@ -166,7 +147,7 @@ class OutputMessages:
         if isinstance(output, CloudOut):
             points = output.points_metric
             msgs = [message(CLOUD, xyz_to_cloud(points, stamp, frame, TYPES), stamp)]
-            if self.params.publish_obstacles and output.levelled:
+            if topics.OBSTACLES.enabled(self.params) and output.levelled:
                 z = points[:, 2]
                 band = ((z >= self.params.obstacle_min_height)
                         & (z <= self.params.obstacle_max_height))
@@ -176,7 +157,7 @@ class OutputMessages:
         if isinstance(output, HumanJointsOut):
             msgs = [message(HUMAN_JOINTS,
                             joints_to_pose_array(output.joints_metric, stamp, frame, TYPES), stamp)]
-            if self.params.publish_markers:
+            if topics.MARKERS.enabled(self.params):
                 msgs.append(Message(*MARKERS, self.markers(output), stamp))
             return msgs
         if isinstance(output, ScaleOut):

@@ -101,6 +101,7 @@ def demo(out_dir: Path, recording: str | None = None) -> int:
     from hac_ros.cli.terminal import progress_bar
     from hac_ros.evaluation.evaluate import evaluate
     from hac_ros.evaluation.plots import make_plots
+    from hac_ros.replay.feeder import offline_run
     from hac_ros.replay.replayer import replay
 
     start = time.perf_counter()
@@ -111,7 +112,7 @@ def demo(out_dir: Path, recording: str | None = None) -> int:
                              export_tum=out_dir / 'tum', progress=progress_bar('msg'))
             show(summary.text())
             show('')
-            result = evaluate(out_dir / 'replay', source)
+            result = evaluate(out_dir / 'replay', source, offline_run=offline_run)
             show(result.text())
             (out_dir / 'eval.json').write_text(json.dumps(result.as_dict(), indent=2) + '\n',
                                                encoding='utf-8')

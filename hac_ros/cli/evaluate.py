@@ -25,9 +25,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from hac_ros.evaluation.evaluate import evaluate
+    from hac_ros.replay.feeder import offline_run
 
     result = evaluate(args.output, args.gt, load_params(args.params) if args.params else None,
-                      references=not args.no_references)
+                      None if args.no_references else offline_run)
     show(result.text())
     if args.json:
         Path(args.json).write_text(json.dumps(result.as_dict(), indent=2) + '\n', encoding='utf-8')

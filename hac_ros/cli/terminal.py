@@ -6,7 +6,7 @@ above on stderr, one line each, ``hac COMMAND: LEVEL: message`` (``hac replay: w
 process is changed: other libraries' loggers and the streams are left as they are.
 
 The progress bars are the command's too (:func:`progress_bar`): the library only advances the
-display it is given (:data:`hac_ros.replay.feeder.Progress`) and draws none itself.
+display it is given (:data:`hac_ros.progress.Progress`) and draws none itself.
 """
 from __future__ import annotations
 
@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Any
 from hac_ros.core.printable import printable_lines
 
 if TYPE_CHECKING:  # the command starts without importing the library
-    from hac_ros.replay.feeder import Progress
+    from hac_ros.progress import Progress
 
 PACKAGE_LOGGER = 'hac_ros'
 LEVEL = logging.INFO

@@ -1,7 +1,8 @@
 """One person's scale sample inside the frame loop (docs/method.md, steps 1-5): the person's
-joints judged (seen, in metres, in front, the contact seen, standing), the votes for down and the
-convention checks they feed, the sample against the map or the floor (hac_ros.core.sample), the
-floor's re-lock, and the bookkeeping (counts, the estimator, the ground model's contacts).
+joints judged (seen, in metres, in front, the contact seen, standing: hac_ros.core.person_checks),
+the votes for down and the convention checks they feed, the sample against the map or the floor
+(hac_ros.core.sample), the floor's re-lock, and the bookkeeping (counts, the estimator, the
+ground model's contacts).
 
 :class:`PersonStep` is a part of :class:`hac_ros.core.frame_loop.FrameLoop`, kept apart so that
 what happens to one person reads in one place; the state it uses is the loop's (annotated below).
@@ -15,7 +16,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from hac_ros.core.contact import contact_seen
 from hac_ros.core.convention_check import ConventionCheck
 from hac_ros.core.estimator import RollingScale
 from hac_ros.core.ground import GroundModel
@@ -24,8 +24,7 @@ from hac_ros.core.map_book import MapBook
 from hac_ros.core.outputs import NoticeOut, SampleOut
 from hac_ros.core.params import HacParams
 from hac_ros.core.pending import Record
-from hac_ros.core.plausibility import body_unit_problem, seen_problem
-from hac_ros.core.posture import posture_problem
+from hac_ros.core.person_checks import BODY_CHECKS, JOINT_CHECKS, Person, refusal
 from hac_ros.core.sample import Scene, person_sample
 from hac_ros.core.services import ServiceRequests
 
@@ -69,30 +68,20 @@ class PersonStep:
         bookkeeping; ``followed``: who they are across frames (a fixed camera without a map:
         their contacts refine the floor's normal person by person), -1 unknown."""
         self.people += 1
-        seen = np.isfinite(joints).all(axis=1)  # NaN joints are not seen (docs/inputs.md)
-        every = bool(seen.all())
-        if not every:
-            if np.isinf(joints).any():
-                return self._rejected_sample(stamp, person, 'nonfinite_joints')
-            problem = seen_problem(self.layout, seen)
-            if problem:
-                return self._rejected_sample(stamp, person, 'too_little_seen', problem)
-        visible = joints if every else joints[seen]
-        unit = body_unit_problem(visible)
-        if unit:
-            return self._rejected_sample(stamp, person, 'joints_not_metres', unit)
-        if not (visible[:, 2] > 0.0).any():
-            return self._rejected_sample(stamp, person, 'behind_camera')
+        # NaN joints are not seen (docs/inputs.md); the checks in order (hac_ros.core.person_checks)
+        body = Person(self.layout, joints, self.params.contact_mode)
+        refused = refusal(JOINT_CHECKS, body)
+        if refused:
+            return self._rejected_sample(stamp, person, *refused)
         up_cam = self.layout.up_axis(joints)
         notes = self._vote_down(stamp, R_wc, c_map, joints, up_cam)
         down = self.ground.rough_down()
         self.check.add_person(stamp, self.layout, R_wc, joints, up_cam, down, self._K,
                               self._image_size)
-        if not (every or contact_seen(self.params.contact_mode, self.layout, joints)):
-            return notes + self._rejected_sample(stamp, person, 'contact_unseen')
-        if posture_problem(self.layout, joints, up_cam, None if down is None else R_wc.T @ down):
-            # only standing people measure (hac_ros.core.posture)
-            return notes + self._rejected_sample(stamp, person, 'not_standing')
+        body.up_cam, body.down_cam = up_cam, None if down is None else R_wc.T @ down
+        refused = refusal(BODY_CHECKS, body)
+        if refused:
+            return notes + self._rejected_sample(stamp, person, *refused)
         self.ground.add_body(R_wc, up_cam)
         up_norm = float(np.linalg.norm(up_cam))
         if down is None and math.isfinite(up_norm) and up_norm > 0.0:

@@ -21,12 +21,14 @@ estimate and of every frame against the truth of that moment.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from hac_ros.core.calibrator import Calibrator
 from hac_ros.core.layouts import BUILT_IN
 from hac_ros.core.offline import resolve_offline
 from hac_ros.core.outputs import HumanJointsOut, OdometryOut, Output, PoseOut, ScaleOut
@@ -42,7 +44,9 @@ from hac_ros.recording.tracks import (
     read_output,
     read_truth,
 )
-from hac_ros.replay.feeder import offline_run
+
+# the core fed a recording offline, its outputs deferred (hac_ros.replay.feeder.offline_run)
+OfflineRun = Callable[[Recording, HacParams], Calibrator]
 
 ROOT_JOINT = 0  # pelvis (SMPL-24)
 # Outputs carry the input stamps exactly and the ground truth is at the same stamps; 1 ms absorbs
@@ -98,8 +102,10 @@ def _track(outputs: list[PoseOut] | list[OdometryOut]) -> CameraTrack:
                        np.array([o.rotation_metric for o in outputs]))
 
 
-def reference_runs(gt_path: str | Path, params: HacParams, truth: Truth) -> dict[str, Replayed]:
-    """'no calibration' (scale 1) and 'true scale' (/gt/scale) through the core on IN."""
+def reference_runs(gt_path: str | Path, params: HacParams, truth: Truth,
+                   offline_run: OfflineRun) -> dict[str, Replayed]:
+    """'no calibration' (scale 1) and 'true scale' (/gt/scale) through the core on IN, from one
+    ``offline_run`` of it."""
     scales: dict[str, Any] = {'no calibration': lambda stamp_ns: 1.0}
     if truth.scale is not None and len(truth.scale):
         true_scale = truth.scale
@@ -228,8 +234,10 @@ def _json_number(value: Any) -> Any:
 
 
 def evaluate(output_path: str | Path, gt_path: str | Path, params: HacParams | None = None,
-             references: bool = True) -> Evaluation:
-    """The metrics of OUT against IN's ground truth, beside the two reference rows."""
+             offline_run: OfflineRun | None = None) -> Evaluation:
+    """The metrics of OUT against IN's ground truth, beside the two reference rows when
+    ``offline_run`` is given: the core fed IN offline, as the replay feeds it
+    (:func:`hac_ros.replay.feeder.offline_run`), whose outputs they resolve."""
     if params is None:  # the defaults, in the input recording's joint layout
         with Recording(gt_path) as rec:
             layout = rec.layout.name
@@ -237,8 +245,8 @@ def evaluate(output_path: str | Path, gt_path: str | Path, params: HacParams | N
     replayed = read_output(output_path)
     truth = read_truth(gt_path)
     rows = {'hac': row_metrics(replayed, truth)}
-    if references:
-        for name, run in reference_runs(gt_path, params, truth).items():
+    if offline_run is not None:
+        for name, run in reference_runs(gt_path, params, truth, offline_run).items():
             rows[name] = row_metrics(run, truth)
     true_scale: dict[str, float] = {}
     if truth.scale is not None and len(truth.scale):

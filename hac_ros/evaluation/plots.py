@@ -91,7 +91,7 @@ def se3_fit(run: Replayed, truth: Truth) -> tuple[np.ndarray, np.ndarray] | None
     Fitted on the matched camera centres and the matched people's joints together: a camera
     moving along a straight line alone leaves the rotation about that line undetermined.
     """
-    from hac_ros.evaluation.metrics import umeyama
+    from hac_ros.core.similarity import umeyama
 
     src, dst = [], []
     if truth.camera is not None and len(run.camera):

@@ -44,7 +44,7 @@ from hac_ros.core.layouts import BUILT_IN, SMPL24, joints_per_person, names_text
 from hac_ros.core.numeric import NS
 from hac_ros.core.params import NODE_NAME, HacParams
 from hac_ros.core.plausibility import body_spans
-from hac_ros.evaluation.metrics import umeyama
+from hac_ros.core.similarity import umeyama
 from hac_ros.files.map_files import read_map
 from hac_ros.files.readers import (
     Joints,

@@ -27,8 +27,8 @@ from hac_ros.people.frontend import PeopleFromImages, size_matches
 from hac_ros.people.images import IMAGE_SUFFIXES
 from hac_ros.people.lifting import Camera
 from hac_ros.people.params import PeopleParams
+from hac_ros.progress import Progress, progress_pass
 from hac_ros.recording.atomic import staged_output
-from hac_ros.replay.feeder import Progress, progress_pass
 from msg_adapters.camera_info import principal_point_problem
 
 

@@ -14,8 +14,8 @@ from hac_ros.bridge.messages import (
     SAMPLE_FIELDS,
     SAMPLES,
     SCALE,
-    in_root,
 )
+from hac_ros.bridge.topics import in_root
 from hac_ros.core.errors import HacError
 from hac_ros.core.layouts import SMPL24, JointLayout
 from hac_ros.recording.reader import GT_CAMERA, GT_JOINTS, GT_SCALE, Recording

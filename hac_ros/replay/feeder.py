@@ -7,13 +7,11 @@ the same decoders and the same map builder). The replay, the evaluation and the 
 """
 from __future__ import annotations
 
-import contextlib
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import Future
-from contextlib import AbstractContextManager
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 
@@ -25,32 +23,16 @@ from hac_ros.bridge.inputs import (
     add_pose_msg,
     add_tf_msg,
 )
-from hac_ros.bridge.messages import INPUT_MSGTYPES, in_root
+from hac_ros.bridge.messages import INPUT_MSGTYPES
+from hac_ros.bridge.topics import in_root
 from hac_ros.core.calibrator import Calibrator
 from hac_ros.core.errors import ArgumentError, HacError
 from hac_ros.core.outputs import Output
 from hac_ros.core.params import POSE_MSGTYPES, HacParams
 from hac_ros.core.tf_tree import TfPoses
+from hac_ros.progress import ProgressBar
 from hac_ros.recording.reader import Recording
 from msg_adapters import MessageError, parse_cloud_cdr
-
-
-class ProgressBar(Protocol):
-    """What the library advances as it works: ``update(n)``, n more units done."""
-
-    def update(self, n: int, /) -> Any: ...
-
-
-# A progress display the caller provides: called with the total and a label, it gives a context
-# whose value is a ProgressBar. The library draws nothing itself (the ``hac`` command passes a bar
-# on a terminal: hac_ros.cli.terminal).
-Progress = Callable[[int, str], AbstractContextManager[ProgressBar]]
-
-
-def progress_pass(progress: Progress | None, total: int, label: str
-                  ) -> AbstractContextManager[ProgressBar | None]:
-    """The caller's progress display for one pass of ``total`` units, or nothing (None)."""
-    return contextlib.nullcontext() if progress is None else progress(total, label)
 
 # Messages of the same log time are fed in this order (then any other topic): the camera's
 # intrinsics and the map before the frame they serve, the pose (the clock) before its joints.

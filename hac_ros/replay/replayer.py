@@ -33,18 +33,8 @@ from typing import Any
 
 import numpy as np
 
-from hac_ros.bridge.messages import (
-    CLOUD,
-    LATCHED_TOPICS,
-    MARKERS,
-    OBSTACLES,
-    OUTPUT_TOPICS,
-    SAMPLES,
-    Message,
-    OutputMessages,
-    in_root,
-    samples_message,
-)
+from hac_ros.bridge.messages import Message, OutputMessages, samples_message
+from hac_ros.bridge.topics import SAMPLES, TOPICS, in_root
 from hac_ros.core.calibrator import Calibrator
 from hac_ros.core.errors import ArgumentError
 from hac_ros.core.numeric import NS
@@ -66,10 +56,11 @@ from hac_ros.core.reasons import text as reason_text
 from hac_ros.core.segment import SegmentScale, drift_text
 from hac_ros.core.status_shares import StatusShares
 from hac_ros.files.tum import write_tum_exports
+from hac_ros.progress import Progress, ProgressBar, progress_pass
 from hac_ros.recording.atomic import staged_output
 from hac_ros.recording.reader import STORAGES, Recording, layout_data
 from hac_ros.recording.writer import OutputWriter, check_output_path
-from hac_ros.replay.feeder import CoreFeeder, InputTopics, Progress, ProgressBar, progress_pass
+from hac_ros.replay.feeder import CoreFeeder, InputTopics
 
 MODES = ('offline', 'online')
 NOTICE_LEVELS = {'info': logging.INFO, 'warn': logging.WARNING, 'error': logging.ERROR}
@@ -132,7 +123,7 @@ class OutputHandler:
                               message.msg)
 
     def _write_samples(self, samples: list[SampleOut]) -> None:
-        self._write(Message(*SAMPLES, samples_message(samples), samples[0].stamp_ns))
+        self._write(Message(*SAMPLES.pair, samples_message(samples), samples[0].stamp_ns))
 
 
 class NoticeLog:
@@ -300,7 +291,7 @@ def replay(input_path: str | Path, output_path: str | Path, params: HacParams | 
     mode: ``offline`` or ``online`` (module docstring); storage: of OUT, ``mcap`` or ``sqlite3``;
     copy_inputs: every topic of IN is copied into OUT too; export_tum: a directory for TUM files
     (:func:`hac_ros.files.tum.write_tum_exports`); progress: a progress display to advance per
-    message (:data:`~hac_ros.replay.feeder.Progress`; default none: the library draws nothing);
+    message (:data:`~hac_ros.progress.Progress`; default none: the library draws nothing);
     pose_type: ``PoseStamped`` or ``Odometry`` overrides the SLAM pose type read from
     IN. The calibrator's notices are logged (this module's logger), each once.
     Raises :class:`HacError` (OUT exists, IN missing or unreadable, ...; :class:`ArgumentError`
@@ -338,12 +329,9 @@ def replay(input_path: str | Path, output_path: str | Path, params: HacParams | 
             writer = OutputWriter(staged, storage, layout_data(calibrator.layout))
             try:
                 handler = OutputHandler(params, writer, notices, keep_poses=export_tum is not None)
-                off = {MARKERS[0]: not params.publish_markers, CLOUD[0]: not params.publish_cloud,
-                       OBSTACLES[0]: not (params.publish_cloud and params.publish_obstacles)}
-                for topic, msgtype in (*OUTPUT_TOPICS, SAMPLES):
-                    if not off.get(topic, False):
-                        writer.connection(in_root(topic), msgtype,
-                                          latched=topic in LATCHED_TOPICS)
+                for output in TOPICS:  # hac_ros.bridge.topics: those its switches allow
+                    if output.replay and output.enabled(params):
+                        writer.connection(output.rooted, output.msgtype, latched=output.latched)
                 feeder = CoreFeeder(recording, topics, calibrator,
                                     keep_poses=export_tum is not None)
                 on_message = _input_copier(recording, writer) if copy_inputs else None
@@ -391,7 +379,7 @@ def _input_copier(recording: Recording, writer: OutputWriter) -> Callable[[str, 
     A topic of IN with an output topic's name (IN is itself a replay) is not copied, nor a ROS 1
     topic whose type ROS 2 Jazzy does not have.
     """
-    ours = {in_root(t) for t, _ in (*OUTPUT_TOPICS, SAMPLES)}
+    ours = {output.rooted for output in TOPICS}
     typestore = recording.typestore
     if not recording.is_ros2:
         ours |= {t for t, msgtype in recording.topics.items() if msgtype not in typestore.fielddefs}

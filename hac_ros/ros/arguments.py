@@ -11,6 +11,7 @@ import gc
 import re
 import signal
 import sys
+import textwrap
 from collections.abc import Sequence
 from typing import Any, Protocol
 
@@ -24,6 +25,7 @@ from rclpy.exceptions import (
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.signals import SignalHandlerOptions
 
+from hac_ros.bridge.topics import names_line
 from hac_ros.core.errors import HacError, ParameterError
 from hac_ros.core.params import NODE_NAME
 from hac_ros.core.printable import printable
@@ -31,17 +33,18 @@ from hac_ros.files.params_file import check_params_file
 
 ROS_ARGS, ROS_ARGS_END, PARAMS_FILE = '--ros-args', '--', '--params-file'
 HELP = ('-h', '--help')
+TOPICS_TEXT = textwrap.fill(
+    'Subscribes to slam/pose (PoseStamped or Odometry: the camera in the SLAM map, unknown '
+    'scale), slam/cloud (PointCloud2 map), hmr/joints (PoseArray: joints in metres, camera '
+    f'optical frame) and camera/camera_info; publishes {names_line()}; services ~/reset and '
+    '~/freeze. Names are relative: a namespace (-r __ns:=/robot1) moves them all.', 99)
 
 USAGE = """\
 usage: {program} [-h] [--ros-args [--params-file FILE] [-p NAME:=VALUE] [-r FROM:=TO] ...]
 
 {what}
 
-Subscribes to slam/pose (PoseStamped or Odometry: the camera in the SLAM map, unknown scale),
-slam/cloud (PointCloud2 map), hmr/joints (PoseArray: joints in metres, camera optical frame) and
-camera/camera_info; publishes hac/odometry, hac/pose, hac/cloud, hac/human_joints, hac/scale,
-hac/markers and /diagnostics; services ~/reset and ~/freeze. Names are relative: a namespace
-(-r __ns:=/robot1) moves them all.
+{topics}
 
 options:
   -h, --help            show this help and exit (ROS is not started)
@@ -72,7 +75,7 @@ def usage(node_class: NodeClass) -> str:
     one: ``hac_people_node``)."""
     template = getattr(node_class, 'USAGE', USAGE)
     return template.format(program=node_class.PROGRAM, what=node_class.SUMMARY, node=NODE_NAME,
-                           install=getattr(node_class, 'INSTALL', ''))
+                           install=getattr(node_class, 'INSTALL', ''), topics=TOPICS_TEXT)
 
 
 def wants_help(argv: Sequence[str]) -> bool:

@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from hac_ros.bridge.topics import DIAGNOSTICS, NODE_TOPICS, SCALE
 from hac_ros.core.errors import HacError
 from hac_ros.core.numeric import NS
 from hac_ros.core.outputs import Status
@@ -35,14 +36,8 @@ from hac_ros.ros.liveness import STEADY_CLOCK_REASONS
 
 log = logging.getLogger(__name__)
 
-# what comes back: output topic -> type (docs/interface.md, "Topics")
-OUTPUTS = {'/hac/odometry': 'nav_msgs/msg/Odometry',
-           '/hac/pose': 'geometry_msgs/msg/PoseWithCovarianceStamped',
-           '/hac/human_joints': 'geometry_msgs/msg/PoseArray',
-           '/hac/scale': 'std_msgs/msg/Float64',
-           '/hac/cloud': 'sensor_msgs/msg/PointCloud2',
-           '/hac/markers': 'visualization_msgs/msg/MarkerArray',
-           '/diagnostics': 'diagnostic_msgs/msg/DiagnosticArray'}
+# what comes back: every output topic of the node (hac_ros.bridge.topics)
+OUTPUTS = {topic.rooted: topic for topic in NODE_TOPICS}
 STARTUP_S = 60.0  # the node imports numpy/scipy/rclpy and joins discovery (a loaded machine)
 QUIET_S = 2.0  # after the play, the outputs have settled when nothing came for this long
 SETTLE_MAX_S = 60.0
@@ -158,12 +153,13 @@ class _Collector:
         self.statuses = StatusShares()  # the node's stamp-time statuses, as they came
         self.last_arrival = time.monotonic()
         self._lock = threading.Lock()
-        for topic, msgtype in OUTPUTS.items():
-            durability = (DurabilityPolicy.TRANSIENT_LOCAL if topic == '/hac/cloud'
+        for topic, entry in OUTPUTS.items():
+            durability = (DurabilityPolicy.TRANSIENT_LOCAL if entry.latched
                           else DurabilityPolicy.VOLATILE)
             qos = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
                              durability=durability)
-            self.node.create_subscription(types.get(msgtype), topic, self._recorder(topic), qos)
+            self.node.create_subscription(types.get(entry.msgtype), topic, self._recorder(topic),
+                                          qos)
         executor = SingleThreadedExecutor(context=context)
         executor.add_node(self.node)
         self.spinner = SpinThread(executor, 'hac_demo_live')
@@ -172,9 +168,9 @@ class _Collector:
         def record(msg: Any) -> None:
             with self._lock:
                 self.counts[topic] += 1
-                if topic != '/diagnostics' or stamp_time_status(msg):
+                if topic != DIAGNOSTICS.rooted or stamp_time_status(msg):
                     self.last[topic] = msg
-                if topic == '/diagnostics' and stamp_time_status(msg):
+                if topic == DIAGNOSTICS.rooted and stamp_time_status(msg):
                     self.statuses.add(*level_and_reasons(msg))
                 self.last_arrival = time.monotonic()
         return record
@@ -254,7 +250,7 @@ def live_run(recording: str | Path, rate: float = 1.0, params_file: str | Path |
         if collector is not None:
             collector.close()
         rclpy.try_shutdown(context=context)
-    diagnostics = collector.last.get('/diagnostics')
+    diagnostics = collector.last.get(DIAGNOSTICS.rooted)
     if diagnostics is None or not diagnostics.status:
         raise HacError(f'{NODE_NAME} published no /diagnostics:\n{node_log.strip()}')
     from msg_adapters import stamp_to_ns
@@ -262,8 +258,8 @@ def live_run(recording: str | Path, rate: float = 1.0, params_file: str | Path |
     stamp = stamp_to_ns(diagnostics.header.stamp)
     status = status_from_diagnostics({kv.key: kv.value for kv in diagnostics.status[0].values},
                                      stamp)
-    if '/hac/scale' in collector.last:
-        status.scale = float(collector.last['/hac/scale'].data)
+    if SCALE.rooted in collector.last:
+        status.scale = float(collector.last[SCALE.rooted].data)
     return LiveSummary(Path(recording), status, dict(collector.counts), stats.total,
                        time.monotonic() - started, domain, stamp, start_ns, node_log,
                        collector.statuses)

@@ -203,5 +203,63 @@ def parameter_table() -> str:
     return '\n'.join(rows)
 
 
+# the config's sections: the first parameter of each, and its heading
+CONFIG_SECTIONS = {
+    'pose_topic': 'Inputs (docs/interface.md, "Topics")',
+    'contact_mode': 'Method (docs/method.md)',
+    'joint_layout': "The HMR model's joints (docs/inputs.md)",
+    'window_s': 'Estimator: rolling window of per-frame scales',
+    'sync_slop_s': 'Synchronisation of joints and SLAM poses',
+    'cloud_mode': 'Map',
+    'input_qos': 'QoS and outputs (node only)',
+    'interp_max_gap_s': 'Tuning (metric or scene-relative units)',
+}
+# examples shown for the custom layout's index lists (a ROS parameters file cannot hold [])
+INDEX_EXAMPLES = {'contact_joints': [15, 16], 'root_joints': [11, 12],
+                  'body_axis_lower_joints': [11, 12], 'body_axis_upper_joints': [5, 6],
+                  'skeleton_edges': [11, 13, 13, 15]}
+
+
+def _yaml_value(value: Any) -> str:
+    if isinstance(value, bool):
+        return 'true' if value else 'false'
+    if isinstance(value, str):
+        return f'"{value}"'
+    if isinstance(value, list):
+        return '[' + ', '.join(_yaml_value(v) for v in value) + ']'
+    return repr(value)
+
+
+def _config_comment(info: dict[str, Any]) -> str:
+    comment = info['description']
+    if info['choices']:
+        comment += ' (' + ' | '.join(info['choices']) + ')'
+    elif info['low'] is not None:
+        comment += f" [{info['low']!r}, {info['high']!r}]"
+    return comment
+
+
+def config_parameters() -> str:
+    """The parameters of config/hac.yaml (the lines under ``ros__parameters:``): every one at
+    its default, with its description, choices or range as a comment, in sections; the custom
+    layout's index lists as comments."""
+    lines, indices = [], [n for n in names() if describe(n)['kind'] == 'indices']
+    for name in names():
+        if name in CONFIG_SECTIONS:
+            lines.append(f'    # --- {CONFIG_SECTIONS[name]}')
+        info = describe(name)
+        if name in indices:
+            if name == indices[0]:
+                lines += ['    # joint_layout custom also needs these index lists (ROS parameter '
+                          'files cannot hold an',
+                          '    # empty list, so they are left out here; a list of several '
+                          'indices means their mean):']
+            lines.append(f'    # {name}: {_yaml_value(INDEX_EXAMPLES[name])}  # '
+                         f"{_config_comment(info)}")
+            continue
+        lines.append(f"    {name}: {_yaml_value(info['default'])}  # {_config_comment(info)}")
+    return '\n'.join(lines) + '\n'
+
+
 if __name__ == '__main__':
     print(parameter_table())

@@ -4,14 +4,12 @@ from __future__ import annotations
 
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from hac_ros.bridge.messages import DIAGNOSTICS, LATCHED_TOPICS
+from hac_ros.bridge.topics import BY_NAME, qos_rows
 from hac_ros.core.params import HacParams
 
 INPUT_DEPTH = 100  # joints/camera_info kept per subscription: > 3 s at 30 Hz, absorbs bursts
 POSE_DEPTH = 1000  # SLAM poses: 1 s at 1 kHz (a message costs the executor ~0.1 ms to take)
 CLOUD_DEPTH = 2  # only the newest map matters; 2 lets one arrive while the previous is read
-OUTPUT_DEPTH = 100  # odometry/pose/joints/scale/markers: 3 s at 30 Hz for slow subscribers
-DIAGNOSTICS_DEPTH = 10
 
 
 def input_qos(params: HacParams, kind: str = 'joints') -> QoSProfile:
@@ -33,15 +31,31 @@ def cloud_qos(params: HacParams) -> QoSProfile:
 
 
 def output_qos(topic: str) -> QoSProfile:
-    """Outputs: reliable; /hac/cloud and /hac/obstacles also transient local (a late subscriber
-    gets the map)."""
-    if topic in LATCHED_TOPICS:
-        return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
-                          reliability=ReliabilityPolicy.RELIABLE,
-                          durability=DurabilityPolicy.TRANSIENT_LOCAL)
-    return QoSProfile(history=HistoryPolicy.KEEP_LAST,
-                      depth=DIAGNOSTICS_DEPTH if topic == DIAGNOSTICS[0] else OUTPUT_DEPTH,
-                      reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
+    """Output ``topic`` (its name in :mod:`hac_ros.bridge.topics`): reliable, its depth, and
+    transient local when it is latched (/hac/cloud, /hac/obstacles: a late subscriber gets the
+    map)."""
+    entry = BY_NAME[topic]
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=entry.depth,
+                      reliability=ReliabilityPolicy.RELIABLE,
+                      durability=(DurabilityPolicy.TRANSIENT_LOCAL if entry.latched
+                                  else DurabilityPolicy.VOLATILE))
+
+
+def qos_table() -> str:
+    """docs/node.md's table of the node's QoS (between its ``qos`` markers): the subscriptions'
+    from the depths above, the outputs' from :mod:`hac_ros.bridge.topics`."""
+    return (
+        '| direction | topic (default) | QoS |\n|---|---|---|\n'
+        f'| in | `pose_topic` `slam/pose` | `input_qos`, keep last {POSE_DEPTH} |\n'
+        '| in | `joints_topic` `hmr/joints`, `camera_info_topic` `camera/camera_info` | '
+        f'`input_qos`, keep last {INPUT_DEPTH} |\n'
+        '| in | `cloud_topic` `slam/cloud` (read raw, see below) | reliable, `cloud_qos`, keep '
+        f'last {CLOUD_DEPTH} |\n'
+        '| in | `/tf`, `/tf_static` (with `pose_source: tf`, instead of `pose_topic`) | tf2_ros\' '
+        "listener's |\n"
+        + qos_rows()
+        + "| out | `/tf` (optional) | tf2_ros's |\n"
+        '| service | `~/reset` (`std_srvs/Trigger`), `~/freeze` (`std_srvs/SetBool`) | |\n')
 
 
 def qos_hint(kind: str, policy: str) -> str:

@@ -26,8 +26,8 @@ import numpy as np
 from hac_ros.core.errors import ArgumentError, HacError, InputError
 from hac_ros.core.params import HacParams
 from hac_ros.people.params import PeopleParams
+from hac_ros.progress import Progress
 from hac_ros.recording.atomic import staged_output
-from hac_ros.replay.feeder import Progress
 from hac_ros.replay.replayer import ReplaySummary
 from hac_ros.video.gates import Gate, failed, judge
 from hac_ros.video.keyframes import DEFAULT_MOTION, check_rate
@@ -355,13 +355,13 @@ def _moved(summary: ReplaySummary, staged: Path, output: Path) -> ReplaySummary:
 def _write_metric_map(replayed: Path, target: Path) -> None:
     """The last ``/hac/cloud`` of the replay (the map in metres, gravity-aligned metric frame)
     as PLY."""
-    from hac_ros.bridge.messages import CLOUD, in_root
+    from hac_ros.bridge.topics import CLOUD
     from hac_ros.files.map_files import write_ply
     from hac_ros.recording.reader import Recording
     from msg_adapters import cloud_to_xyz
 
     with Recording(replayed) as recording:
-        clouds = recording.read(in_root(CLOUD[0])) if recording.has(in_root(CLOUD[0])) else []
+        clouds = recording.read(CLOUD.rooted) if recording.has(CLOUD.rooted) else []
         if not clouds:
             return
         _, msg = clouds[-1]

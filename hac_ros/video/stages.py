@@ -20,8 +20,8 @@ from hac_ros.core.errors import ArgumentError, InputError
 from hac_ros.people.lifting import Camera
 from hac_ros.people.model import Landmarks, PoseModel
 from hac_ros.people.params import PeopleParams
+from hac_ros.progress import Progress, progress_pass
 from hac_ros.recording.atomic import staged_output
-from hac_ros.replay.feeder import Progress, progress_pass
 from hac_ros.video.keyframes import MotionKeyframes
 
 log = logging.getLogger(__name__)
