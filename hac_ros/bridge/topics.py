@@ -13,6 +13,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from hac_ros.core.params import HacParams
+
 
 @dataclass(frozen=True)
 class OutputTopic:
@@ -146,8 +148,6 @@ def _short_type(msgtype: str) -> str:
 def _frame_cell(topic: OutputTopic) -> str:
     if not topic.frame:
         return ''
-    from hac_ros.core.params import HacParams  # its defaults (plain data too)
-
     return f'`{topic.frame}` (`{getattr(HacParams(), topic.frame)}`)'
 
 
@@ -170,22 +170,21 @@ def qos_rows() -> str:
     return ''.join(f'| out | {", ".join(names)} | {qos} |\n' for qos, names in groups.items())
 
 
-def _default_off(topic: OutputTopic) -> list[str]:
-    """The switches of ``topic`` that are off by default."""
-    from hac_ros.core.params import HacParams
-
+def _in_words(code: str, with_sep: str) -> str:
+    """The node's outputs, each with its summary and the switches off by default; names wrapped
+    in ``code`` (a backtick in markdown), each switch after ``with_sep``."""
     defaults = HacParams()
-    return [switch for switch in topic.switches if not getattr(defaults, switch)]
+    return ', '.join(
+        f'{code}{t.name}{code} ({t.summary}' + ''.join(
+            f'{with_sep}with {code}{s}{code}' for s in t.switches if not getattr(defaults, s))
+        + ')' for t in NODE_TOPICS)
 
 
 def names_line() -> str:
     """The node's outputs in words, for ``--help``."""
-    return ', '.join(f'{t.name} ({t.summary}' + ''.join(f'; with {s}' for s in _default_off(t))
-                     + ')' for t in NODE_TOPICS)
+    return _in_words('', '; ')
 
 
 def readme_outputs() -> str:
     """README's outputs sentence (between its ``outputs`` markers)."""
-    return 'Outputs: ' + ', '.join(
-        f'`{t.name}` ({t.summary}' + ''.join(f', with `{s}`' for s in _default_off(t)) + ')'
-        for t in NODE_TOPICS) + '; services `~/reset`, `~/freeze`.\n'
+    return f"Outputs: {_in_words('`', ', ')}; services `~/reset`, `~/freeze`.\n"
