@@ -62,7 +62,7 @@ class MapBook:
             far, _ = implausible(index.points_map, camera_map, median)
             index = MapIndex(index.points_map[~far], index.frame_id, index.stamp_ns,
                              self.params.index_max_points)
-        kind = map_shape(index.sample, camera_map).kind
+        kind = map_shape(index.sample, camera_map, index.axes).kind
         if kind in ('point', 'line'):
             self.degenerate = f'a map cloud whose points lie on one {kind}: no surface to measure'
             return None, 'map_degenerate', self.degenerate + ' (refused)'
@@ -125,7 +125,7 @@ class MapBook:
         p, old = self.params, self.in_use
         chosen = chosen.composed(old if p.cloud_mode == 'accumulate' else None,
                                  p.cloud_max_points, p.index_max_points)
-        shape = map_shape(chosen.sample, None)
+        shape = chosen.shape
         why = plane_problem(chosen, shape)
         if why:
             self.degenerate = f'a map cloud on one plane that cannot be the floor: {why}'

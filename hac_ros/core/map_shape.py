@@ -45,16 +45,35 @@ class MapShape:
     offset: float
 
 
-def map_shape(sample_map: np.ndarray, camera_map: np.ndarray | None) -> MapShape:
-    """The shape of a map from ``sample_map`` (N, 3) SLAM units, map frame (an evenly strided
-    sample); camera_map: (3,) the camera centre, SLAM units (None: the map frame's origin)."""
-    nan3 = np.full(3, math.nan)
-    if len(sample_map) < 3:
-        return MapShape('point', nan3, math.nan)
+@dataclass(frozen=True)
+class Principal:
+    """A sample's principal axes: ``centroid`` (3,), SLAM units, map frame; ``spread`` (3,) the
+    standard deviations along them, ascending, SLAM units; ``axes`` (3, 3) their unit directions
+    as columns, in the same order."""
+
+    centroid: np.ndarray
+    spread: np.ndarray
+    axes: np.ndarray
+
+
+def principal(sample_map: np.ndarray) -> Principal:
+    """The principal axes of ``sample_map`` (N, 3), N >= 1, SLAM units, map frame."""
     centroid = sample_map.mean(axis=0)
     centred = sample_map - centroid
     eigval, eigvec = np.linalg.eigh(centred.T @ centred / len(sample_map))
-    spread = np.sqrt(np.clip(eigval, 0.0, None))  # ascending: smallest first
+    return Principal(centroid, np.sqrt(np.clip(eigval, 0.0, None)), eigvec)
+
+
+def map_shape(sample_map: np.ndarray, camera_map: np.ndarray | None,
+              axes: Principal | None = None) -> MapShape:
+    """The shape of a map from ``sample_map`` (N, 3) SLAM units, map frame (an evenly strided
+    sample); camera_map: (3,) the camera centre, SLAM units (None: the map frame's origin);
+    ``axes``: the sample's :func:`principal` axes, if already known (the map index keeps them)."""
+    nan3 = np.full(3, math.nan)
+    if len(sample_map) < 3:
+        return MapShape('point', nan3, math.nan)
+    axes = principal(sample_map) if axes is None else axes
+    centroid, spread = axes.centroid, axes.spread
     origin = np.zeros(3) if camera_map is None else np.asarray(camera_map, dtype=np.float64)
     distance = median_of(np.linalg.norm(sample_map - origin, axis=1))
     if spread[2] <= POINT_SPREAD_REL * max(distance, float(np.linalg.norm(centroid)), 1e-300):
@@ -62,7 +81,7 @@ def map_shape(sample_map: np.ndarray, camera_map: np.ndarray | None) -> MapShape
     if spread[1] < FLAT_SPREAD_REL * spread[2]:
         return MapShape('line', nan3, math.nan)
     if spread[0] < FLAT_SPREAD_REL * spread[1]:
-        normal = eigvec[:, 0]
+        normal = axes.axes[:, 0]
         return MapShape('plane', normal, float(normal @ centroid))
     return MapShape('solid', nan3, math.nan)
 

@@ -30,6 +30,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from hac_ros.core.errors import InputError
+from hac_ros.core.map_shape import MapShape, Principal, map_shape, principal
 from hac_ros.core.numeric import median_of
 from hac_ros.core.plane import local_plane, lowest_segment_offset, ray_plane_distance
 
@@ -79,6 +80,9 @@ class MapIndex:
     SLAM units: the scene's size, for scene-relative thresholds. max_points: above it the map is
     thinned uniformly at random before indexing (``index_max_points``); ``received`` counts the
     points before thinning. ``tree`` is a k-d tree of ``points_map`` (None for an empty map).
+    ``axes``: the sample's principal axes (None under 3 points) and ``shape`` its shape seen from
+    the map frame's origin (hac_ros.core.map_shape): computed with the tree, on the node's
+    map-building thread, so that a frame after a new map does not wait for them.
     """
 
     def __init__(self, points_map: np.ndarray, frame_id: str = '', stamp_ns: int = 0,
@@ -114,6 +118,8 @@ class MapIndex:
         else:
             self.tree = None
             self.extent = 0.0
+        self.axes: Principal | None = principal(self.sample) if len(self.sample) >= 3 else None
+        self.shape: MapShape = map_shape(self.sample, None, self.axes)
 
 
     def composed(self, previous: MapIndex | None, max_points: int,
