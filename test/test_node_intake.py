@@ -176,6 +176,39 @@ def test_a_map_supersedes_the_maps_waiting_that_no_joints_frame_waits_behind():
     assert [data for _, data in drain(rejected)[0]] == ['empty cloud', 'newer']
 
 
+def test_a_node_slower_than_its_poses_keeps_one_pose_and_map_per_waiting_frame():
+    """Poses, frames and maps played faster than the node processes them (an hour of stamps at
+    10x): 3000 pose+frame pairs and a map every tenth, the node taking one item for every two
+    that arrive. The frames beyond joints_backlog_max are dropped, and with each the poses and
+    maps that waited for it: the queue stays short however long the run, the newest pose
+    survives, the maps keep reaching the calibrator, and every input is accounted for
+    (processed, waiting, dropped, coalesced or superseded)."""
+    inbox = Inbox(backlog_max=2)
+    inbox.frame_cost_s = 0.01  # against a 1 ms input period: every frame beyond 2 is dropped
+    longest, taken = 0, []
+    for k in range(3000):
+        if k % 10 == 0:
+            inbox.put('map', ('map', k), supersede=True, arrived_s=k * 1e-3)
+        inbox.put('pose', ('pose', k), stamp_ns=k * 33 * MS, arrived_s=k * 1e-3)
+        inbox.put('joints', ('joints', k), arrived_s=k * 1e-3)
+        longest = max(longest, sum(inbox.counts().waiting.values()))
+        if k % 2:
+            took = inbox.get()
+            assert took.item is not None
+            taken.append((took.item.kind, took.item.data))
+            inbox.done(took.item)
+    assert longest <= 8  # was 2000 and growing: every pose, and a map every ten
+    rest = drain(inbox)[0]
+    assert rest[-2:] == [('pose', ('pose', 2999)), ('joints', ('joints', 2999))]
+    order = [data[1] for _, data in taken + rest]
+    assert order == sorted(order)  # arrival order kept
+    counts = inbox.counts()
+    for kind, left_out in (('joints', counts.dropped), ('pose', counts.coalesced),
+                           ('map', counts.superseded)):
+        assert counts.received[kind] == counts.processed[kind] + left_out
+    assert counts.processed['map'] >= 100 and counts.processed['pose'] >= 1000
+
+
 # ================================================================================ lag
 def test_the_lag_is_from_the_oldest_input_waiting_and_warns_over_latency_warn_s():
     """How far behind the node is: now minus the arrival of the oldest input not yet processed,

@@ -4,7 +4,7 @@ The executor's thread only receives: each input message (raw bytes) goes into an
 with its arrival time (``time.monotonic``). One processing thread (:class:`Processor`) takes the
 items in arrival order and hands them to the calibrator. Without drops or coalesced poses the
 calibrator sees exactly the messages, in exactly the order, of the replay's feed (docs/node.md,
-"What the node does with each message": Overload). Two rules keep a backlog from building:
+"What the node does with each message": Overload). These rules keep a backlog from building:
 
 - **Joints frames** (``joints_backlog_max``, in input periods of work). When a frame arrives and
   more than ``joints_backlog_max`` frames wait, the oldest are dropped (counted by the node as
@@ -37,6 +37,13 @@ calibrator sees exactly the messages, in exactly the order, of the replay's feed
   map per waiting joints frame, instead of a queue of indexed maps that grows without bound (seen:
   2.7 GB after an hour of stamps played at 10x on a slow machine). The map builder supersedes the
   clouds not yet built the same way (:mod:`hac_ros.ros.map_intake`).
+- **Overload**: when a joints frame is dropped, what waited for it goes too. Between the joints
+  frames still waiting on either side of it, only the newest supersedable map is kept, and a pose
+  directly followed by another pose is coalesced (counted as above; a gap in the poses is no jump:
+  the pose stream judges speeds). A node slower than its poses (seen: 300 poses a second played
+  to a node that processes 250) thus keeps about one pose and one map per waiting joints frame;
+  without this rule the poses, and the maps between them, queued without bound (+540 % memory
+  over an accelerated hour, every frame dropped once the node was minutes behind).
 
 CameraInfo, the maps of ``cloud_mode: accumulate`` and the transforms of ``pose_source: tf``
 (``call`` items) are never dropped.
@@ -209,7 +216,29 @@ class Inbox:
                 self._joints -= 1
                 self.dropped.append(item)
                 self.dropped_total += 1
+                self._close_gap(k)
                 return
+
+    def _close_gap(self, k: int) -> None:
+        """A joints frame was dropped at position ``k``: between the joints frames waiting on
+        either side of it, the supersedable maps but the newest are superseded, and a pose
+        directly followed by another pose is coalesced (no frame waits between them any more;
+        module docstring, "Overload")."""
+        items = list(self._items)
+        lo = next((i + 1 for i in range(k - 1, -1, -1) if items[i].kind == 'joints'), 0)
+        hi = next((i for i in range(k, len(items)) if items[i].kind == 'joints'), len(items))
+        gap = items[lo:hi]
+        maps = [item for item in gap if item.supersedable]
+        gap = [item for item in gap if not item.supersedable or item is maps[-1]]
+        self.superseded_total += len(maps) - min(len(maps), 1)
+        kept = []
+        for n, item in enumerate(gap):
+            if item.kind == 'pose' and n + 1 < len(gap) and gap[n + 1].kind == 'pose':
+                self.coalesced.append(item)
+                self.coalesced_total += 1
+            else:
+                kept.append(item)
+        self._items = deque(items[:lo] + kept + items[hi:])
 
     def _supersede_maps(self) -> None:
         """Drop the supersedable maps waiting behind the last joints frame waiting (all of them,
