@@ -11,7 +11,8 @@ from scipy.spatial.transform import Rotation
 from hac_ros.core.errors import InputError
 from hac_ros.core.layouts import BUILT_IN
 from hac_ros.core.layouts.blazepose33 import FOOT_INDICES, HEELS, HIPS, SHOULDERS
-from hac_ros.people.lifting import REASONS, Camera, distort, lift_person, undistort
+from hac_ros.people.lifting import Camera, distort, lift_person, undistort
+from hac_ros.people.reasons import PEOPLE_DROPPED
 from hac_ros.simulate import make_scenario
 from hac_ros.simulate.pose_model import landmarks
 
@@ -157,7 +158,7 @@ def test_a_person_is_dropped_only_for_a_named_reason(bodies):
     pixels, world = landmarks(truth, DISTORTED, LAYOUT, HIPS[0], HIPS[1], rng)
     scrambled = world[rng.permutation(33)]  # landmarks that fit no pose
     assert lift_person(pixels, np.ones(33), scrambled, DISTORTED, HIPS, SHOULDERS) == 'fit_failed'
-    assert set(REASONS) == {'too_few_landmarks', 'no_hips_shoulders', 'fit_failed'}
+    assert set(PEOPLE_DROPPED) == {'too_few_landmarks', 'no_hips_shoulders', 'fit_failed'}
 
 
 def test_a_wrong_camera_is_refused_naming_the_argument():

@@ -1,20 +1,22 @@
-"""The one parameter set of hac_ros: names, defaults, ranges and validation (docs/node.md).
+"""The parameters of hac_node and the commands: names, defaults, ranges, validation (docs/node.md).
 
 The node declares exactly these fields as ROS parameters (with the description and range given
-here) and the commands read the same parameters file (:mod:`hac_ros.files.params_file`).
+here) and the commands read the same parameters file (:mod:`hac_ros.files.params_file`); the
+machinery (fields, checks, copies) is :mod:`hac_ros.core.param_fields`, shared with
+``hac_people_node``'s :mod:`hac_ros.people.params`.
 Every length threshold is metric (applied after the current scale) or relative to the scene, never
 a number of SLAM units (docs/interface.md, "Conventions").
 """
 from __future__ import annotations
 
-import dataclasses
 import math
-from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 from hac_ros.core.errors import ParameterError
 from hac_ros.core.layouts import BUILT_IN, CUSTOM_ROLES, LAYOUTS, JointLayout, custom_layout
+from hac_ros.core.param_fields import ParamSet
+from hac_ros.core.param_fields import param as _p  # short: the fields below align on it
 
 NODE_NAME = 'hac_node'
 
@@ -33,21 +35,8 @@ INPUT_QOS = ('best_effort', 'reliable')
 CLOUD_QOS = ('transient_local', 'volatile')
 
 
-def _p(default: Any, description: str, *, choices: tuple[str, ...] | None = None,
-       low: float | None = None, high: float | None = None,
-       length: int | tuple[int, ...] | None = None, kind: str = '') -> Any:
-    """A dataclass field carrying its ROS parameter description and its allowed range
-    (``length``: of a list of numbers, or the lengths it may have; ``kind='indices'``: a list of
-    any length of joint indices, integers >= 0)."""
-    meta = {'description': description, 'choices': choices, 'low': low, 'high': high,
-            'length': length, 'kind': kind}
-    if isinstance(default, list):
-        return field(default_factory=lambda: list(default), metadata=meta)
-    return field(default=default, metadata=meta)
-
-
 @dataclass
-class HacParams:
+class HacParams(ParamSet):
     """Every parameter of the node and the replay, with their names and defaults."""
 
     # --- topics and types (docs/interface.md, "Topics")
@@ -242,15 +231,9 @@ class HacParams:
     publish_odom_tf: bool = _p(False, 'broadcast odom_frame -> the child frame of /hac/odometry on '
                                'TF (needs tf2_ros)')
 
-    def __post_init__(self) -> None:
-        self.validate()
-
     # ------------------------------------------------------------------ validation
-    def validate(self) -> None:
-        """Raise :class:`ParameterError` naming the first invalid field and why."""
-        for f in dataclasses.fields(self):
-            value = getattr(self, f.name)
-            _check(f, value)
+    def check(self) -> None:
+        """The checks between fields: raise :class:`ParameterError` naming the first invalid."""
         if self.reference_mode == 'cone_median' and self.cone_min_points < 1:
             raise ParameterError('cone_min_points: must be >= 1')
         if self.obstacle_min_height >= self.obstacle_max_height:
@@ -277,96 +260,12 @@ class HacParams:
         return custom_layout(self.joints_per_person,
                              {name: getattr(self, name) for name in CUSTOM_ROLES})
 
-    def replace(self, **changes: Any) -> HacParams:
-        """A validated copy with ``changes`` applied (all or nothing)."""
-        unknown = set(changes) - set(names())
-        if unknown:
-            raise ParameterError(f'unknown parameter(s): {", ".join(sorted(unknown))}')
-        merged = {**dataclasses.asdict(self), **{k: _coerce(k, v) for k, v in changes.items()}}
-        return HacParams(**merged)
-
-    def as_dict(self) -> dict[str, Any]:
-        return dataclasses.asdict(self)
-
-    # ------------------------------------------------------------------ loading
-    @classmethod
-    def from_dict(cls, values: Mapping[str, Any]) -> HacParams:
-        """Parameters from a flat mapping; unknown names are an error (typos must not pass)."""
-        return cls().replace(**dict(values))
-
 
 def names() -> list[str]:
     """Every parameter name, in declaration order."""
-    return [f.name for f in dataclasses.fields(HacParams)]
+    return HacParams.names()
 
 
 def describe(name: str) -> dict[str, Any]:
     """The description, default and range of one parameter (for ParameterDescriptors, docs)."""
-    for f in dataclasses.fields(HacParams):
-        if f.name == name:
-            return {'name': name, 'default': _default(f), **f.metadata}
-    raise ParameterError(f'unknown parameter: {name}')
-
-
-def lengths_text(length: int | tuple[int, ...]) -> str:
-    """'7', or '4 or 7': the lengths a list parameter may have."""
-    lengths = length if isinstance(length, tuple) else (length,)
-    return ' or '.join(str(n) for n in lengths)
-
-
-def _coerce(name: str, value: Any) -> Any:
-    """Accept what YAML and ROS hand us (ints for floats, tuples for lists)."""
-    ref = describe(name)['default']
-    if isinstance(ref, bool):
-        return value
-    if isinstance(ref, float) and isinstance(value, int) and not isinstance(value, bool):
-        return float(value)
-    if (isinstance(ref, list) and isinstance(value, (tuple, list))) or (
-            isinstance(ref, list) and hasattr(value, 'tolist')):
-        if describe(name)['kind'] == 'indices':
-            return [int(v) if isinstance(v, (int, float)) and not isinstance(v, bool)
-                    and float(v).is_integer() else v for v in list(value)]
-        return [float(v) for v in list(value)]
-    return value
-
-
-def _default(f: dataclasses.Field) -> Any:
-    """A field's default value (a fresh one where a factory makes it)."""
-    return f.default_factory() if callable(f.default_factory) else f.default
-
-
-def _check(f: dataclasses.Field, value: Any) -> None:
-    meta = f.metadata
-    ref = _default(f)
-    name = f.name
-    if isinstance(ref, bool):
-        if not isinstance(value, bool):
-            raise ParameterError(f'{name}: expected true or false, got {value!r}')
-        return
-    if isinstance(ref, str):
-        if not isinstance(value, str):
-            raise ParameterError(f'{name}: expected a string, got {value!r}')
-        if meta.get('choices') and value not in meta['choices']:
-            raise ParameterError(f'{name}: {value!r} is not one of {", ".join(meta["choices"])}')
-        return
-    if meta.get('kind') == 'indices':
-        if not isinstance(value, list) or not all(
-                isinstance(v, int) and not isinstance(v, bool) and v >= 0 for v in value):
-            raise ParameterError(f'{name}: expected a list of joint indices (integers >= 0), '
-                                 f'got {value!r}')
-        return
-    if isinstance(ref, list):
-        lengths = meta['length'] if isinstance(meta['length'], tuple) else (meta['length'],)
-        if not isinstance(value, list) or len(value) not in lengths or not all(
-                isinstance(v, (int, float)) and math.isfinite(v) for v in value):
-            raise ParameterError(f'{name}: expected {lengths_text(meta["length"])} finite numbers, '
-                                 f'got {value!r}')
-        return
-    if isinstance(ref, int) and (not isinstance(value, int) or isinstance(value, bool)):
-        raise ParameterError(f'{name}: expected an integer, got {value!r}')
-    if isinstance(ref, float) and (not isinstance(value, (int, float)) or isinstance(value, bool)
-                                   or not math.isfinite(value)):
-        raise ParameterError(f'{name}: expected a finite number, got {value!r}')
-    low, high = meta.get('low'), meta.get('high')
-    if (low is not None and value < low) or (high is not None and value > high):
-        raise ParameterError(f'{name}: {value!r} is outside [{low}, {high}]')
+    return HacParams.describe(name)

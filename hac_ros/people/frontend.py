@@ -46,8 +46,8 @@ def seen_landmarks(person: Landmarks, camera: Camera, min_visibility: float) -> 
 class Frame:
     """One image's people: ``joints_cam`` (P, 33, 3) metres, camera optical frame, in the
     ``blazepose33`` order; ``lifted`` their fits; ``dropped`` the people the model found but the
-    lifting refused, by reason (:data:`hac_ros.people.lifting.REASONS`); ``unseen`` the landmarks
-    published as NaN (not seen), summed over the people; ``model_s`` the wall
+    lifting refused, by reason (:data:`hac_ros.people.reasons.PEOPLE_DROPPED`); ``unseen`` the
+    landmarks published as NaN (not seen), summed over the people; ``model_s`` the wall
     seconds spent in the model, ``lift_s`` in the lifting; ``too_small`` when no person of
     ``person_min_height_px`` fits in the image (:meth:`~hac_ros.people.model.PoseModel.too_small`,
     whichever detector runs): only the landmarker's own detector looked."""

@@ -44,15 +44,6 @@ STEP_TOL = 1e-7  # radians / metres: a smaller Gauss-Newton step has converged
 MAX_RESIDUAL_REL = 0.08  # a fit whose median residual is above this share of the person's size
 MIN_DEPTH_M = 0.1  # the person's root must be in front of the camera by this much
 
-# Why a person was not lifted (counted by the node and `hac people`)
-REASONS = {
-    'too_few_landmarks': f'fewer than {MIN_LANDMARKS} landmarks in the image',
-    'no_hips_shoulders': 'no hip or no shoulder in the image',
-    'fit_failed': 'the 6-DoF fit did not converge, or put the person behind the camera or far '
-                  'from their landmarks',
-}
-
-
 @dataclass(frozen=True)
 class Camera:
     """A pinhole camera with lens distortion (CameraInfo): ``K`` (3, 3) pixels, ``D`` the
@@ -232,7 +223,7 @@ def _refine(W: np.ndarray, m: np.ndarray, v: np.ndarray, focal: float, R: np.nda
 def lift_person(pixels: np.ndarray, visibility: np.ndarray, world: np.ndarray, camera: Camera,
                 hips: tuple[int, ...], shoulders: tuple[int, ...]) -> Lifted | str:
     """One person's landmarks placed in the camera frame, or the reason (a key of
-    :data:`REASONS`) why not.
+    :data:`hac_ros.people.reasons.PEOPLE_DROPPED`) why not.
 
     pixels: (K, 2) image landmarks, pixels of the distorted image (x right, y down); visibility:
     (K,) in [0, 1]; world: (K, 3) the same landmarks in metres in the model's frame; camera: the

@@ -29,7 +29,7 @@ import numpy as np
 
 from hac_ros.core.errors import InputError
 from hac_ros.people.extra import native_logs_to, require, shipped_models
-from hac_ros.people.params import PERSON_DETECTORS, PeopleParams
+from hac_ros.people.params import PeopleParams
 
 LOG = logging.getLogger(__name__)
 
@@ -122,19 +122,13 @@ class PoseModel:
     def __init__(self, model_path: str = '', max_people: int = 6,
                  min_detection_confidence: float = 0.5, min_presence_confidence: float = 0.5,
                  person_detector: str = 'hog', person_min_height_px: float = 60.0) -> None:
-        if person_detector not in PERSON_DETECTORS:
-            raise InputError(f'person_detector: one of {", ".join(PERSON_DETECTORS)}, not '
-                             f'{person_detector!r}')
-        if max_people < 1:
-            raise InputError(f'max_people: at least 1, got {max_people}')
-        if not 8.0 <= person_min_height_px <= 10000.0:
-            raise InputError(f'person_min_height_px: in [8, 10000] pixels, got '
-                             f'{person_min_height_px}')
+        # the ranges are the parameters' (ParameterError names the one out of range)
+        PeopleParams(model_path=model_path, max_people=max_people,
+                     min_detection_confidence=float(min_detection_confidence),
+                     min_presence_confidence=float(min_presence_confidence),
+                     person_detector=person_detector,
+                     person_min_height_px=float(person_min_height_px))
         self.person_min_height_px = float(person_min_height_px)
-        for name, value in (('min_detection_confidence', min_detection_confidence),
-                            ('min_presence_confidence', min_presence_confidence)):
-            if not 0.0 <= value <= 1.0:
-                raise InputError(f'{name}: in [0, 1], got {value}')
         self.mediapipe, self.cv2 = require(model_path)
         from mediapipe.tasks.python import BaseOptions, vision
 

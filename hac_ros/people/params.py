@@ -1,14 +1,14 @@
 """The parameters of ``hac_people_node`` (docs/people.md, "Parameters"); ``hac people`` takes the
-model's among them as options. Pure Python.
+model's among them as options. Pure Python; the machinery (fields, checks, copies) is the core's
+(:mod:`hac_ros.core.param_fields`).
 """
 from __future__ import annotations
 
-import dataclasses
-from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
-from hac_ros.core.errors import ParameterError
+from hac_ros.core.param_fields import ParamSet
+from hac_ros.core.param_fields import param as _p  # short: the fields below align on it
 
 NODE_NAME = 'hac_people_node'
 IMAGE_TRANSPORTS = ('raw', 'compressed')
@@ -18,14 +18,8 @@ RECTIFIED = ('auto', 'true', 'false')
 RECTIFIED_TOPIC_PREFIX = 'image_rect'  # rectified: auto takes P for image_rect, image_rect_color
 
 
-def _p(default: Any, description: str, *, choices: tuple[str, ...] | None = None,
-       low: float | None = None, high: float | None = None) -> Any:
-    return field(default=default, metadata={'description': description, 'choices': choices,
-                                            'low': low, 'high': high})
-
-
 @dataclass(frozen=True)
-class PeopleParams:
+class PeopleParams(ParamSet):
     """Every parameter of ``hac_people_node``, with its default."""
 
     image_topic: str = _p('camera/image_raw', 'the camera\'s images (sensor_msgs/Image: rgb8, '
@@ -78,34 +72,6 @@ class PeopleParams:
     num_threads: int = _p(1, 'CPU cores the node\'s process runs on (MediaPipe and OpenCV); 0 = '
                           'every core it was given', low=0, high=1024)
 
-    def __post_init__(self) -> None:
-        for f in dataclasses.fields(self):
-            _check(f, getattr(self, f.name))
-
-    def replace(self, **changes: Any) -> PeopleParams:
-        """A validated copy with ``changes`` applied; unknown names are an error."""
-        unknown = set(changes) - set(names())
-        if unknown:
-            raise ParameterError(f'unknown parameter(s): {", ".join(sorted(unknown))}')
-        coerced: dict[str, Any] = {k: float(v) if isinstance(describe(k)['default'], float)
-                   and isinstance(v, int) and not isinstance(v, bool) else v
-                   for k, v in changes.items()}
-        return dataclasses.replace(self, **coerced)
-
-    @classmethod
-    def from_dict(cls, values: Mapping[str, Any]) -> PeopleParams:
-        return cls().replace(**dict(values))
-
-
-def _check(f: dataclasses.Field, value: Any) -> None:
-    default, meta = f.default, f.metadata
-    if type(value) is not type(default):
-        raise ParameterError(f'{f.name}: expected {type(default).__name__}, got {value!r}')
-    if meta['choices'] and value not in meta['choices']:
-        raise ParameterError(f'{f.name}: one of {", ".join(meta["choices"])}, not {value!r}')
-    if meta['low'] is not None and not meta['low'] <= value <= meta['high']:
-        raise ParameterError(f'{f.name}: in [{meta["low"]}, {meta["high"]}], got {value!r}')
-
 
 def rectified(params: PeopleParams) -> bool:
     """The images are rectified (``rectified``, or ``auto`` and the topic's name says so)."""
@@ -115,15 +81,13 @@ def rectified(params: PeopleParams) -> bool:
 
 
 def names() -> list[str]:
-    return [f.name for f in dataclasses.fields(PeopleParams)]
+    """Every parameter name, in declaration order."""
+    return PeopleParams.names()
 
 
 def describe(name: str) -> dict[str, Any]:
     """The default, description and range of one parameter."""
-    for f in dataclasses.fields(PeopleParams):
-        if f.name == name:
-            return {'name': name, 'default': f.default, **f.metadata}
-    raise ParameterError(f'unknown parameter: {name}')
+    return PeopleParams.describe(name)
 
 
 def parameter_table() -> str:

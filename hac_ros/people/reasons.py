@@ -1,11 +1,14 @@
 """Every reason ``hac_people_node`` gives for an image it did not turn into people, or a person
 it dropped: its one table (the core's is :mod:`hac_ros.core.reasons`, hac_node's). Keys appear in
-its ``/diagnostics`` as ``rejected.<key>``; the lifting's as ``people_dropped.<key>``
-(:data:`hac_ros.people.lifting.REASONS`); images skipped on purpose as ``dropped.rate_cap``,
-``dropped.overload`` and ``dropped.lost``; images processed with a warning under the key of
-:data:`WARNINGS` (docs/people.md, "What the node does with each image").
+its ``/diagnostics`` as ``rejected.<key>``; the people the lifting left out as
+``people_dropped.<key>`` (:data:`PEOPLE_DROPPED`); images skipped on purpose as
+``dropped.rate_cap``, ``dropped.overload`` and ``dropped.lost``; images processed with a
+warning under the key of :data:`WARNINGS` (docs/people.md, "What the node does with each
+image").
 """
 from __future__ import annotations
+
+from hac_ros.people.lifting import MIN_LANDMARKS
 
 # reason -> what it means (the first line logged of each)
 REJECTIONS = {
@@ -32,14 +35,21 @@ WARNINGS = {
                        'time instead',
 }
 
+# Why a person was not lifted (hac_ros.people.lifting.lift_person; counted by the node and
+# `hac people`)
+PEOPLE_DROPPED = {
+    'too_few_landmarks': f'fewer than {MIN_LANDMARKS} landmarks in the image',
+    'no_hips_shoulders': 'no hip or no shoulder in the image',
+    'fit_failed': 'the 6-DoF fit did not converge, or put the person behind the camera or far '
+                  'from their landmarks',
+}
+
 
 def markdown_table() -> str:
     """docs/people.md's table of every key (held to this by ``make docs`` and its test)."""
-    from hac_ros.people.lifting import REASONS as LIFTING
-
     rows = ['| key in /diagnostics | the image or person | meaning |', '|---|---|---|']
     rows += [f'| `rejected.{key}` | not published | {text} |' for key, text in REJECTIONS.items()]
     rows += [f'| `{key}` | published, status WARN | {text} |' for key, text in WARNINGS.items()]
     rows += [f'| `people_dropped.{key}` | the person left out | {text} |'
-             for key, text in LIFTING.items()]
+             for key, text in PEOPLE_DROPPED.items()]
     return '\n'.join(rows) + '\n'

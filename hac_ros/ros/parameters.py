@@ -14,7 +14,8 @@ from dataclasses import dataclass
 from typing import Any
 
 from hac_ros.core.errors import ParameterError
-from hac_ros.core.params import HacParams, describe, lengths_text, names
+from hac_ros.core.param_fields import lengths_text
+from hac_ros.core.params import HacParams, describe, names
 from hac_ros.files.params_file import (
     ROS_OWN_PARAMETERS,
     ROS_OWN_PREFIXES,
@@ -88,8 +89,15 @@ def judge_change(params: HacParams, values: dict[str, Any]) -> Change:
 
 
 def parameter_descriptor(name: str) -> Any:
-    """The rcl_interfaces ParameterDescriptor of one HacParams field: type, description, range or
-    choices."""
+    """The rcl_interfaces ParameterDescriptor of one HacParams field: type, description (with
+    what changing it at runtime does), range or choices."""
+    info = describe(name)
+    return descriptor_of(info, f"{info['description']} [at runtime: {runtime_effect(name)}]")
+
+
+def descriptor_of(info: dict[str, Any], description: str, read_only: bool = False) -> Any:
+    """The rcl_interfaces ParameterDescriptor of a parameter field described by ``info`` (a
+    ParamSet's ``describe``: HacParams', PeopleParams'): its type, range or choices."""
     from rcl_interfaces.msg import (
         FloatingPointRange,
         IntegerRange,
@@ -97,10 +105,9 @@ def parameter_descriptor(name: str) -> Any:
         ParameterType,
     )
 
-    info = describe(name)
     default = info['default']
-    descriptor = ParameterDescriptor(
-        name=name, description=f"{info['description']} [at runtime: {runtime_effect(name)}]")
+    descriptor = ParameterDescriptor(name=info['name'], description=description,
+                                     read_only=read_only)
     if isinstance(default, bool):
         descriptor.type = ParameterType.PARAMETER_BOOL
     elif isinstance(default, int):

@@ -26,7 +26,6 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.clock import Clock, ClockType
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
@@ -41,6 +40,7 @@ from hac_ros.people.params import NODE_NAME, PeopleParams, describe, names, rect
 from hac_ros.people.reasons import REJECTIONS, WARNINGS
 from hac_ros.people.story import PeopleStory, describe_camera
 from hac_ros.ros.arguments import run
+from hac_ros.ros.parameters import descriptor_of
 from msg_adapters import (
     MessageError,
     camera_info_to_intrinsics,
@@ -78,8 +78,8 @@ class PeopleNode(Node):
         super().__init__(node_name, **kwargs)
         for name in names():
             info = describe(name)
-            self.declare_parameter(name, info['default'], ParameterDescriptor(
-                name=name, description=info['description'], read_only=True))
+            self.declare_parameter(name, info['default'],
+                                   descriptor_of(info, info['description'], read_only=True))
         self.params = PeopleParams.from_dict(
             {name: self.get_parameter(name).value for name in names()})
         if self.PIN_THREADS:
