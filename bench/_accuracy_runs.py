@@ -18,7 +18,7 @@ turned into the calibrator's inputs in SPEC's order plus the truth. Per run:
   more or less at the start shifts every chunk and moves the figure by tens of millimetres.
 
 The literal authors' method (their code, as issue 19 states it; the library's
-:mod:`hac_ros.core.literal`, which ``calibrate(..., literal=True)`` runs too): per frame every
+:mod:`hac_ros.core.estimate.literal`, which ``calibrate(..., literal=True)`` runs too): per frame every
 joint's ray against every map point (cone cos > 0.999, the median distance of the points in the
 cone), the largest ratio over the joints is the frame's scale, one median over the frames; world
 joints ``R_wc J + s c`` in the SLAM frame. Here each frame uses the latest map of the recording.
@@ -31,14 +31,8 @@ from typing import Any
 
 import numpy as np
 
-from hac_ros.core.calibrator import Calibrator
-from hac_ros.core.estimator import sequence_scale
-from hac_ros.core.health import OK, HealthMonitor
-from hac_ros.core.human_filter import smooth_outputs
-from hac_ros.core.literal import max_ratio, world_joints
-from hac_ros.core.numeric import MAD_TO_SIGMA
-from hac_ros.core.offline import resolve_offline
-from hac_ros.core.outputs import (
+from hac_ros.core.basics.numeric import MAD_TO_SIGMA
+from hac_ros.core.basics.outputs import (
     DiagnosticsOut,
     HumanJointsOut,
     OdometryOut,
@@ -47,8 +41,14 @@ from hac_ros.core.outputs import (
     SampleOut,
     ScaleOut,
 )
-from hac_ros.core.params import HacParams
-from hac_ros.core.segment import FEW_SAMPLES_MIN
+from hac_ros.core.bodies.human_filter import smooth_outputs
+from hac_ros.core.calibrator import Calibrator
+from hac_ros.core.estimate.estimator import sequence_scale
+from hac_ros.core.estimate.literal import max_ratio, world_joints
+from hac_ros.core.estimate.segment import FEW_SAMPLES_MIN
+from hac_ros.core.offline import resolve_offline
+from hac_ros.core.rules.health import OK, HealthMonitor
+from hac_ros.core.rules.params import HacParams
 from hac_ros.evaluation import metrics
 from hac_ros.simulate.feed import feed_events
 
@@ -261,7 +261,7 @@ def _online(scene: Scene, params: HacParams, offline_humans: World,
     log_err = np.abs(log_err_signed)
     off = [bool(abs(st.scale / t - 1.0) > CONVERGED_REL) and st.converged
            for st, t in zip(statuses, true)]
-    # the level /diagnostics gives each status, in order (hac_ros.core.health, as the node)
+    # the level /diagnostics gives each status, in order (hac_ros.core.rules.health, as the node)
     monitor = HealthMonitor(params.metric_frame_alignment == 'gravity')
     ok = [monitor.assess(st).level == OK for st in statuses]
     # the ± a user reads (published) against the truth of the moment, and the estimate's own

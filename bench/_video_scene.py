@@ -383,7 +383,7 @@ def aligned(scene: VideoScene, stamps_s: np.ndarray, positions: np.ndarray,
     the orientations: a straight path leaves the turn about itself free to a position fit),
     ``scale`` a Sim(3) fit's (truth metres per unit, with that rotation), and that fit's
     ``rotation`` and ``shift`` (truth = scale * rotation @ p + shift)."""
-    from hac_ros.core.similarity import umeyama
+    from hac_ros.core.basics.similarity import umeyama
 
     index = np.rint(stamps_s * scene.fps).astype(int)
     truth = scene.centres[index]

@@ -145,7 +145,7 @@ def run_task(task: Task) -> list[dict[str, Any]]:
     literal method: one result per rate."""
     from _accuracy_runs import run_literal, run_ours
 
-    from hac_ros.core.params import HacParams
+    from hac_ros.core.rules.params import HacParams
 
     name, seed, condition, configs, rates, planted = task
     scenes = make_scenes(name, seed, condition, rates, planted)

@@ -31,7 +31,7 @@ from _report import check, command_line, machine, publish, section, table
 from _scene import CAMERA_FRAME, MAP_FRAME, TRUE_SCALE, RoomScene, room_scene
 
 from hac_ros.core.calibrator import Calibrator
-from hac_ros.core.params import HacParams
+from hac_ros.core.rules.params import HacParams
 
 NAME = 'core_speed'
 AUTHORS_CONE_COS = 0.999  # the authors' code: a map point is on a joint's ray when cos > 0.999

@@ -125,7 +125,7 @@ def prior_run(task: tuple[str, str, tuple[str, ...], float, int]) -> dict[str, A
     the offline scale error (%, signed), the samples and frames."""
     from _accuracy_runs import run_ours, scene_from_scenario
 
-    from hac_ros.core.params import HacParams
+    from hac_ros.core.rules.params import HacParams
     from hac_ros.simulate import make_scenario
 
     label, scenario, kinds, duration, seed = task

@@ -45,7 +45,7 @@ from _report import (
     write_section,
 )
 
-from hac_ros.core.contact import leg_length
+from hac_ros.core.bodies.contact import leg_length
 from hac_ros.core.layouts.blazepose33 import (
     ANKLES,
     FOOT_INDICES,

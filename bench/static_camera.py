@@ -11,7 +11,7 @@ at the centre, no distortion: the video's own is unknown), stamped i / 10 s, and
 ``static_camera: true``). Reported: the camera's height above the floor (the scale: the floor is
 one SLAM unit below a fixed camera), its ± and the estimator's own σ, pitch and roll, the samples
 and rejections; and each person's implied height (the median of their samples, people followed
-across frames by :class:`~hac_ros.core.human_filter.PersonTracker` on their hips) and the spread
+across frames by :class:`~hac_ros.core.bodies.human_filter.PersonTracker` on their hips) and the spread
 between people. The height scales with the assumed focal length.
 
 Writes bench/results/static_camera.json.
@@ -30,12 +30,12 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from _people_scenes import video_frames
 from _report import command_line, machine, write_json
 
+from hac_ros.core.basics.numeric import NS
+from hac_ros.core.basics.outputs import DiagnosticsOut, SampleOut
+from hac_ros.core.bodies.human_filter import PersonTracker
 from hac_ros.core.calibrator import Calibrator
-from hac_ros.core.human_filter import PersonTracker
 from hac_ros.core.layouts.blazepose33 import LAYOUT
-from hac_ros.core.numeric import NS
-from hac_ros.core.outputs import DiagnosticsOut, SampleOut
-from hac_ros.core.params import HacParams
+from hac_ros.core.rules.params import HacParams
 
 NAME = 'static_camera'
 FOCAL_PX = 700.0

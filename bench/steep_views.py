@@ -42,11 +42,11 @@ def bias(task: tuple[str, int, int, str, str, bool]) -> tuple[float, float]:
     from composite import build
 
     import hac_ros.simulate.hmr as hmr
+    from hac_ros.core.basics.outputs import SampleOut
+    from hac_ros.core.bodies.contact import leg_length
     from hac_ros.core.calibrator import Calibrator
-    from hac_ros.core.contact import leg_length
     from hac_ros.core.layouts import SMPL24
-    from hac_ros.core.outputs import SampleOut
-    from hac_ros.core.params import HacParams
+    from hac_ros.core.rules.params import HacParams
     from hac_ros.simulate.feed import feed_events
 
     view, motion, seed, rate, poses, noise = task

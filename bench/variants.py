@@ -110,7 +110,7 @@ def run_task(task: tuple[str, int]) -> dict[str, Any]:
 
     from _accuracy_runs import Scene, run_ours, scene_from_composite, scene_from_scenario
 
-    from hac_ros.core.params import HacParams
+    from hac_ros.core.rules.params import HacParams
     from hac_ros.simulate import make_scenario
     from hac_ros.simulate.skeletons import to_layout
 

@@ -39,7 +39,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import _video_scene as vs
 from _report import command_line, machine, write_json
 
-from hac_ros.core.errors import HacError
+from hac_ros.core.basics.errors import HacError
 from hac_ros.files.tum import quats_to_rotations, read_tum
 from hac_ros.video.pipeline import VideoOptions, video
 

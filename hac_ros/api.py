@@ -7,10 +7,11 @@ The inputs are fed to the node's :class:`~hac_ros.core.calibrator.Calibrator` ex
 replay feeds a recording written by ``hac import`` (stamps to nanoseconds by round(t × 1e9), the
 map once at the first stamp, poses and joints matched within ``sync_slop_s`` or interpolated, an
 absent person left out), and resolved as the replay resolves them (offline by default). With
-``literal=True`` it is the authors' method (:mod:`hac_ros.core.literal`) on the same frames.
+``literal=True`` it is the authors' method (:mod:`hac_ros.core.estimate.literal`) on the same
+frames.
 
-Everything is validated first: an :class:`~hac_ros.core.errors.InputError` names the argument, the
-shape and the unit it expects. Imports no ROS.
+Everything is validated first: an :class:`~hac_ros.core.basics.errors.InputError` names the
+argument, the shape and the unit it expects. Imports no ROS.
 """
 from __future__ import annotations
 
@@ -24,11 +25,11 @@ from typing import Any
 import numpy as np
 
 from hac_ros.core import input_checks as checks
-from hac_ros.core.errors import InputError
+from hac_ros.core.basics.errors import InputError
+from hac_ros.core.basics.outputs import HumanJointsOut, Output, PoseOut, SampleOut, ScaleOut
+from hac_ros.core.basics.transforms import is_rotation
 from hac_ros.core.offline import OfflineScale
-from hac_ros.core.outputs import HumanJointsOut, Output, PoseOut, SampleOut, ScaleOut
-from hac_ros.core.params import HacParams
-from hac_ros.core.transforms import is_rotation
+from hac_ros.core.rules.params import HacParams
 
 log = logging.getLogger(__name__)
 
@@ -291,11 +292,11 @@ def _collect(inputs: _Inputs, outputs: list[Output], joint_rows: dict[int, int],
 
 # ================================================================================== literal
 def _literal(inputs: _Inputs, params: HacParams) -> CalibrationResult:
-    """The authors' method (hac_ros.core.literal) on the frames the replay would match."""
-    from hac_ros.core.estimator import sequence_scale
-    from hac_ros.core.literal import max_ratio, world_joints
-    from hac_ros.core.numeric import NS
-    from hac_ros.core.pose_stream import Pose, PoseTrack
+    """The authors' method (hac_ros.core.estimate.literal) on the frames the replay would match."""
+    from hac_ros.core.basics.numeric import NS
+    from hac_ros.core.estimate.estimator import sequence_scale
+    from hac_ros.core.estimate.literal import max_ratio, world_joints
+    from hac_ros.core.stream.pose_stream import Pose, PoseTrack
 
     track = PoseTrack(len(inputs.pose_ns) + 1, params.reset_jump_factor, params.reset_jump_min_rel,
                       params.reset_confirm_poses, int(params.sync_slop_s * NS),

@@ -13,9 +13,8 @@ import numpy as np
 from injected import finite_abs_max
 
 from hac_ros.bridge.topics import BY_KEY
-from hac_ros.core.calibrator import Calibrator
-from hac_ros.core.numeric import NS
-from hac_ros.core.outputs import (
+from hac_ros.core.basics.numeric import NS
+from hac_ros.core.basics.outputs import (
     CloudOut,
     DiagnosticsOut,
     HumanJointsOut,
@@ -25,7 +24,8 @@ from hac_ros.core.outputs import (
     ScaleOut,
     Status,
 )
-from hac_ros.core.params import HacParams
+from hac_ros.core.calibrator import Calibrator
+from hac_ros.core.rules.params import HacParams
 from hac_ros.recording.reader import Recording
 from hac_ros.replay.feeder import CoreFeeder, InputTopics
 

@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from hac_ros.core.numeric import NS
+from hac_ros.core.basics.numeric import NS
 
 Message = tuple[str, int, Any]  # (topic, log time ns, rosbags message)
 Edit = Callable[[Iterator[Message]], Iterator[Message]]

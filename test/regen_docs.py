@@ -16,7 +16,7 @@ sys.path.insert(0, str(REPO))
 
 
 def _reasons() -> str:
-    from hac_ros.core.reasons import markdown_table
+    from hac_ros.core.rules.reasons import markdown_table
 
     return markdown_table()
 
@@ -70,7 +70,7 @@ CONFIG_HEAD = """\
 #   hac replay --params config/hac.yaml ...
 # Installed to share/hac_ros/config/hac.yaml. Ranges and choices are enforced when set,
 # also at runtime (ros2 param set); docs/node.md says what a runtime change does.
-# Made by `make docs` from hac_ros/core/params.py (test/test_docs.py holds it to it).
+# Made by `make docs` from hac_ros/core/rules/params.py (test/test_docs.py holds it to it).
 hac_node:
   ros__parameters:
 """

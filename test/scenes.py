@@ -2,7 +2,7 @@
 
 World: z up, metres, floor z = 0. A level camera 1.5 m high follows a person walking along x.
 The person's foot joints stand at the height above the sole the core assumes for them
-(SOLE_M: hac_ros.core.contact's prior for this skeleton), so that the surface a contact joint
+(SOLE_M: hac_ros.core.bodies.contact's prior for this skeleton), so that the surface a contact joint
 touches is exactly the floor below it.
 The SLAM map frame is the first camera's optical frame and the SLAM unit is ``1 / true_scale``
 metres: ``p_slam = R_c0ᵀ (p_world − c0) / true_scale``.
@@ -13,9 +13,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from hac_ros.core.contact import leg_length
+from hac_ros.core.basics.numeric import NS
+from hac_ros.core.bodies.contact import leg_length
 from hac_ros.core.layouts import SMPL24
-from hac_ros.core.numeric import NS
 
 # A standing SMPL-24 skeleton, world metres, pelvis above the origin, facing -y (towards the camera)
 STANDING = np.array([

@@ -96,8 +96,8 @@ def test_no_module_imports_itself_back_through_others():
 
 
 def _folder(module: str) -> str:
-    """The folder a module lives in: ``hac_ros.core.sample`` -> ``hac_ros.core``; the top-level
-    modules of hac_ros (cli entry points, api) are their own."""
+    """The folder a module lives in: ``hac_ros.core.bodies.sample`` -> ``hac_ros.core``; the
+    top-level modules of hac_ros (cli entry points, api) are their own."""
     parts = module.split('.')
     return '.'.join(parts[:2]) if len(parts) > 2 or parts[0] != 'hac_ros' else module
 
@@ -114,6 +114,36 @@ def test_no_folder_imports_itself_back_through_others():
     assert 'hac_ros.core' in graph['hac_ros.replay'] and 'hac_ros.core' not in {
         t for folder, targets in graph.items() for t in targets if folder == 'hac_ros.core'}
     assert _cycles(graph) == []
+
+
+# the core's rooms, lowest first (hac_ros/core/__init__.py): each imports only rooms before it
+CORE_ROOMS = ('basics', 'layouts', 'rules', 'geometry', 'estimate', 'bodies', 'stream')
+
+
+def _room(module: str) -> str:
+    """A core module's room (``hac_ros.core.geometry.plane`` -> ``geometry``); ``top`` for the
+    modules of hac_ros/core itself (the calibrator and its loop, above every room)."""
+    parts = module.split('.')
+    return parts[2] if len(parts) > 3 or (len(parts) == 3 and parts[2] in CORE_ROOMS) else 'top'
+
+
+def _room_arrows() -> set[tuple[str, str]]:
+    return {(_room(module), _room(m)) for module, imported in _graph().items()
+            if module.startswith('hac_ros.core.') for m in imported
+            if m.startswith('hac_ros.core.') and _room(m) != _room(module)}
+
+
+def test_the_core_rooms_import_only_rooms_below_them():
+    """hac_ros/core in rooms, read from the bottom: each room imports only the rooms before it
+    in CORE_ROOMS, and none imports the calibrator's modules above them (no arrow up, so no
+    circle). Every subpackage of the core is a room of the list."""
+    rooms = {p.name for p in (REPO / 'hac_ros' / 'core').iterdir()
+             if (p / '__init__.py').is_file()}
+    assert rooms == set(CORE_ROOMS)
+    order = {room: k for k, room in enumerate(CORE_ROOMS + ('top',))}
+    arrows = _room_arrows()
+    assert ('top', 'stream') in arrows and ('bodies', 'geometry') in arrows  # read right
+    assert [(a, b) for a, b in sorted(arrows) if order[b] > order[a]] == []
 
 
 def test_the_cycle_finder_finds_a_cycle():
@@ -221,7 +251,7 @@ def test_hac_node_and_the_replay_run_without_importing_mediapipe():
             'import hac_ros.ros.node, hac_ros.replay.replayer, hac_ros.cli.replay\n'
             'from hac_ros.simulate import make_scenario\n'
             'from hac_ros.core.calibrator import Calibrator\n'
-            'from hac_ros.core.params import HacParams\n'
+            'from hac_ros.core.rules.params import HacParams\n'
             'from hac_ros.simulate.feed import feed_events, scenario_events\n'
             "sc = make_scenario('walk', seed=1, duration=3.0, joint_layout='blazepose33')\n"
             "cal = Calibrator(HacParams().replace(joint_layout='blazepose33'))\n"

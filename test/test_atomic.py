@@ -9,7 +9,7 @@ import time
 
 import pytest
 
-from hac_ros.core.errors import HacError
+from hac_ros.core.basics.errors import HacError
 from hac_ros.recording.atomic import signals_held, staged_output
 
 

@@ -12,7 +12,7 @@ at 30 Hz, on the accuracy bench's scenes (bench/accuracy.py's ``make_scenes``):
 - a scale that breathes is followed offline (no frame more than 5 % off).
 
 Each run is judged as the bench judges it (bench/_accuracy_runs.py): the statuses' level from
-hac_ros.core.health, the truth of the moment.
+hac_ros.core.rules.health, the truth of the moment.
 """
 from __future__ import annotations
 
@@ -24,18 +24,18 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hac_ros.core.calibrator import Calibrator
-from hac_ros.core.health import OK, HealthMonitor
-from hac_ros.core.numeric import NS
-from hac_ros.core.offline import resolve_offline
-from hac_ros.core.outputs import (
+from hac_ros.core.basics.numeric import NS
+from hac_ros.core.basics.outputs import (
     DiagnosticsOut,
     OdometryOut,
     PoseOut,
     SampleOut,
     ScaleOut,
 )
-from hac_ros.core.params import HacParams
+from hac_ros.core.calibrator import Calibrator
+from hac_ros.core.offline import resolve_offline
+from hac_ros.core.rules.health import OK, HealthMonitor
+from hac_ros.core.rules.params import HacParams
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / 'bench'))

@@ -28,8 +28,8 @@ import pytest
 from hac_ros.batch.jobs import COLUMNS, Job, recording_name, run_job
 from hac_ros.batch.ray_tasks import RAY_MAX_RETRIES, probe_ray_address
 from hac_ros.batch.runner import batch
-from hac_ros.core.errors import HacError
-from hac_ros.core.params import HacParams
+from hac_ros.core.basics.errors import HacError
+from hac_ros.core.rules.params import HacParams
 from hac_ros.recording.diff import recording_differences
 from hac_ros.recording.reader import Recording
 from hac_ros.recording.writer import OutputWriter

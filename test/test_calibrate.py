@@ -16,7 +16,7 @@ from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
 
 from hac_ros.cli import main as hac
-from hac_ros.core.errors import InputError
+from hac_ros.core.basics.errors import InputError
 from hac_ros.files.tum import rotations_to_quats
 
 REPO = Path(__file__).resolve().parents[1]
@@ -240,7 +240,7 @@ def _bad(case: str) -> dict:
 ])
 def test_every_input_is_validated_naming_the_argument_its_shape_and_unit(case, fragment):
     from hac_ros import calibrate
-    from hac_ros.core.errors import HacError
+    from hac_ros.core.basics.errors import HacError
 
     with pytest.raises(HacError) as caught:  # InputError; ParameterError for params
         calibrate(**_bad(case))

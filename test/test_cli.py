@@ -75,7 +75,7 @@ def test_argument_errors_are_said_with_the_commands_own_options(tmp_path):
     """One error, two audiences: the library names ``workers``, ``hac batch`` says ``--workers``;
     an argument the command has no option for keeps its name."""
     from hac_ros.batch.runner import batch
-    from hac_ros.core.errors import ArgumentError, ArgumentText
+    from hac_ros.core.basics.errors import ArgumentError, ArgumentText
 
     with pytest.raises(ArgumentError, match=r'^workers must be at least 1, not 0$'):
         batch([str(tmp_path)], tmp_path / 'out', workers=0)

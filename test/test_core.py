@@ -11,18 +11,18 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scenes import SOLE_M, Scene, walking_scene
 
-from hac_ros.core.calibrator import Calibrator
-from hac_ros.core.errors import InputError
-from hac_ros.core.estimator import RollingScale
-from hac_ros.core.outputs import (
+from hac_ros.core.basics.errors import InputError
+from hac_ros.core.basics.outputs import (
     HumanJointsOut,
     OdometryOut,
     SampleOut,
     ScaleOut,
 )
-from hac_ros.core.params import HacParams
-from hac_ros.core.plane import Plane, lowest_segment_offset
-from hac_ros.core.reference import MapIndex, literal_cone_median
+from hac_ros.core.calibrator import Calibrator
+from hac_ros.core.estimate.estimator import RollingScale
+from hac_ros.core.geometry.plane import Plane, lowest_segment_offset
+from hac_ros.core.geometry.reference import MapIndex, literal_cone_median
+from hac_ros.core.rules.params import HacParams
 from hac_ros.files.params_file import load_params
 
 K = np.array([[500.0, 0.0, 320.0], [0.0, 500.0, 240.0], [0.0, 0.0, 1.0]])
@@ -416,7 +416,7 @@ def test_the_odometry_twist_is_the_step_in_the_later_frame_and_the_turn_per_seco
     over dt, for small, moderate and near-pi turns and none."""
     from scipy.spatial.transform import Rotation
 
-    from hac_ros.core.odometry import velocities
+    from hac_ros.core.stream.odometry import velocities
 
     rng = np.random.default_rng(5)
     for angle in [0.0, 1e-10, 1e-4, 0.3, 2.0, 2.99, 3.05, math.pi - 1e-6]:
@@ -458,7 +458,7 @@ def test_rotation_log_is_scipys_rotation_vector_at_every_angle():
     to a half turn (where scipy's is taken), random axes."""
     from scipy.spatial.transform import Rotation
 
-    from hac_ros.core.transforms import rotation_log
+    from hac_ros.core.basics.transforms import rotation_log
 
     rng = np.random.default_rng(5)
     for angle in (0.0, 1e-9, 1e-6, 1e-3, 0.1, 1.0, 3.0, np.pi - 0.02, np.pi - 0.005):

@@ -17,7 +17,8 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
-from hac_ros.core.estimator import (
+from hac_ros.core.basics.numeric import NS
+from hac_ros.core.estimate.estimator import (
     LAG_MIN_COVER_S,
     LOSE_FACTOR,
     RELOCK_WARN_S,
@@ -25,7 +26,6 @@ from hac_ros.core.estimator import (
     STALE_RATE,
     RollingScale,
 )
-from hac_ros.core.numeric import NS
 
 WHITE_SIGMA = 0.025
 AR_SIGMA, AR_TAU_S = 0.03, 10.0  # the AR(1) scene's wander
@@ -334,7 +334,7 @@ def test_a_few_samples_far_out_do_not_make_the_level_look_wandering():
     neighbouring samples a third low (a walker on a stair, before the gate is armed) in 30 s of
     keyframes leave the noise density near that of the clean samples, while a drift the same
     samples ride on still shows in it."""
-    from hac_ros.core.scale_filter import noise_density
+    from hac_ros.core.estimate.scale_filter import noise_density
 
     rng = np.random.default_rng(3)
     stamps = (np.arange(24) * 1.3e9).astype(np.int64)

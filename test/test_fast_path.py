@@ -11,11 +11,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from hac_ros.core.basics.outputs import SampleOut
 from hac_ros.core.calibrator import Calibrator
-from hac_ros.core.estimator import sequence_scale
-from hac_ros.core.outputs import SampleOut
-from hac_ros.core.params import HacParams
-from hac_ros.core.reference import MapIndex, literal_cone_median
+from hac_ros.core.estimate.estimator import sequence_scale
+from hac_ros.core.geometry.reference import MapIndex, literal_cone_median
+from hac_ros.core.rules.params import HacParams
 from hac_ros.simulate import SCENARIOS, feed_scenario, make_scenario
 from hac_ros.simulate.scenarios import NOBODY_STANDS
 

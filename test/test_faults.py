@@ -40,10 +40,8 @@ from injected import (
 from scenes import walking_scene
 
 from hac_ros.batch.runner import batch
-from hac_ros.core.calibrator import Calibrator
-from hac_ros.core.health import OK, STALE, WARN
-from hac_ros.core.numeric import NS
-from hac_ros.core.outputs import (
+from hac_ros.core.basics.numeric import NS
+from hac_ros.core.basics.outputs import (
     CloudOut,
     NoticeOut,
     OdometryOut,
@@ -52,7 +50,9 @@ from hac_ros.core.outputs import (
     ResetOut,
     ScaleOut,
 )
-from hac_ros.core.params import HacParams
+from hac_ros.core.calibrator import Calibrator
+from hac_ros.core.rules.health import OK, STALE, WARN
+from hac_ros.core.rules.params import HacParams
 from hac_ros.evaluation.evaluate import evaluate
 from hac_ros.recording.reader import Recording
 from hac_ros.replay.replayer import replay

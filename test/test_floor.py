@@ -1,4 +1,4 @@
-"""The floor from the map (hac_ros.core.ground.map_floor) and what it decides before any scale.
+"""The floor from the map (hac_ros.core.geometry.ground.map_floor) and what it decides before any scale.
 
 Scenes built for it: people who lean (their body axis is not gravity), and tables standing between
 the camera and the feet from the very first frame, so that the first map hits of the contact rays
@@ -12,13 +12,13 @@ import numpy as np
 from scenes import QUICK_CONVERGENCE, Scene, walking_scene
 from scipy.spatial.transform import Rotation
 
+from hac_ros.core.basics.outputs import HumanJointsOut, NoticeOut, SampleOut, ScaleOut
 from hac_ros.core.calibrator import Calibrator
-from hac_ros.core.ground import GroundModel, map_floor
-from hac_ros.core.health import WARN, HealthMonitor
+from hac_ros.core.geometry.ground import GroundModel, map_floor
+from hac_ros.core.geometry.reference import MapIndex
 from hac_ros.core.layouts import SMPL24
-from hac_ros.core.outputs import HumanJointsOut, NoticeOut, SampleOut, ScaleOut
-from hac_ros.core.params import HacParams
-from hac_ros.core.reference import MapIndex
+from hac_ros.core.rules.health import WARN, HealthMonitor
+from hac_ros.core.rules.params import HacParams
 
 TABLE_TOP_M = 0.75
 

@@ -1,16 +1,16 @@
-"""hac_ros.core.human_filter: people followed across frames, their world roots filtered in stamp
+"""hac_ros.core.bodies.human_filter: people followed across frames, their world roots filtered in stamp
 time."""
 from __future__ import annotations
 
 import numpy as np
 from scenes import STANDING, walking_scene
 
+from hac_ros.core.basics.numeric import NS
+from hac_ros.core.basics.outputs import HumanJointsOut
+from hac_ros.core.bodies.human_filter import RootFilter, smooth_people
 from hac_ros.core.calibrator import Calibrator
-from hac_ros.core.human_filter import RootFilter, smooth_people
 from hac_ros.core.layouts import SMPL24
-from hac_ros.core.numeric import NS
-from hac_ros.core.outputs import HumanJointsOut
-from hac_ros.core.params import HacParams
+from hac_ros.core.rules.params import HacParams
 
 NOISE_M = 0.05
 

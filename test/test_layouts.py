@@ -1,5 +1,5 @@
 """joint_layout (every built-in layout, custom) end to end, and the warnings that catch a wrong
-input convention (hac_ros.core.convention_check)."""
+input convention (hac_ros.core.bodies.convention_check)."""
 from __future__ import annotations
 
 import dataclasses
@@ -14,12 +14,12 @@ from scipy.spatial.transform import Rotation
 from hac_ros.bridge.messages import OutputMessages
 from hac_ros.cli import main as hac
 from hac_ros.core import layouts
+from hac_ros.core.basics.errors import ParameterError
+from hac_ros.core.basics.outputs import HumanJointsOut, NoticeOut, ScaleOut
+from hac_ros.core.bodies.contact import leg_lengths
 from hac_ros.core.calibrator import Calibrator
-from hac_ros.core.contact import leg_lengths
-from hac_ros.core.errors import ParameterError
 from hac_ros.core.layouts import BUILT_IN, problems
-from hac_ros.core.outputs import HumanJointsOut, NoticeOut, ScaleOut
-from hac_ros.core.params import HacParams, describe
+from hac_ros.core.rules.params import HacParams, describe
 from hac_ros.recording.reader import Recording
 from hac_ros.recording.tracks import read_output
 from hac_ros.simulate import make_scenario

@@ -18,7 +18,7 @@ from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackRet
 from test_node import PATIENCE_S, harness, scenario_recording, wait_for  # noqa: F401
 from test_node_services import state
 
-from hac_ros.core.errors import HacError
+from hac_ros.core.basics.errors import HacError
 from hac_ros.ros.lifecycle_client import change_state
 from hac_ros.ros.lifecycle_node import HacLifecycleNode
 from hac_ros.ros.node import HacNode

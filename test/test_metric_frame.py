@@ -9,9 +9,16 @@ import numpy as np
 import pytest
 from scenes import QUICK_CONVERGENCE
 
+from hac_ros.core.basics.outputs import (
+    CloudOut,
+    HumanJointsOut,
+    NoticeOut,
+    OdometryOut,
+    PoseOut,
+    ScaleOut,
+)
 from hac_ros.core.calibrator import Calibrator
-from hac_ros.core.outputs import CloudOut, HumanJointsOut, NoticeOut, OdometryOut, PoseOut, ScaleOut
-from hac_ros.core.params import HacParams
+from hac_ros.core.rules.params import HacParams
 from hac_ros.simulate import make_scenario
 from hac_ros.simulate.feed import scenario_events
 

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from hac_ros.core.errors import InputError
+from hac_ros.core.basics.errors import InputError
 from hac_ros.evaluation import metrics
 from hac_ros.files.tum import read_tum, write_tum
 

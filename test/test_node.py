@@ -26,10 +26,10 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message, serialize_message
 
 from hac_ros.bridge.topics import NODE_TOPICS
+from hac_ros.core.basics.numeric import NS
+from hac_ros.core.basics.outputs import HumanJointsOut, OdometryOut, ScaleOut
 from hac_ros.core.calibrator import Calibrator
-from hac_ros.core.numeric import NS
-from hac_ros.core.outputs import HumanJointsOut, OdometryOut, ScaleOut
-from hac_ros.core.params import HacParams, describe, names
+from hac_ros.core.rules.params import HacParams, describe, names
 from hac_ros.files.params_file import load_params
 from hac_ros.ros.node import HacNode
 from hac_ros.ros.spin_thread import SpinThread

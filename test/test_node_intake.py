@@ -19,9 +19,9 @@ rclpy = pytest.importorskip('rclpy')
 from scenes import walking_scene
 from test_node import PATIENCE_S, TYPES, harness, wait_for  # noqa: F401
 
-from hac_ros.core.health import OK, WARN
-from hac_ros.core.numeric import NS
-from hac_ros.core.params import HacParams
+from hac_ros.core.basics.numeric import NS
+from hac_ros.core.rules.health import OK, WARN
+from hac_ros.core.rules.params import HacParams
 from hac_ros.ros.intake import STARTUP_FRAMES, Inbox, header_stamp_ns
 from hac_ros.ros.liveness import Liveness
 from msg_adapters import joints_to_pose_array, rt_to_pose_stamped, stamp_to_ns, xyz_to_cloud

@@ -204,7 +204,7 @@ def test_pose_source_tf_through_a_stand_in_listener(tmp_path, walk):
     PoseStamped topic."""
     from test_node import SCALE_TOL
 
-    from hac_ros.core.conventions import optical_transform
+    from hac_ros.core.bodies.conventions import optical_transform
     from hac_ros.simulate.writer import BASE_FRAME, BASE_TO_OPTICAL
     from msg_adapters import rt_to_transform_stamped
 

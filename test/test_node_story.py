@@ -21,8 +21,8 @@ rclpy = pytest.importorskip('rclpy')
 from logcapture import NodeLog
 from test_node import PATIENCE_S, Event, harness, scenario_recording, wait_for  # noqa: F401
 
-from hac_ros.core.numeric import NS
-from hac_ros.core.reasons import REASONS
+from hac_ros.core.basics.numeric import NS
+from hac_ros.core.rules.reasons import REASONS
 from hac_ros.recording.reader import Recording
 from hac_ros.replay.replayer import replay
 

@@ -26,8 +26,7 @@ from hac_ros.bridge.messages import (
     samples_message,
 )
 from hac_ros.bridge.topics import BY_NAME, NODE_TOPICS
-from hac_ros.core.calibrator import Calibrator
-from hac_ros.core.outputs import (
+from hac_ros.core.basics.outputs import (
     CloudOut,
     HumanJointsOut,
     OdometryOut,
@@ -35,7 +34,8 @@ from hac_ros.core.outputs import (
     SampleOut,
     ScaleOut,
 )
-from hac_ros.core.params import HacParams
+from hac_ros.core.calibrator import Calibrator
+from hac_ros.core.rules.params import HacParams
 from hac_ros.simulate import make_scenario
 from hac_ros.simulate.feed import scenario_events
 from msg_adapters import MessageError, quat_to_matrix, stamp_to_ns

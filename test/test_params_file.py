@@ -9,8 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from hac_ros.core.errors import ParameterError
-from hac_ros.core.params import HacParams
+from hac_ros.core.basics.errors import ParameterError
+from hac_ros.core.rules.params import HacParams
 from hac_ros.files.params_file import load_params, read_params_file
 
 REPO = Path(__file__).resolve().parents[1]

@@ -292,9 +292,9 @@ def test_a_person_cut_by_the_image_edge_publishes_no_feet(people_extra, opencv_i
     (contact_unseen) and the player a sample."""
     from test_people import floor_points
 
+    from hac_ros.core.basics.outputs import SampleOut
     from hac_ros.core.calibrator import Calibrator
-    from hac_ros.core.outputs import SampleOut
-    from hac_ros.core.params import HacParams
+    from hac_ros.core.rules.params import HacParams
     from hac_ros.people.frontend import FEET, PeopleFromImages
     from hac_ros.people.lifting import Camera
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from hac_ros.core.errors import InputError
+from hac_ros.core.basics.errors import InputError
 from hac_ros.core.layouts import BUILT_IN
 from hac_ros.core.layouts.blazepose33 import FOOT_INDICES, HEELS, HIPS, SHOULDERS
 from hac_ros.people.lifting import Camera, distort, lift_person, undistort

@@ -1,4 +1,4 @@
-"""The checks one person passes before measuring (hac_ros.core.person_checks): each refuses what it
+"""The checks one person passes before measuring (hac_ros.core.bodies.person_checks): each refuses what it
 is for and names its reason from the one table, in order, and a whole standing person passes."""
 from __future__ import annotations
 
@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 from scenes import STANDING
 
+from hac_ros.core.bodies.person_checks import BODY_CHECKS, JOINT_CHECKS, Person, refusal
 from hac_ros.core.layouts import SMPL24
-from hac_ros.core.person_checks import BODY_CHECKS, JOINT_CHECKS, Person, refusal
-from hac_ros.core.reasons import REASONS
+from hac_ros.core.rules.reasons import REASONS
 
 # world (z up) to an optical camera (x right, y down, z ahead) at 1.5 m, 3 m before the person
 WORLD_TO_CAMERA = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])

@@ -26,7 +26,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import serialize_message
 from rosbags.typesys import Stores, get_typestore
 
-from hac_ros.core.errors import HacError, ParameterError
+from hac_ros.core.basics.errors import HacError, ParameterError
 from hac_ros.recording.reader import Recording
 from hac_ros.replay.feeder import tie_ordered
 from hac_ros.ros.player import DEFAULT_TOPICS, KIND_OF_TYPE, Player
@@ -267,7 +267,7 @@ def test_demo_live_gives_the_online_replays_final_scale(tmp_path):
     # what the statuses said, counted from what came back as the replay counts what it wrote:
     # about as many, and no reason of the core's that the replay's statuses did not give (the
     # node adds its own: dropped or lost frames, latency)
-    from hac_ros.core.reasons import NODE, REASONS
+    from hac_ros.core.rules.reasons import NODE, REASONS
 
     said = re.search(r'statuses \((\d+) /diagnostics, one per second\): (.*)', out)
     assert said and abs(int(said.group(1)) - online.statuses.total) <= 2, out

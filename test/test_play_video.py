@@ -24,7 +24,7 @@ from rclpy.context import Context
 from test_play import Listener, wait_for
 
 from hac_ros.cli import main as hac
-from hac_ros.core.errors import ArgumentError
+from hac_ros.core.basics.errors import ArgumentError
 from hac_ros.ros.camera_source import CAMERA_INFO_TOPIC, COMPRESSED_TOPIC, IMAGE_TOPIC
 from hac_ros.ros.player import Player
 from msg_adapters import stamp_to_ns

@@ -1,6 +1,6 @@
 """SLAM poses given the other way round: the world in the camera (T_cw) read as the camera in the
 map, the most common pose mistake (ORB-SLAM's TrackMonocular returns T_cw). Caught by the people's
-body axes, which line up in the map only under the right rotation (hac_ros.core.convention_check),
+body axes, which line up in the map only under the right rotation (hac_ros.core.bodies.convention_check),
 on simulated scenes and on the real trajectories of the bench's composites."""
 from __future__ import annotations
 
@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 
 from hac_ros.bridge.messages import OutputMessages
+from hac_ros.core.basics.outputs import DiagnosticsOut, NoticeOut, Output
 from hac_ros.core.calibrator import Calibrator
-from hac_ros.core.health import OK, HealthMonitor
-from hac_ros.core.outputs import DiagnosticsOut, NoticeOut, Output
-from hac_ros.core.params import HacParams
+from hac_ros.core.rules.health import OK, HealthMonitor
+from hac_ros.core.rules.params import HacParams
 from hac_ros.simulate import make_scenario
 from hac_ros.simulate.feed import feed_events
 

@@ -16,8 +16,8 @@ from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
 from scenes import QUICK_CONVERGENCE
 
-from hac_ros.core.errors import ParameterError
-from hac_ros.core.params import HacParams
+from hac_ros.core.basics.errors import ParameterError
+from hac_ros.core.rules.params import HacParams
 from hac_ros.replay.replayer import replay
 from hac_ros.simulate import make_scenario, write_recording
 from hac_ros.simulate.writer import BASE_FRAME, BASE_TO_OPTICAL
@@ -94,7 +94,7 @@ def test_pose_to_optical_takes_4_or_7_numbers(value, fragment):
 
 
 def test_base_frame_constant_is_the_camera_1_2_above_and_0_3_ahead():
-    from hac_ros.core.conventions import optical_transform
+    from hac_ros.core.bodies.conventions import optical_transform
 
     R, t = optical_transform(BASE_TO_OPTICAL)
     assert np.allclose(t, [0.3, 0.0, 1.2])
@@ -224,7 +224,7 @@ def test_tf_poses_compose_static_transforms_on_either_side():
     (static): the pose of camera_optical in map at each SLAM message, ROS 1 slashes ignored."""
     from scipy.spatial.transform import Rotation
 
-    from hac_ros.core.tf_tree import TfPoses
+    from hac_ros.core.stream.tf_tree import TfPoses
 
     rng = np.random.default_rng(0)
     T = {name: (Rotation.random(random_state=rng).as_matrix(), rng.normal(size=3))

@@ -1,10 +1,10 @@
-"""Strings from outside are escaped before a terminal or a log sees them (hac_ros.core.printable)."""
+"""Strings from outside are escaped before a terminal or a log sees them (hac_ros.core.basics.printable)."""
 from __future__ import annotations
 
 import logging
 
 from hac_ros.cli.terminal import CommandFormatter
-from hac_ros.core.printable import printable, printable_lines
+from hac_ros.core.basics.printable import printable, printable_lines
 
 # what a hostile recording or file name can hold: ESC (a control sequence that clears the screen),
 # BEL, CR, a newline, DEL, a C1 control, a right-to-left override, a lone surrogate (a file name

@@ -14,9 +14,9 @@ from pathlib import Path
 import pytest
 from scenes import walking_scene
 
+from hac_ros.core.basics.outputs import NoticeOut
 from hac_ros.core.calibrator import Calibrator
-from hac_ros.core.outputs import NoticeOut
-from hac_ros.core.params import HacParams
+from hac_ros.core.rules.params import HacParams
 
 REPO = Path(__file__).resolve().parents[1]
 LEVEL = re.compile(r'^hac \w+: (debug|info|warning|error|critical): ', re.M)

@@ -16,11 +16,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from hac_ros.core.basics.numeric import NS
+from hac_ros.core.basics.outputs import DiagnosticsOut, ResetOut
 from hac_ros.core.calibrator import Calibrator
-from hac_ros.core.health import OK, HealthMonitor
-from hac_ros.core.numeric import NS
-from hac_ros.core.outputs import DiagnosticsOut, ResetOut
-from hac_ros.core.params import HacParams
+from hac_ros.core.rules.health import OK, HealthMonitor
+from hac_ros.core.rules.params import HacParams
 from hac_ros.simulate import make_scenario
 
 REPO = Path(__file__).resolve().parents[1]

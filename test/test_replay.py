@@ -28,9 +28,9 @@ import pytest
 from scenes import NS, QUICK_CONVERGENCE, Scene, walking_scene
 
 from hac_ros.bridge.topics import TOPICS
-from hac_ros.core.errors import ArgumentError, HacError
+from hac_ros.core.basics.errors import ArgumentError, HacError
 from hac_ros.core.offline import offline_scale
-from hac_ros.core.params import HacParams
+from hac_ros.core.rules.params import HacParams
 from hac_ros.replay.replayer import replay
 
 REPO = Path(__file__).resolve().parents[1]
@@ -759,13 +759,13 @@ def test_offline_estimates_each_segment_of_a_reset_on_its_own(tmp_path):
 @pytest.mark.parametrize('base', [False, True])
 def test_deferred_outputs_resolved_with_the_schedule_equal_a_run_with_that_schedule(base):
     """The offline mode runs the calibrator once with its metric outputs deferred and resolves them
-    with the schedule (hac_ros.core.metric_stage): exactly what a second run with the schedule
+    with the schedule (hac_ros.core.stream.metric_stage): exactly what a second run with the schedule
     gives, across a SLAM reset (the anchor) and with a base frame (the odometry's base offset)."""
     from dataclasses import fields
 
+    from hac_ros.core.basics.outputs import ResetOut, SampleOut
     from hac_ros.core.calibrator import Calibrator
-    from hac_ros.core.metric_stage import MetricStage
-    from hac_ros.core.outputs import ResetOut, SampleOut
+    from hac_ros.core.stream.metric_stage import MetricStage
     from hac_ros.recording.reader import Recording
     from hac_ros.replay.feeder import CoreFeeder, InputTopics, offline_run
 

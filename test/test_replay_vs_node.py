@@ -30,7 +30,7 @@ from scenes import QUICK_CONVERGENCE, walking_scene
 from test_replay import write_recording
 
 from hac_ros.bridge.topics import BY_KEY
-from hac_ros.core.params import HacParams
+from hac_ros.core.rules.params import HacParams
 from hac_ros.replay.feeder import tie_ordered
 from hac_ros.replay.replayer import replay
 from hac_ros.ros.node import HacNode

@@ -29,8 +29,8 @@ from injected import (
 from scenes import QUICK_CONVERGENCE
 
 from hac_ros.core.calibrator import Calibrator
-from hac_ros.core.health import OK, HealthMonitor
-from hac_ros.core.params import HacParams
+from hac_ros.core.rules.health import OK, HealthMonitor
+from hac_ros.core.rules.params import HacParams
 from hac_ros.replay.replayer import replay
 from hac_ros.simulate import make_scenario
 from hac_ros.simulate.feed import feed_events, scenario_events
@@ -260,7 +260,7 @@ def test_a_real_floor_only_map_says_which_way_is_down(shared_data, motion, seed,
     """The real-data composites' maps are their floor alone (CMU 131_0N over fr2_desk, the
     ORB-SLAM keyframes or 30 Hz): the first bodies' axes, tilted by HMR's noise, made the vote
     decide upside down on these seeds (both ways' rays met the plane's far parts) and the run
-    calibrated nothing; the plane, below the camera, says it (hac_ros.core.down_vote)."""
+    calibrated nothing; the plane, below the camera, says it (hac_ros.core.geometry.down_vote)."""
     import sys
 
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'bench'))

@@ -1,6 +1,6 @@
-"""The estimator's streaming median (hac_ros.core.sorted_window) equals numpy's median and MAD
+"""The estimator's streaming median (hac_ros.core.estimate.sorted_window) equals numpy's median and MAD
 exactly, through additions and removals, duplicates included; so does the core's median of a few
-values (hac_ros.core.numeric.median_of)."""
+values (hac_ros.core.basics.numeric.median_of)."""
 from __future__ import annotations
 
 import math
@@ -8,8 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from hac_ros.core.numeric import median_of
-from hac_ros.core.sorted_window import SortedWindow
+from hac_ros.core.basics.numeric import median_of
+from hac_ros.core.estimate.sorted_window import SortedWindow
 
 
 def numpy_stats(values: list[float]) -> tuple[float, float]:

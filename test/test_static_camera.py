@@ -9,11 +9,11 @@ import pytest
 from scenes import STANDING, look_at
 from test_node import Event, harness, wait_for  # noqa: F401 (harness: a fixture)
 
+from hac_ros.core.basics.numeric import NS
+from hac_ros.core.basics.outputs import DiagnosticsOut, HumanJointsOut, ScaleOut
 from hac_ros.core.calibrator import Calibrator
-from hac_ros.core.numeric import NS
-from hac_ros.core.outputs import DiagnosticsOut, HumanJointsOut, ScaleOut
-from hac_ros.core.params import HacParams
-from hac_ros.core.reasons import REASONS
+from hac_ros.core.rules.params import HacParams
+from hac_ros.core.rules.reasons import REASONS
 
 HEIGHT_M, PITCH_DEG, ROLL_DEG = 3.0, math.degrees(math.atan2(3.0, 8.0)), 10.0
 K = np.array([[500.0, 0.0, 320.0], [0.0, 500.0, 240.0], [0.0, 0.0, 1.0]])

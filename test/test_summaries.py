@@ -16,8 +16,8 @@ from pathlib import Path
 import pytest
 from injected import JOINTS, _nth, rewrite, simulate
 
-from hac_ros.core.health import OK, WARN
-from hac_ros.core.status_shares import StatusShares
+from hac_ros.core.rules.health import OK, WARN
+from hac_ros.core.rules.status_shares import StatusShares
 from hac_ros.recording.reader import Recording
 
 REPO = Path(__file__).resolve().parents[1]
@@ -128,7 +128,7 @@ def _stamps_moved(topics: tuple[str, ...], by_s: float, until_s: float | None = 
     SLAM that starts late)."""
     from injected import _set_stamp, _stamp_ns
 
-    from hac_ros.core.numeric import NS
+    from hac_ros.core.basics.numeric import NS
 
     def edit(messages):
         first = None
@@ -225,7 +225,7 @@ def test_maps_refused_for_their_frame_are_named_as_the_cause_with_both_frames(wa
 
 
 def test_every_input_a_waiting_reason_names_is_refused_under_a_reason_of_the_table():
-    from hac_ros.core.reasons import REASONS, WAITS_FOR, refusals_behind
+    from hac_ros.core.rules.reasons import REASONS, WAITS_FOR, refusals_behind
 
     for waiting, (_, refusing) in WAITS_FOR.items():
         assert waiting in REASONS and set(refusing) <= set(REASONS), waiting

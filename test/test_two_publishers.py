@@ -13,8 +13,8 @@ import pytest
 from faultkit import run_online
 from injected import POSE, _nth, _stamp_ns, rewrite, simulate, truth_scale
 
-from hac_ros.core.health import OK, HealthMonitor
-from hac_ros.core.pose_stream import ZIGZAG_POSES, ZigzagWatch
+from hac_ros.core.rules.health import OK, HealthMonitor
+from hac_ros.core.stream.pose_stream import ZIGZAG_POSES, ZigzagWatch
 from hac_ros.recording.reader import Recording
 from hac_ros.replay.replayer import replay
 

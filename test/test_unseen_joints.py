@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 from scenes import walking_scene
 
+from hac_ros.core.basics.outputs import HumanJointsOut, OdometryOut, PoseOut, SampleOut, ScaleOut
+from hac_ros.core.bodies.posture import posture_problem
 from hac_ros.core.calibrator import Calibrator
 from hac_ros.core.layouts import SMPL24
-from hac_ros.core.outputs import HumanJointsOut, OdometryOut, PoseOut, SampleOut, ScaleOut
-from hac_ros.core.params import HacParams
-from hac_ros.core.posture import posture_problem
+from hac_ros.core.rules.params import HacParams
 
 HANDS = [20, 21, 22, 23]  # SMPL24's wrists and hands
 LEFT_LEG = [1, 4, 7, 10]  # hip, knee, ankle, foot

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from conftest import OPENCV_DATA
 
-from hac_ros.core.errors import ArgumentError
+from hac_ros.core.basics.errors import ArgumentError
 
 
 @pytest.fixture(scope='module')

@@ -21,8 +21,9 @@ identical. Per recording:
   worker's stdout and stderr are left alone);
 - any error is that row's one-line reason (status ``failed``), and leaves no output behind.
 
-Usage errors (:class:`~hac_ros.core.errors.HacError`, raised before any recording is started;
-:class:`~hac_ros.core.errors.ArgumentError` where an argument is to blame): no or missing inputs,
-two inputs with the same name, an existing output without ``resume``, ``ray`` without Ray or with
+Usage errors (:class:`~hac_ros.core.basics.errors.HacError`, raised before any recording is started;
+:class:`~hac_ros.core.basics.errors.ArgumentError` where an argument is to blame): no or missing
+inputs, two inputs with the same name, an existing output without ``resume``, ``ray`` without Ray or
+with
 an address where no Ray cluster answers.
 """

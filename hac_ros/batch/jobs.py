@@ -15,9 +15,9 @@ from pathlib import Path
 from typing import Any
 
 from hac_ros import __version__
-from hac_ros.core.errors import ArgumentError, HacError
-from hac_ros.core.params import HacParams
-from hac_ros.core.printable import printable, printable_lines
+from hac_ros.core.basics.errors import ArgumentError, HacError
+from hac_ros.core.basics.printable import printable, printable_lines
+from hac_ros.core.rules.params import HacParams
 from hac_ros.recording.atomic import PARTIAL_SUFFIX, staged_output
 from hac_ros.recording.reader import GT_CAMERA, GT_JOINTS, GT_SCALE, Recording
 from hac_ros.replay.replayer import MODES
@@ -156,7 +156,7 @@ def run_job(job: Job) -> Row:
 
 class JobLogFormatter(logging.Formatter):
     """A job log's line, every character a terminal would obey escaped (names and paths from the
-    recording: :mod:`hac_ros.core.printable`); a traceback is left as it is."""
+    recording: :mod:`hac_ros.core.basics.printable`); a traceback is left as it is."""
 
     def formatMessage(self, record: logging.LogRecord) -> str:
         return printable_lines(super().formatMessage(record))
@@ -166,7 +166,8 @@ class JobLogFormatter(logging.Formatter):
 def job_log(path: Path) -> Iterator[None]:
     """Everything hac_ros logs meanwhile (the replay's notices, the summaries) goes to ``path``
     (replaced), through a handler on the package's logger, at level INFO, every character a
-    terminal would obey escaped (:mod:`hac_ros.core.printable`); the process's streams are left
+    terminal would obey escaped (:mod:`hac_ros.core.basics.printable`); the process's streams are
+    left
     alone. Used in a pool worker or a Ray task, one job at a time."""
     path.parent.mkdir(parents=True, exist_ok=True)
     handler = logging.FileHandler(path, mode='w', encoding='utf-8')

@@ -3,7 +3,7 @@
 The task is :func:`hac_ros.batch.jobs.run_job`, the function the process pool runs, with the same
 :class:`~hac_ros.batch.jobs.Job`: the outputs are the pool's. Joining a cluster is bounded in time
 (:func:`probe_ray_address`); a missing Ray or an address where no cluster answers is a usage
-error (:class:`~hac_ros.core.errors.HacError`).
+error (:class:`~hac_ros.core.basics.errors.HacError`).
 """
 from __future__ import annotations
 
@@ -16,7 +16,7 @@ from typing import Any
 
 from hac_ros.batch.jobs import Job, Row, one_line, run_job
 from hac_ros.batch.pool import SIGNAL_POLL_S, STOP_WAIT_S, OnRow, clean_up
-from hac_ros.core.errors import ArgumentError, HacError
+from hac_ros.core.basics.errors import ArgumentError, HacError
 
 # Ray: a task whose worker process (or node) dies is run again this many times; staging and the
 # marker make a rerun start clean (docs/batch.md, "When a worker dies")

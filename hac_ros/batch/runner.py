@@ -10,9 +10,9 @@ from pathlib import Path
 from hac_ros.batch.jobs import LOGS, SUMMARY_CSV, SUMMARY_MD, Job, Row, plan, recording_name
 from hac_ros.batch.pool import default_workers, run_pool
 from hac_ros.batch.summary import medians_line, write_summary
-from hac_ros.core.errors import ArgumentError
-from hac_ros.core.params import HacParams
-from hac_ros.core.printable import printable
+from hac_ros.core.basics.errors import ArgumentError
+from hac_ros.core.basics.printable import printable
+from hac_ros.core.rules.params import HacParams
 from hac_ros.progress import Progress, progress_pass
 
 MOSTLY_WARN_PCT = 50.0  # a recording WARN for more of its statuses is named in the summary

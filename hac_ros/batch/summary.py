@@ -8,7 +8,7 @@ from collections.abc import Iterable
 from pathlib import Path
 
 from hac_ros.batch.jobs import COLUMNS, LOGS, SUMMARY_CSV, SUMMARY_MD, Row, _finite, write_text
-from hac_ros.core.printable import printable
+from hac_ros.core.basics.printable import printable
 
 
 # ============================================================================ the summary
@@ -54,5 +54,5 @@ def medians_line(rows: Iterable[Row]) -> str:
 
 def _md_escape(text: str) -> str:
     """A cell of summary.md: one line, its pipes escaped, nothing a terminal would obey (an input's
-    name can hold anything: hac_ros.core.printable)."""
+    name can hold anything: hac_ros.core.basics.printable)."""
     return printable(text.replace('\n', ' ')).replace('|', '\\|')

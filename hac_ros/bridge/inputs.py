@@ -20,10 +20,10 @@ from typing import Any
 
 import numpy as np
 
+from hac_ros.core.basics.outputs import Output
 from hac_ros.core.calibrator import Calibrator
-from hac_ros.core.outputs import Output
-from hac_ros.core.reference import MapIndex
-from hac_ros.core.tf_tree import TfPoses
+from hac_ros.core.geometry.reference import MapIndex
+from hac_ros.core.stream.tf_tree import TfPoses
 from msg_adapters import (
     MessageError,
     RawCloud,
@@ -50,7 +50,8 @@ class TfTaken:
 def add_tf_msg(calibrator: Calibrator, tf: TfPoses, msg: Any, static: bool,
                taken: TfTaken | None = None) -> TfTaken:
     """A ``tf2_msgs/TFMessage`` of /tf (or /tf_static: ``static``), or None when its bytes did not
-    deserialize, through ``tf`` (:mod:`hac_ros.core.tf_tree`) into the calibrator: each message
+    deserialize, through ``tf`` (:mod:`hac_ros.core.stream.tf_tree`) into the calibrator: each
+    message
     of the SLAM's own transform is a pose at its stamp; rejections are counted by reason."""
     taken = taken or TfTaken([], [], [])
     if msg is None:

@@ -19,9 +19,8 @@ from rosbags.typesys import Stores, get_typestore
 from scipy.spatial.transform import Rotation
 
 from hac_ros.bridge import topics
-from hac_ros.core.health import Finding, Health, HealthMonitor
-from hac_ros.core.numeric import NS
-from hac_ros.core.outputs import (
+from hac_ros.core.basics.numeric import NS
+from hac_ros.core.basics.outputs import (
     CloudOut,
     DiagnosticsOut,
     HumanJointsOut,
@@ -32,7 +31,8 @@ from hac_ros.core.outputs import (
     ScaleOut,
     Status,
 )
-from hac_ros.core.params import POSE_MSGTYPES, HacParams
+from hac_ros.core.rules.health import Finding, Health, HealthMonitor
+from hac_ros.core.rules.params import POSE_MSGTYPES, HacParams
 from msg_adapters import (
     joints_to_pose_array,
     make_header,
@@ -172,7 +172,7 @@ class OutputMessages:
     def diagnostics(self, status: Status, extra: Sequence[Finding] = (),
                     extra_values: Sequence[tuple[str, str]] = (), take: bool = True) -> bytes:
         """/diagnostics: one DiagnosticStatus with the estimator's state as key-values, its level
-        and message from :mod:`hac_ros.core.health` (``reasons``: the findings' reasons).
+        and message from :mod:`hac_ros.core.rules.health` (``reasons``: the findings' reasons).
 
         extra, extra_values: findings and key-values only the shell knows (the node's latency,
         backlog, stale input); take: False for a status that repeats the last one (the node's

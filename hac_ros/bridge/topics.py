@@ -13,7 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from hac_ros.core.params import HacParams
+from hac_ros.core.rules.params import HacParams
 
 
 @dataclass(frozen=True)

@@ -4,15 +4,16 @@ lifecycle | people | video``.
 Thin: each sub-command is a module of this package with ``add_arguments(parser)`` and
 ``run(args) -> int``, and only argument parsing in it; the work is done by the library modules
 (:mod:`hac_ros.replay.replayer`, :mod:`hac_ros.evaluation.evaluate`, ...). Errors the user can fix
-(:class:`~hac_ros.core.errors.HacError`, :class:`~msg_adapters.MessageError`, and a file that
+(:class:`~hac_ros.core.basics.errors.HacError`, :class:`~msg_adapters.MessageError`, and a file that
 cannot be written: a read-only path, a full disk) print one line and exit 2, leaving nothing
 partial. SIGINT (Ctrl-C), SIGTERM and SIGHUP (``timeout``, systemd, Slurm, a closed terminal) all
 end a command the same way: what it was writing is removed, one line, exit 128 + the signal's
 number (130, 143, 129). What the library logs is shown on stderr (:mod:`hac_ros.cli.terminal`).
 
 The library knows nothing of flags: its errors name function arguments and parameters
-(:class:`~hac_ros.core.errors.ArgumentError`), and this package says them as the sub-command's
-options (``pose_type`` -> ``--pose-type``, :func:`option_names`) where the command has one.
+(:class:`~hac_ros.core.basics.errors.ArgumentError`), and this package says them as the
+sub-command's options (``pose_type`` -> ``--pose-type``, :func:`option_names`) where the command has
+one.
 """
 from __future__ import annotations
 
@@ -40,8 +41,8 @@ from typing import TextIO  # noqa: E402
 
 from hac_ros import __version__  # noqa: E402
 from hac_ros.cli.terminal import terminal_logging  # noqa: E402
-from hac_ros.core.errors import ArgumentError, ArgumentText, HacError  # noqa: E402
-from hac_ros.core.printable import printable_lines  # noqa: E402
+from hac_ros.core.basics.errors import ArgumentError, ArgumentText, HacError  # noqa: E402
+from hac_ros.core.basics.printable import printable_lines  # noqa: E402
 from hac_ros.recording.atomic import STOP_SIGNALS, Interrupted  # noqa: E402
 
 # sub-command -> (module in this package, one-line help)
@@ -118,7 +119,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 def show(text: object, file: TextIO | None = None) -> None:
     """Print ``text`` for the user (stdout, or ``file``): every character a terminal would obey
-    rather than show escaped, line by line (:func:`~hac_ros.core.printable.printable_lines`): what
+    rather than show escaped, line by line (:func:`~hac_ros.core.basics.printable.printable_lines`):
+    what
     a command prints holds names and paths from recordings and files."""
     print(printable_lines(text), file=file if file is not None else sys.stdout, flush=True)
 

@@ -23,7 +23,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 from hac_ros.cli import show
-from hac_ros.core.errors import HacError
+from hac_ros.core.basics.errors import HacError
 from hac_ros.recording.atomic import signals_held
 
 REPO = Path(__file__).resolve().parents[2]

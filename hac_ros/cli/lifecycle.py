@@ -29,7 +29,7 @@ def run(args: argparse.Namespace) -> int:
     from rclpy.context import Context
     from rclpy.signals import SignalHandlerOptions
 
-    from hac_ros.core.errors import HacError
+    from hac_ros.core.basics.errors import HacError
     from hac_ros.ros.lifecycle_client import change_state
 
     if not args.wait > 0:

@@ -14,7 +14,7 @@ import sys
 from collections.abc import Sequence
 
 from hac_ros.cli import show
-from hac_ros.core.errors import HacError
+from hac_ros.core.basics.errors import HacError
 
 DEFAULT_FRAME_ID = 'camera_optical'  # hac_ros.ros.player's (not imported here: a fast --help)
 

@@ -5,7 +5,7 @@ import argparse
 import sys
 
 from hac_ros.cli import add_mode_and_params, add_output_recording, show
-from hac_ros.core.params import POSE_MSGTYPES
+from hac_ros.core.rules.params import POSE_MSGTYPES
 from hac_ros.files.params_file import load_params
 
 NOT_CALIBRATED = 3  # exit code: the replay ran but wrote no scale

@@ -5,9 +5,9 @@ import argparse
 from pathlib import Path
 
 from hac_ros.cli import add_output_recording, escape_help, show
-from hac_ros.core.errors import HacError
+from hac_ros.core.basics.errors import HacError
 from hac_ros.core.layouts import DEFAULT
-from hac_ros.core.params import POSE_TYPES
+from hac_ros.core.rules.params import POSE_TYPES
 from hac_ros.simulate.scenarios import SCENARIOS
 from hac_ros.simulate.skeletons import simulated_layouts
 from hac_ros.simulate.writer import POSE_FRAMES, POSE_SOURCES

@@ -16,7 +16,7 @@ import sys
 from collections.abc import Iterator
 from typing import TYPE_CHECKING, Any
 
-from hac_ros.core.printable import printable_lines
+from hac_ros.core.basics.printable import printable_lines
 
 if TYPE_CHECKING:  # the command starts without importing the library
     from hac_ros.progress import Progress
@@ -39,7 +39,8 @@ class TerminalHandler(logging.Handler):
 
 class CommandFormatter(logging.Formatter):
     """``hac COMMAND: level: message`` (and the traceback, when a record carries one); the
-    message's characters that a terminal would obey escaped (:mod:`hac_ros.core.printable`)."""
+    message's characters that a terminal would obey escaped
+    (:mod:`hac_ros.core.basics.printable`)."""
 
     def __init__(self, command: str) -> None:
         super().__init__()

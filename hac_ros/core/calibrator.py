@@ -28,14 +28,14 @@ from typing import Concatenate, ParamSpec
 
 import numpy as np
 
+from hac_ros.core.basics.numeric import NS
+from hac_ros.core.basics.outputs import NoticeOut, Output, ResetOut
+from hac_ros.core.basics.transforms import is_rotation
 from hac_ros.core.frame_loop import Frame, FrameLoop
-from hac_ros.core.numeric import NS
-from hac_ros.core.outputs import NoticeOut, Output, ResetOut
-from hac_ros.core.pending import Record, outputs_only
-from hac_ros.core.pose_stream import Pose
-from hac_ros.core.reference import MapIndex
-from hac_ros.core.timeline import Stamped
-from hac_ros.core.transforms import is_rotation
+from hac_ros.core.geometry.reference import MapIndex
+from hac_ros.core.stream.pending import Record, outputs_only
+from hac_ros.core.stream.pose_stream import Pose
+from hac_ros.core.stream.timeline import Stamped
 
 _P = ParamSpec('_P')
 
@@ -87,7 +87,7 @@ class Calibrator(FrameLoop):
                  child_frame_id: str = '') -> list[Record]:
         """A SLAM pose: camera-to-map rotation (3, 3) and camera centre (3,), SLAM units, map frame.
 
-        Its stamp is judged first (hac_ros.core.timeline: late, a jump back that starts a new
+        Its stamp is judged first (hac_ros.core.stream.timeline: late, a jump back that starts a new
         stream, one stamp far ahead, a jump ahead), then the pose in its stream (pose_stream)."""
         return self._add_pose(stamp_ns, R_wc, c_map, frame_id, child_frame_id)
 
@@ -130,7 +130,7 @@ class Calibrator(FrameLoop):
 
     def _stream_pose(self, item: Stamped) -> list[Record]:
         """A pose whose stamp belongs to the current stream: the map frame, the stream's first
-        poses, jumps and outliers, a frozen SLAM (hac_ros.core.pose_stream)."""
+        poses, jumps and outliers, a frozen SLAM (hac_ros.core.stream.pose_stream)."""
         pose, frame_id, track = item.pose, item.frame_id, self.track
         if item.child_frame_id and not self.params.camera_frame and self.conventions.optical_poses:
             self._child_frame = item.child_frame_id
@@ -337,8 +337,8 @@ class Calibrator(FrameLoop):
 
     # ================================================================== time
     def _restart(self, first_pose: Pose) -> list[Record]:
-        """Time jumped back (hac_ros.core.timeline): a new stream from ``first_pose``, its state,
-        maps, ground and anchor as at start-up; the odometry goes on (a zero step) and the
+        """Time jumped back (hac_ros.core.stream.timeline): a new stream from ``first_pose``, its
+        state, maps, ground and anchor as at start-up; the odometry goes on (a zero step) and the
         counters keep counting. The frames and the map held for it are its first."""
         jump_s = ((self.track.newest_stamp_ns or first_pose.stamp_ns) - first_pose.stamp_ns) / NS
         stale = self._pending

@@ -17,18 +17,21 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hac_ros.core.convention_check import ConventionCheck
-from hac_ros.core.conventions import Conventions
-from hac_ros.core.estimator import RollingScale
-from hac_ros.core.ground import GroundModel
-from hac_ros.core.human_filter import PersonTracker, RootFilter
-from hac_ros.core.map_book import MapBook
-from hac_ros.core.map_shape import PLANE_JUDGE_BODIES, MapShape, plane_problem
-from hac_ros.core.metric_stage import MetricStage, ScaleAt, StageConfig, finite_scale
-from hac_ros.core.numeric import NS
-from hac_ros.core.outputs import MapRescaleOut, NoticeOut, ResetOut, Status
-from hac_ros.core.params import HacParams
-from hac_ros.core.pending import (
+from hac_ros.core.basics.numeric import NS
+from hac_ros.core.basics.outputs import MapRescaleOut, NoticeOut, ResetOut, Status
+from hac_ros.core.bodies.convention_check import ConventionCheck
+from hac_ros.core.bodies.conventions import Conventions
+from hac_ros.core.bodies.human_filter import PersonTracker, RootFilter
+from hac_ros.core.estimate.estimator import RollingScale
+from hac_ros.core.geometry.ground import GroundModel
+from hac_ros.core.geometry.map_shape import PLANE_JUDGE_BODIES, MapShape, plane_problem
+from hac_ros.core.geometry.reference import MapIndex
+from hac_ros.core.person_step import PersonStep
+from hac_ros.core.rules.params import HacParams
+from hac_ros.core.rules.reasons import text as reason_text
+from hac_ros.core.stream.map_book import MapBook
+from hac_ros.core.stream.metric_stage import MetricStage, ScaleAt, StageConfig, finite_scale
+from hac_ros.core.stream.pending import (
     Pending,
     PendingFrame,
     PendingMap,
@@ -37,13 +40,10 @@ from hac_ros.core.pending import (
     PendingStatus,
     Record,
 )
-from hac_ros.core.person_step import PersonStep
-from hac_ros.core.pose_stream import FreezeWatch, Pose, PoseTrack, ZigzagWatch
-from hac_ros.core.reasons import text as reason_text
-from hac_ros.core.reference import MapIndex
-from hac_ros.core.services import ServiceRequests
-from hac_ros.core.stamp_reach import UNMATCHED, StampReach
-from hac_ros.core.timeline import Stamped, Timeline
+from hac_ros.core.stream.pose_stream import FreezeWatch, Pose, PoseTrack, ZigzagWatch
+from hac_ros.core.stream.services import ServiceRequests
+from hac_ros.core.stream.stamp_reach import UNMATCHED, StampReach
+from hac_ros.core.stream.timeline import Stamped, Timeline
 
 GROUND_SHARE_SAMPLES = 30  # recent samples whose sources say whether the ground plane carries
 # resets that keep the map in use, and the ground model: the same SLAM map goes on
@@ -73,10 +73,11 @@ class FrameLoop(PersonStep):
         p = self.params
         self._cos_min = math.cos(math.radians(p.cone_angle_deg))
         self.rejected: Counter[str] = Counter()
-        self.events: Counter[str] = Counter()  # time jumps (hac_ros.core.timeline)
+        self.events: Counter[str] = Counter()  # time jumps (hac_ros.core.stream.timeline)
         self._noticed: set[str] = set()
         self._map_seen = False  # a map was in use for a frame (before: no_map is waiting for it)
-        self.reach = StampReach()  # joints and poses stamped apart (hac_ros.core.stamp_reach)
+        self.reach = StampReach()  # joints and poses stamped apart
+        # (hac_ros.core.stream.stamp_reach)
         self.frames = self.people = self.map_hits = self.ground_fallbacks = self.resets = 0
         self._K: np.ndarray | None = None
         self._image_size = (0, 0)
@@ -89,13 +90,14 @@ class FrameLoop(PersonStep):
         self.conventions = Conventions(p.pose_to_optical, p.hmr_focal_px, self.layout)
         self.check = ConventionCheck()  # warns when the geometry says a convention is wrong
         # what depends on the published scale: the segments' placements, the continuous
-        # odometry, the cloud (hac_ros.core.metric_stage)
+        # odometry, the cloud (hac_ros.core.stream.metric_stage)
         self.metric = MetricStage(StageConfig.from_params(p),
                                   RootFilter(self.layout) if p.human_filter == 'smooth' else None)
 
     def _init_stream(self) -> None:
         """The state of one stream of header time, as at start-up (a jump back in time starts
-        a new one: hac_ros.core.timeline); the counters, the camera and the conventions stay."""
+        a new one: hac_ros.core.stream.timeline); the counters, the camera and the conventions
+        stay."""
         p = self.params
         self.estimator = RollingScale.from_params(p)
         self.ground = GroundModel(p.ground_mode, p.ground_inlier_m, p.ground_ransac_iters, p.seed,
@@ -112,7 +114,7 @@ class FrameLoop(PersonStep):
         self.timeline = Timeline(int(p.time_jump_back_s * NS), int(p.time_jump_ahead_s * NS),
                                  p.reset_confirm_poses)
         self._pending: list[Frame] = []  # sorted by stamp
-        self.maps = MapBook(p)  # waiting, in use (hac_ros.core.map_book)
+        self.maps = MapBook(p)  # waiting, in use (hac_ros.core.stream.map_book)
         self._last_frame_ns = -1
         self._diag_second: int | None = None
         self._segment_starts: str | None = ''  # the cause of a segment starting at the next pose
@@ -177,7 +179,8 @@ class FrameLoop(PersonStep):
                              None if last is None else last.R_wc, self.segment)
 
     def conditions(self) -> dict[str, str]:
-        """What holds now and makes /diagnostics WARN (hac_ros.core.health): reason -> text."""
+        """What holds now and makes /diagnostics WARN (hac_ros.core.rules.health): reason ->
+        text."""
         out = {}
         if self.freeze.holds:
             out['slam_frozen'] = reason_text('slam_frozen')
@@ -304,7 +307,7 @@ class FrameLoop(PersonStep):
     def _activate_map(self, stamp_ns: int, R_wc: np.ndarray, c_map: np.ndarray) -> list[Record]:
         """Make the latest map not after ``stamp_ns`` the current one (the processing order); a
         map that does not overlap the previous one is a SLAM re-initialisation; a plane map that
-        cannot be the floor is refused (hac_ros.core.map_shape; the camera ``R_wc`` (3, 3),
+        cannot be the floor is refused (hac_ros.core.geometry.map_shape; the camera ``R_wc`` (3, 3),
         at ``c_map`` (3,), SLAM units), and a plane map in use is judged once the bodies give
         their axis. A new map that overlaps is measured against the old one along the camera's
         view (MapIndex.rescale_against): the estimator follows a map that changed its scale."""

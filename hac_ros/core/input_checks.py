@@ -3,25 +3,25 @@
 ``calibrate()`` (:mod:`hac_ros.api`) takes arrays, ``hac import`` (:mod:`hac_ros.files`) reads
 them from files; both pass them through these functions, so the same bad array gives the same
 message through both (``test/test_calibrate.py``). Each check raises
-:class:`~hac_ros.core.errors.InputError` as ``'{where}: {what is wrong}'``: ``where`` is how the
-caller names the input (``joints_cam``, or ``joints run/joints.npz: joints``), the rest is the
+:class:`~hac_ros.core.basics.errors.InputError` as ``'{where}: {what is wrong}'``: ``where`` is how
+the caller names the input (``joints_cam``, or ``joints run/joints.npz: joints``), the rest is the
 check's own and says the shape and the unit expected.
 
 - stamps: (N,) seconds, finite ROS times (0 to 2^31 s), strictly increasing; to int64 ns by
   round(t × 1e9) (docs/interface.md, "Conventions");
 - joints: (T, P, K, 3) metres, K the layout's joints per person, no inf (an all-NaN (K, 3) block
   is an absent person), someone in some frame, and bodies the size of a body in metres (the median
-  person's joints spread over 0.3 to 4 m: :func:`hac_ros.core.plausibility.span_problem`, the
-  calibrator's own test: millimetre joints are refused here rather than counted there);
+  person's joints spread over 0.3 to 4 m: :func:`hac_ros.core.geometry.plausibility.span_problem`,
+  the calibrator's own test: millimetre joints are refused here rather than counted there);
 - map points: (M, 3), at least one finite point other than (0, 0, 0).
 """
 from __future__ import annotations
 
 import numpy as np
 
-from hac_ros.core.errors import InputError
-from hac_ros.core.numeric import NS, median_of
-from hac_ros.core.plausibility import body_spans, span_problem
+from hac_ros.core.basics.errors import InputError
+from hac_ros.core.basics.numeric import NS, median_of
+from hac_ros.core.geometry.plausibility import body_spans, span_problem
 
 MAX_STAMP_S = 2.0**31  # builtin_interfaces/Time's sec is an int32; no ROS time is negative
 

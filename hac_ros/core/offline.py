@@ -6,12 +6,12 @@ of its stated limitations change that picture, and the offline mode handles both
 - **SLAM re-initialisation.** A new map has a new scale, so the recording is cut into segments at
   the estimator's resets and each segment gets its own estimate from its own samples only.
 - **A scale that changes within a segment**: a map that changed its scale, a drift, any other
-  shape: hac_ros.core.segment estimates each segment (its weighted median, a straight drift
+  shape: hac_ros.core.estimate.segment estimates each segment (its weighted median, a straight drift
   smoothed, a shape followed), in the unit of the map in use at each moment.
 
 A segment with fewer than ``min_samples`` accepted samples but at least
-:data:`~hac_ros.core.segment.FEW_SAMPLES_MIN` gets its estimate, flagged ``few``; with fewer it
-has none (NaN: nothing metric is published there, as online before convergence).
+:data:`~hac_ros.core.estimate.segment.FEW_SAMPLES_MIN` gets its estimate, flagged ``few``; with
+fewer it has none (NaN: nothing metric is published there, as online before convergence).
 
 Pure numpy: no ROS. Stamps are int nanoseconds; scales are metres per SLAM unit.
 """
@@ -25,16 +25,16 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from hac_ros.core.errors import InputError
-from hac_ros.core.human_filter import smooth_outputs
-from hac_ros.core.metric_stage import MetricStage, ScaleAt, finite_scale
-from hac_ros.core.outputs import MapRescaleOut, Output, ResetOut, SampleOut, Status
-from hac_ros.core.pending import PendingFrame, PendingOdometry, Record
-from hac_ros.core.segment import SegmentScale, segment_scale
+from hac_ros.core.basics.errors import InputError
+from hac_ros.core.basics.outputs import MapRescaleOut, Output, ResetOut, SampleOut, Status
+from hac_ros.core.bodies.human_filter import smooth_outputs
+from hac_ros.core.estimate.segment import SegmentScale, segment_scale
+from hac_ros.core.stream.metric_stage import MetricStage, ScaleAt, finite_scale
+from hac_ros.core.stream.pending import PendingFrame, PendingOdometry, Record
 
 if TYPE_CHECKING:
     from hac_ros.core.calibrator import Calibrator
-    from hac_ros.core.plane import Plane
+    from hac_ros.core.geometry.plane import Plane
 
 class OfflineScale:
     """stamp_ns -> scale for a whole recording: the segment of the stamp, then its schedule.
@@ -95,7 +95,7 @@ def offline_scale(sample_stamps_ns: np.ndarray, sample_scales: np.ndarray,
     starts a new segment); window_s: the online window, stamp seconds (the rolling median that
     measures the noise is centred and as long); min_samples: samples a segment needs to be
     more than ``few``; rescales: (stamp ns, new over old scale, stamp of the map before) of the
-    maps that changed their scale (:class:`~hac_ros.core.outputs.MapRescaleOut`).
+    maps that changed their scale (:class:`~hac_ros.core.basics.outputs.MapRescaleOut`).
     """
     stamps = np.asarray(sample_stamps_ns, dtype=np.int64).reshape(-1)
     scales = np.asarray(sample_scales, dtype=np.float64).reshape(-1)

@@ -1,7 +1,8 @@
 """One person's scale sample inside the frame loop (docs/method.md, steps 1-5): the person's
-joints judged (seen, in metres, in front, the contact seen, standing: hac_ros.core.person_checks),
-the votes for down and the convention checks they feed, the sample against the map or the floor
-(hac_ros.core.sample), the floor's re-lock, and the bookkeeping (counts, the estimator, the
+joints judged (seen, in metres, in front, the contact seen, standing:
+hac_ros.core.bodies.person_checks), the votes for down and the convention checks they feed, the
+sample against the map or the floor
+(hac_ros.core.bodies.sample), the floor's re-lock, and the bookkeeping (counts, the estimator, the
 ground model's contacts).
 
 :class:`PersonStep` is a part of :class:`hac_ros.core.frame_loop.FrameLoop`, kept apart so that
@@ -16,20 +17,20 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from hac_ros.core.convention_check import ConventionCheck
-from hac_ros.core.estimator import RollingScale
-from hac_ros.core.ground import GroundModel
+from hac_ros.core.basics.outputs import NoticeOut, SampleOut
+from hac_ros.core.bodies.convention_check import ConventionCheck
+from hac_ros.core.bodies.person_checks import BODY_CHECKS, JOINT_CHECKS, Person, refusal
+from hac_ros.core.bodies.sample import Scene, person_sample
+from hac_ros.core.estimate.estimator import RollingScale
+from hac_ros.core.geometry.ground import GroundModel
 from hac_ros.core.layouts import JointLayout
-from hac_ros.core.map_book import MapBook
-from hac_ros.core.outputs import NoticeOut, SampleOut
-from hac_ros.core.params import HacParams
-from hac_ros.core.pending import Record
-from hac_ros.core.person_checks import BODY_CHECKS, JOINT_CHECKS, Person, refusal
-from hac_ros.core.sample import Scene, person_sample
-from hac_ros.core.services import ServiceRequests
+from hac_ros.core.rules.params import HacParams
+from hac_ros.core.stream.map_book import MapBook
+from hac_ros.core.stream.pending import Record
+from hac_ros.core.stream.services import ServiceRequests
 
 if TYPE_CHECKING:
-    from hac_ros.core.reference import MapIndex
+    from hac_ros.core.geometry.reference import MapIndex
 
 STATIC_TURN_DEG = 1.0  # a fixed camera's floor turned by more: the estimate restarts
 
@@ -64,11 +65,12 @@ class PersonStep:
 
     def _person(self, stamp: int, person: int, R_wc: np.ndarray, c_map: np.ndarray,
                 joints: np.ndarray, followed: int = -1) -> list[Record]:
-        """One person's scale sample (docs/method.md, steps 1–5; hac_ros.core.sample) and its
+        """One person's scale sample (docs/method.md, steps 1–5; hac_ros.core.bodies.sample) and its
         bookkeeping; ``followed``: who they are across frames (a fixed camera without a map:
         their contacts refine the floor's normal person by person), -1 unknown."""
         self.people += 1
-        # NaN joints are not seen (docs/inputs.md); the checks in order (hac_ros.core.person_checks)
+        # NaN joints are not seen (docs/inputs.md); the checks in order
+        # (hac_ros.core.bodies.person_checks)
         body = Person(self.layout, joints, self.params.contact_mode)
         refused = refusal(JOINT_CHECKS, body)
         if refused:
@@ -146,7 +148,8 @@ class PersonStep:
     def _vote_down(self, stamp: int, R_wc: np.ndarray, c_map: np.ndarray, joints: np.ndarray,
                    up_cam: np.ndarray) -> list[Record]:
         """Every person (standing or not) tells which way is down while the scene has not said
-        (hac_ros.core.down_vote); when it says that down is along the bodies' up (people on their
+        (hac_ros.core.geometry.down_vote); when it says that down is along the bodies' up (people
+        on their
         hands), the samples taken with the bodies' own down are dropped."""
         up_norm = float(np.linalg.norm(up_cam))
         if not (self.ground.down.wanted and self.map is not None and math.isfinite(up_norm)

@@ -28,11 +28,11 @@ from typing import Any
 
 import numpy as np
 
+from hac_ros.core.basics.outputs import HumanJointsOut, OdometryOut, Output, PoseOut, ScaleOut
 from hac_ros.core.calibrator import Calibrator
 from hac_ros.core.layouts import BUILT_IN
 from hac_ros.core.offline import resolve_offline
-from hac_ros.core.outputs import HumanJointsOut, OdometryOut, Output, PoseOut, ScaleOut
-from hac_ros.core.params import HacParams
+from hac_ros.core.rules.params import HacParams
 from hac_ros.evaluation import metrics
 from hac_ros.recording.reader import Recording
 from hac_ros.recording.tracks import (

@@ -1,6 +1,6 @@
 """The field's metrics (docs/interface.md, "Metrics"), pure numpy; the alignments by
-:mod:`hac_ros.core.similarity` (Umeyama). The human metrics
-follow the evaluation code of TRAM/WHAM, which takes them from SLAHMR: ``first_align_joints``
+:mod:`hac_ros.core.basics.similarity` (Umeyama). The human metrics follow the evaluation code of
+TRAM/WHAM, which takes them from SLAHMR: ``first_align_joints``
 (W-MPJPE), ``global_align_joints`` (WA-MPJPE), ``compute_rte`` (RTE) and the per-frame Procrustes
 of ``batch_compute_similarity_transform`` (PA-MPJPE). Positions in metres in; errors out in the
 unit each function names.
@@ -11,9 +11,9 @@ import math
 
 import numpy as np
 
-from hac_ros.core.errors import InputError
-from hac_ros.core.numeric import NS
-from hac_ros.core.similarity import apply_sim3, umeyama
+from hac_ros.core.basics.errors import InputError
+from hac_ros.core.basics.numeric import NS
+from hac_ros.core.basics.similarity import apply_sim3, umeyama
 
 M_TO_MM = 1000.0
 CHUNK_FRAMES = 100  # TRAM/WHAM: W-MPJPE and WA-MPJPE over 100-frame chunks

@@ -25,10 +25,10 @@ from typing import Any
 
 import numpy as np
 
-from hac_ros.core.errors import HacError
+from hac_ros.core.basics.errors import HacError
+from hac_ros.core.basics.numeric import NS
 from hac_ros.core.layouts import SMPL24, JointLayout
-from hac_ros.core.numeric import NS
-from hac_ros.core.params import POSE_MSGTYPES
+from hac_ros.core.rules.params import POSE_MSGTYPES
 from hac_ros.evaluation.evaluate import match, person_tracks
 from hac_ros.recording.atomic import signals_held
 from hac_ros.recording.reader import Recording
@@ -91,7 +91,7 @@ def se3_fit(run: Replayed, truth: Truth) -> tuple[np.ndarray, np.ndarray] | None
     Fitted on the matched camera centres and the matched people's joints together: a camera
     moving along a straight line alone leaves the rotation about that line undetermined.
     """
-    from hac_ros.core.similarity import umeyama
+    from hac_ros.core.basics.similarity import umeyama
 
     src, dst = [], []
     if truth.camera is not None and len(run.camera):

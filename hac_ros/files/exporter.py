@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hac_ros.core.errors import ArgumentError, HacError
+from hac_ros.core.basics.errors import ArgumentError, HacError
 from hac_ros.core.layouts import joints_per_person
 from hac_ros.files.tum import rotations_to_quats
 from hac_ros.recording.atomic import staged_output

@@ -39,12 +39,12 @@ from typing import Any
 import numpy as np
 
 from hac_ros.core import input_checks as checks
-from hac_ros.core.errors import ArgumentText, HacError, InputError
+from hac_ros.core.basics.errors import ArgumentText, HacError, InputError
+from hac_ros.core.basics.numeric import NS
+from hac_ros.core.basics.similarity import umeyama
+from hac_ros.core.geometry.plausibility import body_spans
 from hac_ros.core.layouts import BUILT_IN, SMPL24, joints_per_person, names_text
-from hac_ros.core.numeric import NS
-from hac_ros.core.params import NODE_NAME, HacParams
-from hac_ros.core.plausibility import body_spans
-from hac_ros.core.similarity import umeyama
+from hac_ros.core.rules.params import NODE_NAME, HacParams
 from hac_ros.files.map_files import read_map
 from hac_ros.files.readers import (
     Joints,
@@ -141,7 +141,7 @@ def _fit_scale(traj: Trajectory, gt: Trajectory, max_gap_ns: int
 
 def check_joints(traj: Trajectory, hmr: Joints, params: HacParams) -> list[str]:
     """The joints as the calibrator will judge them: InputError when they are not metres (the
-    median body's spread, hac_ros.core.plausibility) or share no time with the trajectory;
+    median body's spread, hac_ros.core.geometry.plausibility) or share no time with the trajectory;
     warnings for a few such bodies and for stamps the replay will find no pose for."""
     warnings = []
     odd = checks.joints_unit(hmr.joints, f'joints {hmr.path}: joints')  # as calibrate() does

@@ -11,8 +11,9 @@ chosen by the file name's ending:
 - ``.npy``: one (N, 3) numeric array (no pickles).
 - anything else: text, ``x y z`` per line (commas allowed; ``#`` comments and blank lines skipped).
 
-Read with numpy alone (no plyfile). Every problem raises :class:`~hac_ros.core.errors.InputError`
-naming the file: a missing file, a garbage or truncated header, fewer vertex bytes or lines than the
+Read with numpy alone (no plyfile). Every problem raises
+:class:`~hac_ros.core.basics.errors.InputError` naming the file: a missing file, a garbage or
+truncated header, fewer vertex bytes or lines than the
 header announces, missing x/y/z, a wrong shape.
 """
 from __future__ import annotations
@@ -21,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hac_ros.core.errors import InputError
+from hac_ros.core.basics.errors import InputError
 from hac_ros.files.readers import existing_file
 
 PLY_TYPES = {  # PLY scalar type names (both spellings) -> numpy type without byte order

@@ -35,9 +35,9 @@ from typing import Any
 
 import yaml
 
-from hac_ros.core.errors import ParameterError
-from hac_ros.core.params import NODE_NAME, HacParams, names
-from hac_ros.core.printable import printable
+from hac_ros.core.basics.errors import ParameterError
+from hac_ros.core.basics.printable import printable
+from hac_ros.core.rules.params import NODE_NAME, HacParams, names
 
 PARAMETERS_KEY = 'ros__parameters'
 # Parameters every ROS 2 node has (or that ROS reads for it): accepted, not hac_ros'

@@ -3,7 +3,8 @@
 Every stamp becomes integer nanoseconds by ``round(t × 1e9)`` of the float seconds (the TUM text
 parsed as a float64, the ``.npz`` stamps as stored), the same rule for every file, so that a joints
 stamp written from the same float as a trajectory stamp gives the same nanoseconds. Every problem
-raises :class:`~hac_ros.core.errors.InputError` naming the file (and the line) and the problem.
+raises :class:`~hac_ros.core.basics.errors.InputError` naming the file (and the line) and the
+problem.
 """
 from __future__ import annotations
 
@@ -15,8 +16,8 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from hac_ros.core import input_checks as checks
-from hac_ros.core.errors import ArgumentError, InputError
-from hac_ros.core.numeric import NS
+from hac_ros.core.basics.errors import ArgumentError, InputError
+from hac_ros.core.basics.numeric import NS
 from hac_ros.files.tum import tum_rows
 
 

@@ -12,15 +12,16 @@ from typing import Any
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from hac_ros.core.errors import InputError
-from hac_ros.core.numeric import NS
+from hac_ros.core.basics.errors import InputError
+from hac_ros.core.basics.numeric import NS
 from hac_ros.recording.reader import GT_CAMERA
 from hac_ros.recording.tracks import read_camera
 
 
 def tum_rows(path: str | Path, what: str = 'TUM file') -> Iterator[tuple[int, list[str]]]:
     """(line number, the 8 fields) of every pose line; '#' lines and blanks skipped, commas allowed
-    between values. :class:`~hac_ros.core.errors.InputError` naming the file and line otherwise."""
+    between values. :class:`~hac_ros.core.basics.errors.InputError` naming the file and line
+    otherwise."""
     try:
         lines = Path(path).read_text(encoding='utf-8').splitlines()
     except (OSError, UnicodeDecodeError) as exc:

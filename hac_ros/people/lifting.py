@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from hac_ros.core.errors import InputError
+from hac_ros.core.basics.errors import InputError
 
 PLUMB_BOB, RATIONAL_POLYNOMIAL = 'plumb_bob', 'rational_polynomial'
 DISTORTION_MODELS = (PLUMB_BOB, RATIONAL_POLYNOMIAL, '')  # '': none

@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from hac_ros.core.errors import InputError
+from hac_ros.core.basics.errors import InputError
 from hac_ros.people.extra import native_logs_to, require, shipped_models
 from hac_ros.people.params import PeopleParams
 

@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from hac_ros.core.errors import ArgumentError, HacError, InputError
+from hac_ros.core.basics.errors import ArgumentError, HacError, InputError
 from hac_ros.core.layouts.blazepose33 import LAYOUT
 from hac_ros.people.extra import require
 from hac_ros.people.frontend import PeopleFromImages, size_matches

@@ -1,14 +1,14 @@
 """The parameters of ``hac_people_node`` (docs/people.md, "Parameters"); ``hac people`` takes the
 model's among them as options. Pure Python; the machinery (fields, checks, copies) is the core's
-(:mod:`hac_ros.core.param_fields`).
+(:mod:`hac_ros.core.basics.param_fields`).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 from typing import Any
 
-from hac_ros.core.param_fields import ParamSet
-from hac_ros.core.param_fields import param as _p  # short: the fields below align on it
+from hac_ros.core.basics.param_fields import ParamSet
+from hac_ros.core.basics.param_fields import param as _p  # short: the fields below align on it
 
 NODE_NAME = 'hac_people_node'
 IMAGE_TRANSPORTS = ('raw', 'compressed')

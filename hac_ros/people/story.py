@@ -11,8 +11,9 @@ log"), as hac_node's does (:mod:`hac_ros.ros.story`):
   coming back.
 
 Every string that came from outside (topic names, encodings) is escaped
-(:func:`hac_ros.core.printable.printable`). Calls come from the executor's thread (:meth:`image`,
-:meth:`tick`, :meth:`camera_info`) and from the processing thread (:meth:`people`); each line is
+(:func:`hac_ros.core.basics.printable.printable`). Calls come from the executor's thread
+(:meth:`image`, :meth:`tick`, :meth:`camera_info`) and from the processing thread (:meth:`people`);
+each line is
 written whole.
 """
 from __future__ import annotations
@@ -23,8 +24,8 @@ from typing import Any
 
 import numpy as np
 
-from hac_ros.core.numeric import NS
-from hac_ros.core.printable import printable
+from hac_ros.core.basics.numeric import NS
+from hac_ros.core.basics.printable import printable
 from hac_ros.people.lifting import Camera
 
 

@@ -6,5 +6,5 @@ Everything that reads or writes a recording goes through here (``hac replay``, `
 rosbag2 recording, :class:`~hac_ros.recording.atomic.staged_output` makes any output appear
 atomically, and the ``read_*`` functions turn topics into numpy tracks (header stamps as int
 nanoseconds; every array's frame and unit in its docstring). Errors a user can fix raise
-:class:`~hac_ros.core.errors.HacError`.
+:class:`~hac_ros.core.basics.errors.HacError`.
 """

@@ -25,7 +25,7 @@ from pathlib import Path
 from types import FrameType, TracebackType
 from typing import Any
 
-from hac_ros.core.errors import HacError
+from hac_ros.core.basics.errors import HacError
 
 # the signals that end a command (hac_ros.cli) and that signals_held holds back
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)

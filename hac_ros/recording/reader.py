@@ -11,9 +11,9 @@ import yaml
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
 
-from hac_ros.core.errors import ArgumentError, HacError
+from hac_ros.core.basics.errors import ArgumentError, HacError
+from hac_ros.core.basics.printable import first_line, printable
 from hac_ros.core.layouts import BUILT_IN, SMPL24, JointLayout
-from hac_ros.core.printable import first_line, printable
 
 GT_CAMERA = ('/gt/camera_pose', 'geometry_msgs/msg/PoseStamped')
 

@@ -20,8 +20,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import BinaryIO
 
-from hac_ros.core.errors import HacError
-from hac_ros.core.printable import first_line
+from hac_ros.core.basics.errors import HacError
+from hac_ros.core.basics.printable import first_line
 from hac_ros.recording.atomic import staged_output
 
 MAGIC = b'\x89MCAP0\r\n'

@@ -16,7 +16,7 @@ from hac_ros.bridge.messages import (
     SCALE,
 )
 from hac_ros.bridge.topics import in_root
-from hac_ros.core.errors import HacError
+from hac_ros.core.basics.errors import HacError
 from hac_ros.core.layouts import SMPL24, JointLayout
 from hac_ros.recording.reader import GT_CAMERA, GT_JOINTS, GT_SCALE, Recording
 from msg_adapters import MessageError, pose_array_to_joints, pose_msg_to_rt, stamp_to_ns

@@ -17,7 +17,7 @@ from rosbags.interfaces import (
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
-from hac_ros.core.errors import HacError
+from hac_ros.core.basics.errors import HacError
 from hac_ros.recording.reader import STORAGES
 
 

@@ -25,11 +25,11 @@ from hac_ros.bridge.inputs import (
 )
 from hac_ros.bridge.messages import INPUT_MSGTYPES
 from hac_ros.bridge.topics import in_root
+from hac_ros.core.basics.errors import ArgumentError, HacError
+from hac_ros.core.basics.outputs import Output
 from hac_ros.core.calibrator import Calibrator
-from hac_ros.core.errors import ArgumentError, HacError
-from hac_ros.core.outputs import Output
-from hac_ros.core.params import POSE_MSGTYPES, HacParams
-from hac_ros.core.tf_tree import TfPoses
+from hac_ros.core.rules.params import POSE_MSGTYPES, HacParams
+from hac_ros.core.stream.tf_tree import TfPoses
 from hac_ros.progress import ProgressBar
 from hac_ros.recording.reader import Recording
 from msg_adapters import MessageError, parse_cloud_cdr

@@ -9,7 +9,7 @@ Modes (docs/replay.md):
 
 - ``online``: what the node publishes, frame by frame (causal).
 - ``offline`` (default): one run of the calibrator with its metric outputs deferred
-  (:mod:`hac_ros.core.metric_stage`) keeps its accepted samples and its resets;
+  (:mod:`hac_ros.core.stream.metric_stage`) keeps its accepted samples and its resets;
   :mod:`hac_ros.core.offline` turns them into a stamp -> scale schedule per segment (the median,
   or the smoothed scale where the samples give evidence of drift); the deferred outputs are then
   resolved with
@@ -35,11 +35,9 @@ import numpy as np
 
 from hac_ros.bridge.messages import Message, OutputMessages, samples_message
 from hac_ros.bridge.topics import SAMPLES, TOPICS, in_root
-from hac_ros.core.calibrator import Calibrator
-from hac_ros.core.errors import ArgumentError
-from hac_ros.core.numeric import NS
-from hac_ros.core.offline import OfflineScale, resolve_offline
-from hac_ros.core.outputs import (
+from hac_ros.core.basics.errors import ArgumentError
+from hac_ros.core.basics.numeric import NS
+from hac_ros.core.basics.outputs import (
     DiagnosticsOut,
     NoticeOut,
     Output,
@@ -49,12 +47,14 @@ from hac_ros.core.outputs import (
     ScaleOut,
     Status,
 )
-from hac_ros.core.params import HacParams
-from hac_ros.core.printable import printable
-from hac_ros.core.reasons import refusals_behind
-from hac_ros.core.reasons import text as reason_text
-from hac_ros.core.segment import SegmentScale, drift_text
-from hac_ros.core.status_shares import StatusShares
+from hac_ros.core.basics.printable import printable
+from hac_ros.core.calibrator import Calibrator
+from hac_ros.core.estimate.segment import SegmentScale, drift_text
+from hac_ros.core.offline import OfflineScale, resolve_offline
+from hac_ros.core.rules.params import HacParams
+from hac_ros.core.rules.reasons import refusals_behind
+from hac_ros.core.rules.reasons import text as reason_text
+from hac_ros.core.rules.status_shares import StatusShares
 from hac_ros.files.tum import write_tum_exports
 from hac_ros.progress import Progress, ProgressBar, progress_pass
 from hac_ros.recording.atomic import staged_output

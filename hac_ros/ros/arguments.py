@@ -26,9 +26,9 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.signals import SignalHandlerOptions
 
 from hac_ros.bridge.topics import names_line
-from hac_ros.core.errors import HacError, ParameterError
-from hac_ros.core.params import NODE_NAME
-from hac_ros.core.printable import printable
+from hac_ros.core.basics.errors import HacError, ParameterError
+from hac_ros.core.basics.printable import printable
+from hac_ros.core.rules.params import NODE_NAME
 from hac_ros.files.params_file import check_params_file
 
 ROS_ARGS, ROS_ARGS_END, PARAMS_FILE = '--ros-args', '--', '--params-file'

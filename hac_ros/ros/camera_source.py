@@ -14,9 +14,9 @@ from typing import Any
 
 import numpy as np
 
-from hac_ros.core.errors import ArgumentError, HacError, InputError
-from hac_ros.core.numeric import NS
-from hac_ros.core.printable import printable
+from hac_ros.core.basics.errors import ArgumentError, HacError, InputError
+from hac_ros.core.basics.numeric import NS
+from hac_ros.core.basics.printable import printable
 from msg_adapters import rclpy_types
 
 # a video or a folder of images, played as a camera (CameraFrames)

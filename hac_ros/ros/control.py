@@ -20,11 +20,11 @@ from rcl_interfaces.msg import SetParametersResult
 from rclpy.parameter import Parameter
 
 from hac_ros.bridge.messages import OutputMessages
+from hac_ros.core.basics.errors import ParameterError
+from hac_ros.core.basics.outputs import Output
+from hac_ros.core.basics.printable import printable
 from hac_ros.core.calibrator import Calibrator
-from hac_ros.core.errors import ParameterError
-from hac_ros.core.outputs import Output
-from hac_ros.core.params import HacParams
-from hac_ros.core.printable import printable
+from hac_ros.core.rules.params import HacParams
 from hac_ros.ros.intake import Inbox
 from hac_ros.ros.map_intake import MapIntake
 from hac_ros.ros.parameters import judge_change, our_values

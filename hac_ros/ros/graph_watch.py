@@ -26,9 +26,9 @@ from typing import Any
 from rclpy.qos import qos_policy_name_from_kind
 
 from hac_ros.bridge.messages import input_msgtype
-from hac_ros.core.health import Finding
-from hac_ros.core.params import POSE_MSGTYPES
-from hac_ros.core.printable import printable
+from hac_ros.core.basics.printable import printable
+from hac_ros.core.rules.health import Finding
+from hac_ros.core.rules.params import POSE_MSGTYPES
 from hac_ros.ros.qos import qos_hint
 
 GRAPH_CHECK_S = 2.0  # wall seconds between checks of the input topics' publisher types

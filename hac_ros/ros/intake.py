@@ -59,7 +59,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from hac_ros.core.numeric import NS
+from hac_ros.core.basics.numeric import NS
 from hac_ros.ros.liveness import LoadStats
 
 COST_FRAMES = 31  # recent joints frames whose processing time gives the cost of a frame (median)

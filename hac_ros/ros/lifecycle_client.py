@@ -15,8 +15,8 @@ import time
 from dataclasses import dataclass
 from typing import Any
 
-from hac_ros.core.errors import ArgumentError, HacError
-from hac_ros.core.printable import printable
+from hac_ros.core.basics.errors import ArgumentError, HacError
+from hac_ros.core.basics.printable import printable
 
 TRANSITIONS = ('configure', 'activate', 'deactivate', 'cleanup', 'shutdown')
 # lifecycle_msgs' transition labels, and the state each leads to when it succeeds

@@ -28,9 +28,9 @@ from typing import Any
 
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 
-from hac_ros.core.errors import ParameterError
-from hac_ros.core.params import NODE_NAME
-from hac_ros.core.printable import printable
+from hac_ros.core.basics.errors import ParameterError
+from hac_ros.core.basics.printable import printable
+from hac_ros.core.rules.params import NODE_NAME
 from hac_ros.ros.arguments import run
 from hac_ros.ros.node import HacShell
 

@@ -26,11 +26,11 @@ from pathlib import Path
 from typing import Any
 
 from hac_ros.bridge.topics import DIAGNOSTICS, NODE_TOPICS, SCALE
-from hac_ros.core.errors import HacError
-from hac_ros.core.numeric import NS
-from hac_ros.core.outputs import Status
-from hac_ros.core.params import NODE_NAME
-from hac_ros.core.status_shares import StatusShares
+from hac_ros.core.basics.errors import HacError
+from hac_ros.core.basics.numeric import NS
+from hac_ros.core.basics.outputs import Status
+from hac_ros.core.rules.params import NODE_NAME
+from hac_ros.core.rules.status_shares import StatusShares
 from hac_ros.files.params_file import check_params_file
 from hac_ros.ros.liveness import STEADY_CLOCK_REASONS
 

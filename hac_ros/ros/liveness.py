@@ -4,8 +4,8 @@ which input stopped coming (wall clock, the node's own).
 :class:`LoadStats` keeps the latency from arrival to processed of the recent joints frames and
 the largest backlog; :class:`Liveness` turns them, the lag (now minus the arrival of the oldest
 input not yet processed, poses included: :meth:`hac_ros.ros.intake.Inbox.oldest_arrival_s`) and
-the arrival times of each kind of input into findings (:mod:`hac_ros.core.health`). Wall time is
-only used here, for the node's log and for its stale-input status (the documented exception to
+the arrival times of each kind of input into findings (:mod:`hac_ros.core.rules.health`). Wall time
+is only used here, for the node's log and for its stale-input status (the documented exception to
 stamp time).
 """
 from __future__ import annotations
@@ -14,8 +14,8 @@ import threading
 import time
 from collections import deque
 
-from hac_ros.core.health import STALE, WARN, Finding
-from hac_ros.core.params import HacParams
+from hac_ros.core.rules.health import STALE, WARN, Finding
+from hac_ros.core.rules.params import HacParams
 
 # the reasons of the statuses the node's steady-clock timer republishes (Liveness.stale)
 NO_INPUT, NO_STATUS = 'no_input', 'no_status'
@@ -70,8 +70,8 @@ class Liveness:
 
     def findings(self, p: HacParams, lag_s: float = 0.0
                  ) -> tuple[list[Finding], list[tuple[str, str]]]:
-        """The findings (hac_ros.core.health) and key-values added to each status: behind by more
-        than ``latency_warn_s`` (``lag_s``: now minus the arrival of the oldest input not yet
+        """The findings (hac_ros.core.rules.health) and key-values added to each status: behind by
+        more than ``latency_warn_s`` (``lag_s``: now minus the arrival of the oldest input not yet
         processed; or the p99 of the recent joints frames), a backlog at ``joints_backlog_max``,
         one kind of input silent for ``stale_after_s`` while the other comes."""
         p50, p99, backlog = self.load.report()

@@ -15,7 +15,7 @@ from collections.abc import Callable
 from concurrent.futures import Future
 
 from hac_ros.bridge.inputs import IndexBuilder, MapBuilder, MapBuilt
-from hac_ros.core.reference import MapIndex
+from hac_ros.core.geometry.reference import MapIndex
 from hac_ros.ros.intake import Inbox
 from msg_adapters import MessageError, RawCloud, parse_cloud_cdr
 

@@ -17,8 +17,9 @@ what the replay's feed gives it. Map clouds are decoded and indexed on a thread 
 handed over**, the other place where the node may differ from ``hac replay``, which always has
 the map at its stamp. Output serializers are made at configure (:mod:`hac_ros.ros.warm`).
 
-Status. ``/diagnostics`` follows stamp time as in the replay (:mod:`hac_ros.core.health`), with
-what only the node knows added (:mod:`hac_ros.ros.liveness`): how far behind it is, its backlog,
+Status. ``/diagnostics`` follows stamp time as in the replay (:mod:`hac_ros.core.rules.health`),
+with what only the node knows added (:mod:`hac_ros.ros.liveness`): how far behind it is, its
+backlog,
 and warnings when one kind of input stopped coming. A timer on the steady clock (it runs under
 ``use_sim_time`` without ``/clock`` too, as the input-type check does) publishes STALE when no
 input at all has come for ``stale_after_s``: a last OK never stands for a live status. The log
@@ -52,9 +53,7 @@ from rclpy.serialization import deserialize_message
 
 from hac_ros.bridge.inputs import add_camera_info_msg, add_joints_msg, add_pose_msg
 from hac_ros.bridge.messages import DIAGNOSTICS, OUTPUT_TOPICS, OutputMessages, input_msgtype
-from hac_ros.core.calibrator import Calibrator
-from hac_ros.core.health import Finding
-from hac_ros.core.outputs import (
+from hac_ros.core.basics.outputs import (
     DiagnosticsOut,
     NoticeOut,
     OdometryOut,
@@ -63,10 +62,12 @@ from hac_ros.core.outputs import (
     ResetOut,
     ScaleOut,
 )
-from hac_ros.core.params import NODE_NAME, POSE_MSGTYPES, HacParams, names
-from hac_ros.core.printable import printable, printable_lines
-from hac_ros.core.reasons import REASONS
-from hac_ros.core.reference import MapIndex
+from hac_ros.core.basics.printable import printable, printable_lines
+from hac_ros.core.calibrator import Calibrator
+from hac_ros.core.geometry.reference import MapIndex
+from hac_ros.core.rules.health import Finding
+from hac_ros.core.rules.params import NODE_NAME, POSE_MSGTYPES, HacParams, names
+from hac_ros.core.rules.reasons import REASONS
 from hac_ros.ros.arguments import run
 from hac_ros.ros.control import RuntimeControl
 from hac_ros.ros.graph_watch import GRAPH_CHECK_S, NAME_CHECK_S, GraphWatch, NameWatch
@@ -405,7 +406,7 @@ class HacShell(RuntimeControl):
 
     def _log_notice(self, notice: NoticeOut) -> None:
         """A notice at its level, escaped; a warning ends with what to do about its reason
-        (hac_ros.core.reasons) unless it already says so."""
+        (hac_ros.core.rules.reasons) unless it already says so."""
         self.notices[notice.cause] += 1
         text = printable(notice.text)
         remedy = REASONS[notice.cause].remedy if notice.cause in REASONS else ''

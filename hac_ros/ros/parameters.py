@@ -1,6 +1,6 @@
 """The node's parameters as ROS sees them: descriptors, what a runtime change does, the docs table.
 
-The values, defaults, ranges and validation are :class:`hac_ros.core.params.HacParams`'; this
+The values, defaults, ranges and validation are :class:`hac_ros.core.rules.params.HacParams`'; this
 module adds what only the ROS node needs: a ``ParameterDescriptor`` per field (type, range,
 choices, the runtime note), which parameters re-subscribe or rebuild the estimator when changed at
 runtime, how a node declares them, what it warns about at start-up, and the markdown table of
@@ -13,9 +13,9 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from hac_ros.core.errors import ParameterError
-from hac_ros.core.param_fields import lengths_text
-from hac_ros.core.params import HacParams, describe, names
+from hac_ros.core.basics.errors import ParameterError
+from hac_ros.core.basics.param_fields import lengths_text
+from hac_ros.core.rules.params import HacParams, describe, names
 from hac_ros.files.params_file import (
     ROS_OWN_PARAMETERS,
     ROS_OWN_PREFIXES,

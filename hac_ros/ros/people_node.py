@@ -31,7 +31,7 @@ from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from hac_ros.core.errors import InputError
+from hac_ros.core.basics.errors import InputError
 from hac_ros.people import extra
 from hac_ros.people.arguments import USAGE
 from hac_ros.people.frontend import PeopleFromImages, size_matches

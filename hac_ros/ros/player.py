@@ -50,10 +50,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from hac_ros.core.errors import ArgumentError, HacError, ParameterError
-from hac_ros.core.numeric import NS
-from hac_ros.core.params import POSE_MSGTYPES
-from hac_ros.core.printable import printable
+from hac_ros.core.basics.errors import ArgumentError, HacError, ParameterError
+from hac_ros.core.basics.numeric import NS
+from hac_ros.core.basics.printable import printable
+from hac_ros.core.rules.params import POSE_MSGTYPES
 from hac_ros.recording.reader import Recording
 from hac_ros.replay.feeder import tie_ordered
 from hac_ros.ros.camera_source import (

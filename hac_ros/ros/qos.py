@@ -5,7 +5,7 @@ from __future__ import annotations
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from hac_ros.bridge.topics import BY_NAME, qos_rows
-from hac_ros.core.params import HacParams
+from hac_ros.core.rules.params import HacParams
 
 INPUT_DEPTH = 100  # joints/camera_info kept per subscription: > 3 s at 30 Hz, absorbs bursts
 POSE_DEPTH = 1000  # SLAM poses: 1 s at 1 kHz (a message costs the executor ~0.1 ms to take)

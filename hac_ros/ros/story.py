@@ -14,7 +14,7 @@
   processed + dropped + waiting) and the poses coalesced.
 
 Every string that came from outside (topic names, frame ids, type names) is escaped
-(:func:`hac_ros.core.printable.printable`) before it reaches the log. The calls come from the
+(:func:`hac_ros.core.basics.printable.printable`) before it reaches the log. The calls come from the
 executor's thread (:meth:`Story.seen`, :meth:`Story.tick`) and from the processing thread (the
 rest); each line is written whole.
 """
@@ -26,10 +26,10 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from hac_ros.core.health import LEVEL_NAMES, Health, HealthMonitor
-from hac_ros.core.numeric import NS
-from hac_ros.core.outputs import Status
-from hac_ros.core.printable import printable
+from hac_ros.core.basics.numeric import NS
+from hac_ros.core.basics.outputs import Status
+from hac_ros.core.basics.printable import printable
+from hac_ros.core.rules.health import LEVEL_NAMES, Health, HealthMonitor
 from hac_ros.ros.intake import Inbox
 
 FIRST_SEEN_S = 2.0  # an input's rate is given after this long (wall seconds since its first)

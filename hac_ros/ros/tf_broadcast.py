@@ -18,8 +18,8 @@ from typing import Any
 
 import numpy as np
 
-from hac_ros.core.outputs import OdometryOut, PoseOut
-from hac_ros.core.params import HacParams
+from hac_ros.core.basics.outputs import OdometryOut, PoseOut
+from hac_ros.core.rules.params import HacParams
 from msg_adapters import rclpy_types, rt_to_transform_stamped
 
 

@@ -6,7 +6,7 @@ and ``/tf_static`` (with their usual QoS: ``/tf_static`` transient local) and ha
 ``TransformStamped`` to a buffer's ``set_transform`` / ``set_transform_static``; the buffer given
 to it here is :class:`TfPoseInput`, which passes each transform (through the node's inbox, on its
 processing thread, in arrival order with the other inputs) through the same
-:func:`hac_ros.bridge.inputs.add_transform` and :class:`hac_ros.core.tf_tree.TfPoses` as the
+:func:`hac_ros.bridge.inputs.add_transform` and :class:`hac_ros.core.stream.tf_tree.TfPoses` as the
 replay: a pose at the stamp of every message of the SLAM's own transform, rejections counted
 in ``/diagnostics``. A chain through a second dynamic transform is logged as an error (once per
 chain) and counted as ``tf_chain_dynamic``: the node never stops.
@@ -20,12 +20,12 @@ from collections.abc import Callable
 from typing import Any
 
 from hac_ros.bridge.inputs import add_transform
+from hac_ros.core.basics.errors import ParameterError
+from hac_ros.core.basics.outputs import Output
+from hac_ros.core.basics.printable import printable
 from hac_ros.core.calibrator import Calibrator
-from hac_ros.core.errors import ParameterError
-from hac_ros.core.outputs import Output
-from hac_ros.core.params import HacParams
-from hac_ros.core.printable import printable
-from hac_ros.core.tf_tree import TfPoses
+from hac_ros.core.rules.params import HacParams
+from hac_ros.core.stream.tf_tree import TfPoses
 
 TF_MISSING = ('pose_source tf needs tf2_ros, which cannot be imported here ({reason}): install '
               'ROS 2 tf2_ros (apt: ros-jazzy-tf2-ros, then source /opt/ros/jazzy/setup.bash), '

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from hac_ros.bridge.messages import OutputMessages
-from hac_ros.core.outputs import (
+from hac_ros.core.basics.outputs import (
     CloudOut,
     DiagnosticsOut,
     HumanJointsOut,
@@ -25,7 +25,7 @@ from hac_ros.core.outputs import (
     ScaleOut,
     Status,
 )
-from hac_ros.core.params import HacParams
+from hac_ros.core.rules.params import HacParams
 
 
 def warm_outputs(params: HacParams) -> int:

@@ -8,8 +8,8 @@ from __future__ import annotations
 from collections.abc import Iterable, Iterator
 from typing import Any
 
+from hac_ros.core.basics.outputs import Output
 from hac_ros.core.calibrator import Calibrator
-from hac_ros.core.outputs import Output
 
 ORDER = {'map': 0, 'pose': 1, 'joints': 2}
 

@@ -16,8 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-from hac_ros.core.errors import InputError
-from hac_ros.core.printable import printable
+from hac_ros.core.basics.errors import InputError
+from hac_ros.core.basics.printable import printable
 from hac_ros.simulate.world import World
 
 THIGH_M, SHANK_M = 0.41, 0.39

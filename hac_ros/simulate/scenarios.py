@@ -10,9 +10,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from hac_ros.core.errors import HacError
+from hac_ros.core.basics.errors import HacError
+from hac_ros.core.basics.numeric import NS
 from hac_ros.core.layouts import BUILT_IN
-from hac_ros.core.numeric import NS
 from hac_ros.simulate import camera as rigs
 from hac_ros.simulate import motions
 from hac_ros.simulate.hmr import DepthBias, draw_bias, in_view, predict

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from hac_ros.core.errors import HacError
+from hac_ros.core.basics.errors import HacError
 from hac_ros.core.layouts import BUILT_IN, SMPL24
 
 

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from hac_ros.core.numeric import NS
+from hac_ros.core.basics.numeric import NS
 from hac_ros.simulate.camera import project
 from hac_ros.simulate.world import World
 

@@ -18,10 +18,10 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from hac_ros.core.conventions import optical_transform
-from hac_ros.core.errors import HacError
+from hac_ros.core.basics.errors import HacError
+from hac_ros.core.bodies.conventions import optical_transform
 from hac_ros.core.layouts import BUILT_IN
-from hac_ros.core.params import POSE_MSGTYPES
+from hac_ros.core.rules.params import POSE_MSGTYPES
 from hac_ros.recording.atomic import staged_output
 from hac_ros.recording.reader import layout_data
 from hac_ros.recording.writer import OutputWriter

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hac_ros.core.errors import ArgumentError
+from hac_ros.core.basics.errors import ArgumentError
 
 TRACK_WIDTH = 320  # pixels: the width motion is measured at
 CORNERS = 300  # corners tracked from each keyframe

@@ -23,8 +23,8 @@ from typing import Any
 
 import numpy as np
 
-from hac_ros.core.errors import ArgumentError, HacError, InputError
-from hac_ros.core.params import HacParams
+from hac_ros.core.basics.errors import ArgumentError, HacError, InputError
+from hac_ros.core.rules.params import HacParams
 from hac_ros.people.params import PeopleParams
 from hac_ros.progress import Progress
 from hac_ros.recording.atomic import staged_output

@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from hac_ros.core.errors import InputError
+from hac_ros.core.basics.errors import InputError
 from hac_ros.video.extra import require_pycolmap
 
 log = logging.getLogger(__name__)

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hac_ros.core.errors import ArgumentError, InputError
+from hac_ros.core.basics.errors import ArgumentError, InputError
 from hac_ros.people.lifting import Camera
 from hac_ros.people.model import Landmarks, PoseModel
 from hac_ros.people.params import PeopleParams

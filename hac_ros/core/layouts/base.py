@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from hac_ros.core.errors import ParameterError
+from hac_ros.core.basics.errors import ParameterError
 
 # (SMPL-24 joint, (forward, left, up) offset in metres in the person's own frame): where the
 # simulator places one joint of a layout on its SMPL-24 bodies (hac_ros.simulate.skeletons)
