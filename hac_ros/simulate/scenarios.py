@@ -6,6 +6,7 @@ recording writer and the benchmarks use the same :class:`Scenario`.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -136,6 +137,9 @@ def make_scenario(name: str, seed: int = 0, duration: float | None = None, rate:
         raise HacError(f'unknown scenario {name!r}; one of: {", ".join(SCENARIOS)}')
     if rate <= 0 or (duration is not None and duration <= 0):
         raise HacError('rate and duration must be positive')
+    if joint_layout not in simulated_layouts():
+        raise HacError(f'joint layout must be one of {", ".join(simulated_layouts())}, not '
+                       f'{joint_layout!r}')
     rng = np.random.default_rng([seed, SEED_KEYS[name]])
     # the contact heights and the HMR depth process have a generator of their own (adding them
     # left every other draw of a seed as it was)
@@ -156,97 +160,135 @@ def make_scenario(name: str, seed: int = 0, duration: float | None = None, rate:
     _furniture(world)
     scale0 = float(np.exp(rng.uniform(math.log(SCALE_RANGE[0]), math.log(SCALE_RANGE[1]))))
     bias = draw_bias(rng) if hmr_bias is None else float(hmr_bias)
+    # the draws below keep this order: every seed's scenario stays what it was
+    people = _people(name, t, world, walker, rng, body_rng)
+    heights = _contact_heights(name, people, body_rng)
+    if motion is not None:
+        people[0] = motions.load_motion(motion, t)
+        heights[0] = math.nan
+    R_world, c_world = _camera(name, people[0][:, 0], t, rng)
+    scale_fn, segments = _slam_scale(name, T, scale0, rng)
+    K = rigs.K_DEFAULT.copy()
+    landmarks = world.sample_landmarks(LANDMARK_DENSITY, rng)
+    people_per_frame = [np.stack([p[i] for p in people]) for i in range(T)]
+    slam = run_slam(world, landmarks, stamps, R_world, c_world, people_per_frame, K,
+                    (rigs.WIDTH, rigs.HEIGHT), scale_fn, segments, rng)
+    depth_bias = DepthBias(bias, t, body_rng, wander=hmr_bias is None or hmr_bias != 0.0)
+    hmr = _hmr(people, joint_layout, stamps, R_world, c_world, K, depth_bias.values, body_rng)
+    return Scenario(
+        name=name, seed=seed, rate=rate, camera_frame='camera_optical', K=K, width=rigs.WIDTH,
+        height=rigs.HEIGHT, pose_stamps_ns=stamps, slam_R_wc=slam.R_wc, slam_c=slam.c,
+        slam_frame_ids=slam.frame_ids, gt_R_wc=R_world, gt_c=c_world, true_scale=slam.scale,
+        maps=slam.maps, joints_stamps_ns=hmr.stamps_ns, joints_cam=hmr.joints_cam,
+        gt_joints_world=hmr.joints_world, person_ids=hmr.person_ids, hmr_bias=bias,
+        hmr_bias_frames=depth_bias.values, contact_heights=heights,
+        outlier_frames=hmr.outlier_frames, segment_starts=segments,
+        world=world, joint_layout=joint_layout)
 
-    # --- people (world joints per frame) and the camera
-    people: list[np.ndarray]
+
+def _people(name: str, t: np.ndarray, world: World,
+            walker: Callable[..., np.ndarray], rng: np.random.Generator,
+            body_rng: np.random.Generator) -> list[np.ndarray]:
+    """Each person's world joints (T, 24, 3) metres, SMPL order, over the times ``t`` (s); the
+    scenario's furniture added to ``world``; ``walker(path, phase_s)`` walks a path."""
     if name == 'stairs':
         _stairs(world)
-        people = [walker(motions.shuttle_path((-4.0, 0.0), (4.0, 0.0), 1.0))]
-    elif name == 'handstand':
-        people = [motions.handstand(t, motions.circle_path((0.0, 0.0), 2.5, 0.5), world)]
-    elif name == 'skate':
-        people = [motions.skate(t, motions.circle_path((0.0, 0.0), 3.0, 1.5))]
-    elif name == 'occluded':
+        return [walker(motions.shuttle_path((-4.0, 0.0), (4.0, 0.0), 1.0))]
+    if name == 'handstand':
+        return [motions.handstand(t, motions.circle_path((0.0, 0.0), 2.5, 0.5), world)]
+    if name == 'skate':
+        return [motions.skate(t, motions.circle_path((0.0, 0.0), 3.0, 1.5))]
+    if name == 'occluded':
         for k in range(4):  # a row of tables between the camera and the walker
             x0 = -5.0 + 2.6 * k
             world.boxes.append(Box(np.array([x0, -0.3, 0.0]), np.array([x0 + 2.0, 0.9, 0.75]), 1.5))
-        people = [walker(motions.shuttle_path((-4.5, 1.6), (4.5, 1.6), 1.0))]
-    elif name == 'crowd':
-        people = [walker(motions.circle_path((0.0, 0.0), 3.0, 1.1)),
-                  walker(motions.circle_path((0.0, 0.0), 1.8, 0.9, phase=2.0), 0.2),
-                  walker(motions.shuttle_path((-4.0, -4.0), (4.0, -1.0), 1.2), 0.35)]
-    elif name == 'ego':
+        return [walker(motions.shuttle_path((-4.5, 1.6), (4.5, 1.6), 1.0))]
+    if name == 'crowd':
+        return [walker(motions.circle_path((0.0, 0.0), 3.0, 1.1)),
+                walker(motions.circle_path((0.0, 0.0), 1.8, 0.9, phase=2.0), 0.2),
+                walker(motions.shuttle_path((-4.0, -4.0), (4.0, -1.0), 1.2), 0.35)]
+    if name == 'ego':
         world.floor_texture = 0.08  # a plain floor: sparsely mapped
-        people = [walker(motions.circle_path((0.0, 0.0), 3.2, 1.0))]
-    elif name == 'seated':
-        people = [motions.seated(t, (0.0, 0.0), rng.uniform(0, 2 * np.pi), 0.9, body_rng)]
-    elif name == 'lying':
-        people = [motions.lying(t, (0.0, 0.0), rng.uniform(0, 2 * np.pi), 0.45, body_rng)]
-    elif name == 'office':
+        return [walker(motions.circle_path((0.0, 0.0), 3.2, 1.0))]
+    if name == 'seated':
+        return [motions.seated(t, (0.0, 0.0), rng.uniform(0, 2 * np.pi), 0.9, body_rng)]
+    if name == 'lying':
+        return [motions.lying(t, (0.0, 0.0), rng.uniform(0, 2 * np.pi), 0.45, body_rng)]
+    if name == 'office':
         for x0 in (-2.5, 1.5):  # two desks (mapped), their chairs not
             world.boxes.append(Box(np.array([x0, 1.8, 0.0]), np.array([x0 + 1.2, 2.5, 0.75]), 1.5))
-        people = [walker(motions.shuttle_path((-4.0, -0.5), (4.0, -0.5), 1.0)),
-                  walker(motions.shuttle_path((3.5, -2.5), (-3.5, -2.0), 0.8), 0.3),
-                  motions.seated(t, (-1.9, 1.3), np.pi / 2, 0.45, body_rng),
-                  motions.seated(t, (2.1, 1.3), np.pi / 2, 0.45, body_rng)]
-    else:  # walk, drift, reset, static
-        people = [walker(motions.circle_path((0.0, 0.0), 3.0, 1.1))]
+        return [walker(motions.shuttle_path((-4.0, -0.5), (4.0, -0.5), 1.0)),
+                walker(motions.shuttle_path((3.5, -2.5), (-3.5, -2.0), 0.8), 0.3),
+                motions.seated(t, (-1.9, 1.3), np.pi / 2, 0.45, body_rng),
+                motions.seated(t, (2.1, 1.3), np.pi / 2, 0.45, body_rng)]
+    return [walker(motions.circle_path((0.0, 0.0), 3.0, 1.1))]  # walk, drift, reset, static
+
+
+def _contact_heights(name: str, people: list[np.ndarray], body_rng: np.random.Generator
+                     ) -> np.ndarray:
+    """Each person's contact height above its surface (metres, NaN for who sits or lies), added
+    to their joints' z in place."""
     heights = body_rng.uniform(*(HAND_HEIGHT_M if name == 'handstand' else SOLE_HEIGHT_M),
                                len(people))
     if name in ('seated', 'lying', 'office'):  # nobody seated or lying stands on anything
         heights[len(people) - (2 if name == 'office' else 1):] = math.nan
     for person, height in zip(people, heights):
         person[:, :, 2] += 0.0 if math.isnan(height) else height  # its contact above its surface
-    if motion is not None:
-        people[0] = motions.load_motion(motion, t)
-        heights[0] = math.nan
+    return heights
 
-    root = people[0][:, 0]
+
+def _camera(name: str, root: np.ndarray, t: np.ndarray, rng: np.random.Generator
+            ) -> tuple[np.ndarray, np.ndarray]:
+    """The camera's true path: R_wc (T, 3, 3) and centres (T, 3) metres, world frame, following
+    or watching the first person's ``root`` (T, 3)."""
     if name == 'ego':
-        R_world, c_world = rigs.head_mounted(root, t, rng)
-    elif name == 'static':
-        R_world, c_world = rigs.static(np.array([0.0, 0.0, 0.8]), t, np.array([0.0, -6.2, 1.6]))
-    elif name in ('seated', 'lying'):
-        R_world, c_world = rigs.static(root[0] * [1, 1, 0] + [0, 0, 0.6], t,
-                                       root[0] * [1, 1, 0] + [0.0, -3.5, 1.6])
-    elif name in ('occluded', 'office'):
-        R_world, c_world = rigs.side(root, t, offset_y=-4.8)
-    elif name == 'stairs':
-        R_world, c_world = rigs.side(root, t, offset_y=-4.5)
-    else:
-        R_world, c_world = rigs.follow(root, t, rng, distance=4.5 if name == 'crowd' else 3.5)
+        return rigs.head_mounted(root, t, rng)
+    if name == 'static':
+        return rigs.static(np.array([0.0, 0.0, 0.8]), t, np.array([0.0, -6.2, 1.6]))
+    if name in ('seated', 'lying'):
+        return rigs.static(root[0] * [1, 1, 0] + [0, 0, 0.6], t,
+                           root[0] * [1, 1, 0] + [0.0, -3.5, 1.6])
+    if name in ('occluded', 'office'):
+        return rigs.side(root, t, offset_y=-4.8)
+    if name == 'stairs':
+        return rigs.side(root, t, offset_y=-4.5)
+    return rigs.follow(root, t, rng, distance=4.5 if name == 'crowd' else 3.5)
 
-    # --- SLAM
+
+def _slam_scale(name: str, T: int, scale0: float, rng: np.random.Generator
+                ) -> tuple[Callable[[int], float], list[int]]:
+    """The SLAM's scale (SLAM units per metre) at each frame index, and the frames where its
+    segments start: drifting (``drift``), re-initialised half-way (``reset``) or constant."""
     if name == 'drift':
-        def scale_fn(i: int) -> float:
-            return scale0 * (1.0 + DRIFT_TOTAL * i / (T - 1))
-        segments = [0]
-    elif name == 'reset':
+        return (lambda i: scale0 * (1.0 + DRIFT_TOTAL * i / (T - 1))), [0]
+    if name == 'reset':
         reset_at = T // 2
         scale1 = scale0 * float(np.exp(rng.uniform(math.log(0.4), math.log(2.5))))
+        return (lambda i: scale0 if i < reset_at else scale1), [0, reset_at]
+    return (lambda i: scale0), [0]
 
-        def scale_fn(i: int) -> float:
-            return scale0 if i < reset_at else scale1
-        segments = [0, reset_at]
-    else:
-        def scale_fn(i: int) -> float:
-            return scale0
-        segments = [0]
-    K = rigs.K_DEFAULT.copy()
-    landmarks = world.sample_landmarks(LANDMARK_DENSITY, rng)
-    people_per_frame = [np.stack([p[i] for p in people]) for i in range(T)]
-    slam = run_slam(world, landmarks, stamps, R_world, c_world, people_per_frame, K,
-                    (rigs.WIDTH, rigs.HEIGHT), scale_fn, segments, rng)
 
-    # --- HMR: the same bodies, in the HMR model's joint layout
-    if joint_layout not in simulated_layouts():
-        raise HacError(f'joint layout must be one of {", ".join(simulated_layouts())}, not '
-                       f'{joint_layout!r}')
+@dataclass
+class _Hmr:
+    """The HMR model's joints: per joints frame, its stamp (int ns), the people's joints (P, K, 3)
+    metres camera frame, their true world joints, their ids; the frames with an outlier."""
+
+    stamps_ns: np.ndarray
+    joints_cam: list[np.ndarray]
+    joints_world: list[np.ndarray]
+    person_ids: list[np.ndarray]
+    outlier_frames: np.ndarray
+
+
+def _hmr(people: list[np.ndarray], joint_layout: str, stamps: np.ndarray, R_world: np.ndarray,
+         c_world: np.ndarray, K: np.ndarray, depth_bias: np.ndarray,
+         body_rng: np.random.Generator) -> _Hmr:
+    """The same bodies as the HMR model sees them, in ``joint_layout``: each frame's people in
+    view, predicted with the frame's ``depth_bias`` (T,) and noise."""
     layout = BUILT_IN[joint_layout]
     people = [to_layout(person, joint_layout) for person in people]
-    depth_bias = DepthBias(bias, t, body_rng, wander=hmr_bias is None or hmr_bias != 0.0)
     j_stamps, j_cam, j_world, ids, outliers = [], [], [], [], []
-    for i in range(T):
+    for i in range(len(stamps)):
         preds, truths, who = [], [], []
         for pid, person in enumerate(people):
             cam = (person[i] - c_world[i]) @ R_world[i]
@@ -264,12 +306,5 @@ def make_scenario(name: str, seed: int = 0, duration: float | None = None, rate:
             j_cam.append(np.stack(preds))
             j_world.append(np.stack(truths))
             ids.append(np.array(who))
-    return Scenario(
-        name=name, seed=seed, rate=rate, camera_frame='camera_optical', K=K, width=rigs.WIDTH,
-        height=rigs.HEIGHT, pose_stamps_ns=stamps, slam_R_wc=slam.R_wc, slam_c=slam.c,
-        slam_frame_ids=slam.frame_ids, gt_R_wc=R_world, gt_c=c_world, true_scale=slam.scale,
-        maps=slam.maps, joints_stamps_ns=np.array(j_stamps, dtype=np.int64), joints_cam=j_cam,
-        gt_joints_world=j_world, person_ids=ids, hmr_bias=bias,
-        hmr_bias_frames=depth_bias.values, contact_heights=heights,
-        outlier_frames=np.array(sorted(set(outliers)), dtype=int), segment_starts=segments,
-        world=world, joint_layout=joint_layout)
+    return _Hmr(np.array(j_stamps, dtype=np.int64), j_cam, j_world, ids,
+                np.array(sorted(set(outliers)), dtype=int))
