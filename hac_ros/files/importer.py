@@ -198,6 +198,44 @@ def import_files(output: str | Path, trajectory: str | Path, map_file: str | Pat
         raise HacError(f'output {out} already exists (hac never overwrites a recording: remove it '
                        'or choose another name)')
     params = params or HacParams()
+    got = _read_inputs(trajectory, map_file, joints, camera, gt_trajectory, gt_joints,
+                       joint_layout, fps, params)
+    messages = _Messages(rosbags_types())
+    result = messages.inputs(got, out, map_frame, camera_frame)
+    if got.gt is not None:
+        result.gt_poses, result.gt_scale, result.gt_residual_m = messages.gt_poses(
+            got.trajectory, got.gt, int(round(params.interp_max_gap_s * NS)), world_frame)
+    if got.gt_hmr is not None:
+        result.gt_joints_frames = messages.gt_joints(got.gt_hmr, world_frame)
+        unmatched = len(np.setdiff1d(got.gt_hmr.stamps_ns, got.hmr.stamps_ns))
+        if unmatched:
+            got.warnings.append(
+                f'{unmatched} of {len(got.gt_hmr.stamps_ns)} stamps of the ground-truth joints '
+                f'{got.gt_hmr.path} are not stamps of the joints {got.hmr.path}: hac eval matches '
+                'joints by stamp')
+    _write(out, messages.sorted(), storage, joint_layout, got.hmr.joints_per_person, result)
+    return result
+
+
+@dataclass
+class _Inputs:
+    """The files read and checked: the SLAM trajectory, the map (N, 3) SLAM units, the joints,
+    the camera's intrinsics (None without), the ground truth (None without), and the warnings."""
+
+    trajectory: Trajectory
+    points: np.ndarray
+    hmr: Joints
+    intrinsics: tuple[np.ndarray, int, int] | None  # K (3, 3) pixels, width, height
+    gt: Trajectory | None
+    gt_hmr: Joints | None
+    warnings: list[str]
+
+
+def _read_inputs(trajectory: str | Path, map_file: str | Path, joints: str | Path,
+                 camera: str | None, gt_trajectory: str | Path | None,
+                 gt_joints: str | Path | None, joint_layout: str | None, fps: float | None,
+                 params: HacParams) -> _Inputs:
+    """Every input file read and checked (InputError naming the file), with the warnings."""
     k_layout = joints_per_person(joint_layout) if joint_layout else None
     warnings: list[str] = []
     traj = read_any_trajectory(trajectory, 'trajectory', fps, warnings)
@@ -209,8 +247,6 @@ def import_files(output: str | Path, trajectory: str | Path, map_file: str | Pat
     gt = (read_trajectory(gt_trajectory, 'ground-truth trajectory', repeated)
           if gt_trajectory else None)
     gt_hmr = read_joints(gt_joints, 'ground-truth joints', k) if gt_joints else None
-    max_gap_ns = int(round(params.interp_max_gap_s * NS))
-
     if gt is not None and repeated:
         warnings.append(f'the ground-truth trajectory {gt.path} repeats the stamp of the line '
                         f'before on {len(repeated)} line(s) (first: line {repeated[0]}): the first '
@@ -222,49 +258,75 @@ def import_files(output: str | Path, trajectory: str | Path, map_file: str | Pat
             f'({names_text()}) so that OUT gets a params.yaml saying it for the replay',
             'joint_layout'))
     warnings += check_joints(traj, hmr, params)
+    return _Inputs(traj, points, hmr, intrinsics, gt, gt_hmr, warnings)
 
-    types = rosbags_types()
-    messages: list[tuple[int, int, str, Any]] = []
 
-    def add(stamp: int, topic: str, msg: Any) -> None:
-        messages.append((int(stamp), ORDER[topic], topic, msg))
+class _Messages:
+    """The recording's messages (rosbags objects of ``types``), sorted by stamp, then by topic in
+    ORDER when written."""
 
-    first = int(min(traj.stamps_ns[0], hmr.stamps_ns[0]))
-    add(first, '/slam/cloud', xyz_to_cloud(points, first, map_frame, types, dtype=np.float64))
-    rotations = quats_to_rotations(traj.quats_xyzw)
-    for stamp, R, c in zip(traj.stamps_ns.tolist(), rotations, traj.positions):
-        add(stamp, '/slam/pose', rt_to_pose_stamped(R, c, stamp, map_frame, types))
-        if intrinsics is not None:
-            add(stamp, '/camera/camera_info',
-                intrinsics_to_camera_info(*intrinsics, stamp, camera_frame, types))
-    frames, people_max = 0, 0
-    for t, stamp in enumerate(hmr.stamps_ns.tolist()):
-        people = hmr.people(t)
-        if len(people):
-            add(stamp, '/hmr/joints', joints_to_pose_array(people, stamp, camera_frame, types))
-            frames, people_max = frames + 1, max(people_max, len(people))
-    result = ImportResult(out, len(traj), frames, people_max, k, len(points),
-                          intrinsics is not None, warnings=warnings)
-    if gt is not None:
+    def __init__(self, types: Any) -> None:
+        self.types = types
+        self._messages: list[tuple[int, int, str, Any]] = []
+
+    def add(self, stamp: int, topic: str, msg: Any) -> None:
+        self._messages.append((int(stamp), ORDER[topic], topic, msg))
+
+    def sorted(self) -> list[tuple[int, int, str, Any]]:
+        return sorted(self._messages, key=lambda m: (m[0], m[1]))
+
+    def inputs(self, got: _Inputs, out: Path, map_frame: str, camera_frame: str
+               ) -> ImportResult:
+        """The map, the SLAM poses (and CameraInfo at each, with intrinsics), the joints frames
+        with people; their counts."""
+        traj, hmr, types = got.trajectory, got.hmr, self.types
+        first = int(min(traj.stamps_ns[0], hmr.stamps_ns[0]))
+        self.add(first, '/slam/cloud',
+                 xyz_to_cloud(got.points, first, map_frame, types, dtype=np.float64))
+        rotations = quats_to_rotations(traj.quats_xyzw)
+        for stamp, R, c in zip(traj.stamps_ns.tolist(), rotations, traj.positions):
+            self.add(stamp, '/slam/pose', rt_to_pose_stamped(R, c, stamp, map_frame, types))
+            if got.intrinsics is not None:
+                self.add(stamp, '/camera/camera_info',
+                         intrinsics_to_camera_info(*got.intrinsics, stamp, camera_frame, types))
+        frames, people_max = 0, 0
+        for t, stamp in enumerate(hmr.stamps_ns.tolist()):
+            people = hmr.people(t)
+            if len(people):
+                self.add(stamp, '/hmr/joints',
+                         joints_to_pose_array(people, stamp, camera_frame, types))
+                frames, people_max = frames + 1, max(people_max, len(people))
+        return ImportResult(out, len(traj), frames, people_max, hmr.joints_per_person,
+                            len(got.points), got.intrinsics is not None, warnings=got.warnings)
+
+    def gt_poses(self, traj: Trajectory, gt: Trajectory, max_gap_ns: int, world_frame: str
+                 ) -> tuple[int, float, float]:
+        """The ground-truth camera at the SLAM stamps and the true scale (_fit_scale): the poses
+        written, the scale and the fit's residual (metres)."""
         idx, gt_c, gt_R, s, residual = _fit_scale(traj, gt, max_gap_ns)
         for i, R, c in zip(idx.tolist(), gt_R, gt_c):
             stamp = int(traj.stamps_ns[i])
-            add(stamp, GT_CAMERA[0], rt_to_pose_stamped(R, c, stamp, world_frame, types))
-        add(int(traj.stamps_ns[0]), GT_SCALE[0], types.get('std_msgs/msg/Float64')(data=float(s)))
-        result.gt_poses, result.gt_scale, result.gt_residual_m = len(idx), s, residual
-    if gt_hmr is not None:
+            self.add(stamp, GT_CAMERA[0], rt_to_pose_stamped(R, c, stamp, world_frame, self.types))
+        self.add(int(traj.stamps_ns[0]), GT_SCALE[0],
+                 self.types.get('std_msgs/msg/Float64')(data=float(s)))
+        return len(idx), s, residual
+
+    def gt_joints(self, gt_hmr: Joints, world_frame: str) -> int:
+        """The ground-truth joints frames with people; how many."""
+        frames = 0
         for t, stamp in enumerate(gt_hmr.stamps_ns.tolist()):
             people = gt_hmr.people(t)
             if len(people):
-                add(stamp, GT_JOINTS[0], joints_to_pose_array(people, stamp, world_frame, types))
-                result.gt_joints_frames += 1
-        unmatched = len(np.setdiff1d(gt_hmr.stamps_ns, hmr.stamps_ns))
-        if unmatched:
-            warnings.append(f'{unmatched} of {len(gt_hmr.stamps_ns)} stamps of the ground-truth '
-                            f'joints {gt_hmr.path} are not stamps of the joints {hmr.path}: hac '
-                            'eval matches joints by stamp')
-    messages.sort(key=lambda m: (m[0], m[1]))
+                self.add(stamp, GT_JOINTS[0],
+                         joints_to_pose_array(people, stamp, world_frame, self.types))
+                frames += 1
+        return frames
 
+
+def _write(out: Path, messages: list[tuple[int, int, str, Any]], storage: str,
+           joint_layout: str | None, k: int, result: ImportResult) -> None:
+    """The recording ``out``, whole or not at all, with the layout in its metadata and, for a
+    ``joint_layout`` given, its params.yaml."""
     layout_name = joint_layout or (SMPL24.name if k == SMPL24.joints_per_person else 'custom')
     used = {topic for _, _, topic, _ in messages}
     with staged_output(out) as staged:
@@ -283,4 +345,3 @@ def import_files(output: str | Path, trajectory: str | Path, map_file: str | Pat
         if joint_layout:
             write_params(staged / PARAMS_FILE, joint_layout, k)
             result.params_file = out / PARAMS_FILE
-    return result
