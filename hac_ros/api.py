@@ -293,14 +293,11 @@ def _collect(inputs: _Inputs, outputs: list[Output], joint_rows: dict[int, int],
 # ================================================================================== literal
 def _literal(inputs: _Inputs, params: HacParams) -> CalibrationResult:
     """The authors' method (hac_ros.core.estimate.literal) on the frames the replay would match."""
-    from hac_ros.core.basics.numeric import NS
     from hac_ros.core.estimate.estimator import sequence_scale
     from hac_ros.core.estimate.literal import max_ratio, world_joints
     from hac_ros.core.stream.pose_stream import Pose, PoseTrack
 
-    track = PoseTrack(len(inputs.pose_ns) + 1, params.reset_jump_factor, params.reset_jump_min_rel,
-                      params.reset_confirm_poses, int(params.sync_slop_s * NS),
-                      params.interp_max_gap_s * NS)
+    track = PoseTrack.from_params(params, buffer=len(inputs.pose_ns) + 1)
     for stamp, R, c in zip(inputs.pose_ns.tolist(), inputs.R_wc, inputs.c_map):
         track.append(Pose(stamp, R, c), None)
     result = _empty(inputs, 'literal')

@@ -155,7 +155,7 @@ def test_the_cycle_finder_finds_a_cycle():
 def test_the_core_imports_only_the_core_numpy_and_scipy():
     """hac_ros.core is the bottom layer: pure numpy/scipy, nothing from the shells or ROS."""
     modules = _modules()
-    stdlib = {'__future__', 'bisect', 'collections', 'dataclasses', 'functools', 'itertools',
+    stdlib = {'__future__', 'bisect', 'collections', 'dataclasses', 'enum', 'functools', 'itertools',
               'math', 'pathlib', 'typing', 'abc', 'importlib', 'pkgutil'}
     for name, path in modules.items():
         if not name.startswith('hac_ros.core'):

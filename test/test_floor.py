@@ -91,7 +91,7 @@ def test_the_map_floor_gives_the_normal_and_offset_a_leaning_body_cannot():
     centimetre."""
     scene = walking_scene(frames=30, true_scale=2.0)
     index = MapIndex(scene.to_slam(np.vstack([room_points(0), table_row()])))
-    ground = GroundModel('hmr', 0.02, 200)
+    ground = GroundModel('hmr', inlier_m=0.02, ransac_iters=200)
     for t, joints in enumerate(leaning(scene, 4.0)):
         up = scene.R_wc_slam[t] @ (joints[12] - joints[0])
         ground.down.add(SMPL24, joints, scene.R_wc_slam[t], scene.c_slam[t], index,
@@ -112,7 +112,7 @@ def test_a_map_without_a_floor_is_not_trusted():
     scene = walking_scene(frames=30, true_scale=2.0)
     index = MapIndex(scene.to_slam(np.vstack([room_points(0, floor=False), table_row()])))
     assert map_floor(index, true_down(scene)) is None
-    ground = GroundModel('hmr', 0.02, 200)
+    ground = GroundModel('hmr', inlier_m=0.02, ransac_iters=200)
     for t, joints in enumerate(scene.joints_cam):
         up = scene.R_wc_slam[t] @ (joints[12] - joints[0])
         ground.down.add(SMPL24, joints, scene.R_wc_slam[t], scene.c_slam[t], index,

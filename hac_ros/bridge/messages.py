@@ -32,7 +32,7 @@ from hac_ros.core.basics.outputs import (
     Status,
 )
 from hac_ros.core.rules.health import Finding, Health, HealthMonitor
-from hac_ros.core.rules.params import POSE_MSGTYPES, HacParams
+from hac_ros.core.rules.params import FrameAlignment, HacParams
 from msg_adapters import (
     joints_to_pose_array,
     make_header,
@@ -47,15 +47,6 @@ ODOMETRY, POSE, HUMAN_JOINTS = topics.ODOMETRY.pair, topics.POSE.pair, topics.HU
 SCALE, CLOUD, OBSTACLES = topics.SCALE.pair, topics.CLOUD.pair, topics.OBSTACLES.pair
 MARKERS, DIAGNOSTICS, SAMPLES = topics.MARKERS.pair, topics.DIAGNOSTICS.pair, topics.SAMPLES.pair
 OUTPUT_TOPICS = tuple(topic.pair for topic in topics.NODE_TOPICS)  # what the node publishes
-# Inputs (docs/interface.md, "Topics"): kind -> message type; the pose's is the pose_type
-# parameter's
-INPUT_MSGTYPES = {'joints': 'geometry_msgs/msg/PoseArray', 'cloud': 'sensor_msgs/msg/PointCloud2',
-                  'camera_info': 'sensor_msgs/msg/CameraInfo'}
-
-
-def input_msgtype(kind: str, pose_type: str) -> str:
-    """The message type of input ``kind`` ('pose', 'joints', 'cloud', 'camera_info')."""
-    return POSE_MSGTYPES[pose_type] if kind == 'pose' else INPUT_MSGTYPES[kind]
 SAMPLE_FIELDS = 4
 SAMPLE_LABEL = 'person,scale,source(0 map 1 ground 2 rejected),accepted'
 SOURCE_CODES = {'map': 0.0, 'ground': 1.0}
@@ -125,7 +116,7 @@ class OutputMessages:
         """The parameters; a new set (the node's runtime change) also renews what derives from
         them: the skeleton marker's LINE_LIST point order, the layout's bones (parent, child)."""
         self._params = params
-        self.health.gravity_wanted = params.metric_frame_alignment == 'gravity'
+        self.health.gravity_wanted = params.metric_frame_alignment == FrameAlignment.GRAVITY
         self._bone_joints = np.array(params.layout().edges, dtype=int).reshape(-1)
 
     def convert(self, output: Output) -> list[Message]:

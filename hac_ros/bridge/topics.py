@@ -1,4 +1,6 @@
-"""hac_node's output topics, in one table: each topic's name, type, frame, QoS and what it carries.
+"""hac_node's topics, in two tables: its inputs (:data:`INPUTS`: each kind, the parameter naming
+its topic, its type) and its outputs (:data:`TOPICS`: each topic's name, type, frame, QoS and what
+it carries).
 
 The node's publishers and their QoS (:mod:`hac_ros.ros.qos`), the replay's connections, ``hac
 live``, the executables' ``--help``, README's list of outputs and the tables of docs/interface.md
@@ -13,7 +15,46 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from hac_ros.core.rules.params import HacParams
+from hac_ros.core.basics.param_fields import Choice
+from hac_ros.core.rules.params import POSE_MSGTYPES, HacParams
+
+
+class InputKind(Choice):
+    """The kinds of input hac_node subscribes to (docs/interface.md, "Topics")."""
+
+    POSE = 'pose'
+    JOINTS = 'joints'
+    CAMERA_INFO = 'camera_info'
+    CLOUD = 'cloud'
+
+
+@dataclass(frozen=True)
+class InputTopic:
+    """One input: its ``kind``, the parameter naming its topic (``topic_param``) and its ROS 2
+    type (``msgtype``; the pose's is the ``pose_type`` parameter's: '')."""
+
+    kind: InputKind
+    topic_param: str
+    msgtype: str
+
+
+INPUTS = (
+    InputTopic(InputKind.POSE, 'pose_topic', ''),
+    InputTopic(InputKind.JOINTS, 'joints_topic', 'geometry_msgs/msg/PoseArray'),
+    InputTopic(InputKind.CAMERA_INFO, 'camera_info_topic', 'sensor_msgs/msg/CameraInfo'),
+    InputTopic(InputKind.CLOUD, 'cloud_topic', 'sensor_msgs/msg/PointCloud2'),
+)
+INPUT_BY_KIND: dict[str, InputTopic] = {i.kind: i for i in INPUTS}
+
+
+def input_msgtype(kind: str, pose_type: str) -> str:
+    """The message type of input ``kind`` (an :class:`InputKind`)."""
+    return POSE_MSGTYPES[pose_type] if kind == InputKind.POSE else INPUT_BY_KIND[kind].msgtype
+
+
+def input_topic(params: HacParams, kind: str) -> str:
+    """The topic of input ``kind`` that ``params`` name ('' when it is off)."""
+    return str(getattr(params, INPUT_BY_KIND[kind].topic_param))
 
 
 @dataclass(frozen=True)

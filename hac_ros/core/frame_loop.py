@@ -27,7 +27,7 @@ from hac_ros.core.geometry.ground import GroundModel
 from hac_ros.core.geometry.map_shape import PLANE_JUDGE_BODIES, MapShape, plane_problem
 from hac_ros.core.geometry.reference import MapIndex
 from hac_ros.core.person_step import PersonStep
-from hac_ros.core.rules.params import HacParams
+from hac_ros.core.rules.params import HacParams, HumanFilter
 from hac_ros.core.rules.reasons import text as reason_text
 from hac_ros.core.stream.map_book import MapBook
 from hac_ros.core.stream.metric_stage import MetricStage, ScaleAt, StageConfig, finite_scale
@@ -92,7 +92,8 @@ class FrameLoop(PersonStep):
         # what depends on the published scale: the segments' placements, the continuous
         # odometry, the cloud (hac_ros.core.stream.metric_stage)
         self.metric = MetricStage(StageConfig.from_params(p),
-                                  RootFilter(self.layout) if p.human_filter == 'smooth' else None)
+                                  RootFilter(self.layout)
+                                  if p.human_filter == HumanFilter.SMOOTH else None)
 
     def _init_stream(self) -> None:
         """The state of one stream of header time, as at start-up (a jump back in time starts
@@ -100,17 +101,14 @@ class FrameLoop(PersonStep):
         stay."""
         p = self.params
         self.estimator = RollingScale.from_params(p)
-        self.ground = GroundModel(p.ground_mode, p.ground_inlier_m, p.ground_ransac_iters, p.seed,
-                                  p.static_camera)
+        self.ground = GroundModel.from_params(p)
         self.followed = PersonTracker()  # a fixed camera's people, by their roots (camera frame)
         self._static_normal: np.ndarray | None = None  # its floor's normal the samples used
         self._map_frame: str | None = None
         # poses in another frame than the map's, in a row: a SLAM re-initialised in a new frame
         # once reset_confirm_poses more follow, else another publisher's (hac_ros.core.calibrator)
         self._frame_run: list[Stamped] = []
-        self.track = PoseTrack(p.pose_buffer, p.reset_jump_factor, p.reset_jump_min_rel,
-                               p.reset_confirm_poses, int(p.sync_slop_s * NS),
-                               p.interp_max_gap_s * NS)
+        self.track = PoseTrack.from_params(p)
         self.timeline = Timeline(int(p.time_jump_back_s * NS), int(p.time_jump_ahead_s * NS),
                                  p.reset_confirm_poses)
         self._pending: list[Frame] = []  # sorted by stamp

@@ -29,6 +29,7 @@ from hac_ros.core.basics.errors import InputError
 from hac_ros.core.basics.outputs import MapRescaleOut, Output, ResetOut, SampleOut, Status
 from hac_ros.core.bodies.human_filter import smooth_outputs
 from hac_ros.core.estimate.segment import SegmentScale, segment_scale
+from hac_ros.core.rules.params import HumanFilter
 from hac_ros.core.stream.metric_stage import MetricStage, ScaleAt, finite_scale
 from hac_ros.core.stream.pending import PendingFrame, PendingOdometry, Record
 
@@ -159,7 +160,7 @@ def resolve_offline(calibrator: Calibrator, scale_at: ScaleAt | None = None,
     # a stage of its own, without the online filter of the humans (smoothed below instead)
     stage = MetricStage(calibrator.metric.config)
     outputs = stage.resolve(records, scale_at, error_at, final_planes(records))
-    if params.human_filter == 'smooth' if smooth_humans is None else smooth_humans:
+    if params.human_filter == HumanFilter.SMOOTH if smooth_humans is None else smooth_humans:
         smooth_outputs(outputs, calibrator.layout)
     pending = calibrator.pending_status()
     status = stage.status(pending, finite_scale(scale_at(pending.status.stamp_ns)))

@@ -119,7 +119,7 @@ class PoseModel:
     person, in pixels of the image, the person detector looks for. Not thread-safe: one caller.
     """
 
-    def __init__(self, model_path: str = '', max_people: int = 6,
+    def __init__(self, *, model_path: str = '', max_people: int = 6,
                  min_detection_confidence: float = 0.5, min_presence_confidence: float = 0.5,
                  person_detector: str = 'hog', person_min_height_px: float = 60.0) -> None:
         # the ranges are the parameters' (ParameterError names the one out of range)

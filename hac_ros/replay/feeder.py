@@ -23,16 +23,19 @@ from hac_ros.bridge.inputs import (
     add_pose_msg,
     add_tf_msg,
 )
-from hac_ros.bridge.messages import INPUT_MSGTYPES
-from hac_ros.bridge.topics import in_root
+from hac_ros.bridge.topics import INPUT_BY_KIND, InputKind, in_root
 from hac_ros.core.basics.errors import ArgumentError, HacError
 from hac_ros.core.basics.outputs import Output
 from hac_ros.core.calibrator import Calibrator
-from hac_ros.core.rules.params import POSE_MSGTYPES, HacParams
+from hac_ros.core.rules.params import POSE_MSGTYPES, HacParams, PoseSource
 from hac_ros.core.stream.tf_tree import TfPoses
 from hac_ros.progress import ProgressBar
 from hac_ros.recording.reader import Recording
 from msg_adapters import MessageError, parse_cloud_cdr
+
+# the recorded inputs' types (hac_ros.bridge.topics); the pose's is pose_type's
+JOINTS_TYPE, CLOUD_TYPE, CAMERA_INFO_TYPE = (INPUT_BY_KIND[kind].msgtype for kind in (
+    InputKind.JOINTS, InputKind.CLOUD, InputKind.CAMERA_INFO))
 
 # Messages of the same log time are fed in this order (then any other topic): the camera's
 # intrinsics and the map before the frame they serve, the pose (the clock) before its joints.
@@ -69,15 +72,15 @@ class InputTopics:
         """
         pose_topic, joints_topic = in_root(params.pose_topic), in_root(params.joints_topic)
         cloud_topic = in_root(params.cloud_topic)
-        if params.pose_source == 'tf':  # the SLAM pose from /tf and /tf_static
+        if params.pose_source == PoseSource.TF:  # the SLAM pose from /tf and /tf_static
             recording.check_topic(TF_TOPICS[0], [TF_MSGTYPE], 'TF',
                                   ' (pose_source tf; or pose_source topic: the SLAM pose from '
                                   'pose_topic)')
             static = TF_TOPICS[1] if recording.has(TF_TOPICS[1], TF_MSGTYPE) else ''
             camera_info = cls._camera_info(recording, params)
-            recording.check_topic(joints_topic, [INPUT_MSGTYPES['joints']], 'HMR joints',
+            recording.check_topic(joints_topic, [JOINTS_TYPE], 'HMR joints',
                                   ' (use {joints_topic})', ('joints_topic',))
-            recording.check_topic(cloud_topic, [INPUT_MSGTYPES['cloud']], 'map cloud',
+            recording.check_topic(cloud_topic, [CLOUD_TYPE], 'map cloud',
                                   ' (use {cloud_topic})', ('cloud_topic',))
             return cls('', '', joints_topic, cloud_topic, camera_info, TF_TOPICS[0], static)
         if params.static_camera:  # a fixed camera: the SLAM pose and the map are optional
@@ -86,10 +89,10 @@ class InputTopics:
             if cloud_topic not in recording.topics:
                 cloud_topic = ''
         if not pose_topic:
-            recording.check_topic(joints_topic, [INPUT_MSGTYPES['joints']], 'HMR joints',
+            recording.check_topic(joints_topic, [JOINTS_TYPE], 'HMR joints',
                                   ' (use {joints_topic})', ('joints_topic',))
             if cloud_topic:
-                recording.check_topic(cloud_topic, [INPUT_MSGTYPES['cloud']], 'map cloud',
+                recording.check_topic(cloud_topic, [CLOUD_TYPE], 'map cloud',
                                       ' (use {cloud_topic})', ('cloud_topic',))
             return cls('', '', joints_topic, cloud_topic, cls._camera_info(recording, params))
         recorded = recording.topics.get(pose_topic)
@@ -107,9 +110,9 @@ class InputTopics:
                                   ('pose_type',))
         recording.check_topic(pose_topic, [POSE_MSGTYPES[pose_type]], 'SLAM pose',
                               ' (use {pose_topic})', ('pose_topic',))
-        recording.check_topic(joints_topic, [INPUT_MSGTYPES['joints']], 'HMR joints',
+        recording.check_topic(joints_topic, [JOINTS_TYPE], 'HMR joints',
                               ' (use {joints_topic})', ('joints_topic',))
-        recording.check_topic(cloud_topic, [INPUT_MSGTYPES['cloud']], 'map cloud',
+        recording.check_topic(cloud_topic, [CLOUD_TYPE], 'map cloud',
                               ' (use {cloud_topic})', ('cloud_topic',))
         camera_info = cls._camera_info(recording, params)
         return cls(pose_topic, POSE_MSGTYPES[pose_type], joints_topic, cloud_topic, camera_info)
@@ -119,7 +122,7 @@ class InputTopics:
         """The CameraInfo topic, '' when off or absent (checked when present)."""
         camera_info = in_root(params.camera_info_topic) if params.camera_info_topic else ''
         if camera_info and camera_info in recording.topics:
-            recording.check_topic(camera_info, [INPUT_MSGTYPES['camera_info']], 'CameraInfo',
+            recording.check_topic(camera_info, [CAMERA_INFO_TYPE], 'CameraInfo',
                                   ' (use {camera_info_topic}, or "" to turn it off)',
                                   ('camera_info_topic',))
             return camera_info

@@ -100,9 +100,9 @@ class CameraFrames:
     ArgumentError naming ``camera``, ``fps`` or ``start``; without OpenCV, the [people] extra's
     ExtraMissing."""
 
-    def __init__(self, path: str | Path, kind: str, camera: str | None, fps: float | None = None,
-                 start: float = DEFAULT_START_S, frame_id: str = DEFAULT_FRAME_ID,
-                 compressed: bool = False) -> None:
+    def __init__(self, path: str | Path, kind: str, *, camera: str | None,
+                 fps: float | None = None, start: float = DEFAULT_START_S,
+                 frame_id: str = DEFAULT_FRAME_ID, compressed: bool = False) -> None:
         self.path, self.kind = Path(path), kind
         if not camera:
             raise ArgumentError(f'{{camera}} is needed to play {printable(self.path)} (a {kind}): '

@@ -24,7 +24,7 @@ from hac_ros.core.basics.errors import ParameterError
 from hac_ros.core.basics.outputs import Output
 from hac_ros.core.basics.printable import printable
 from hac_ros.core.calibrator import Calibrator
-from hac_ros.core.rules.params import HacParams
+from hac_ros.core.rules.params import HacParams, PoseSource
 from hac_ros.ros.intake import Inbox
 from hac_ros.ros.map_intake import MapIntake
 from hac_ros.ros.parameters import judge_change, our_values
@@ -92,7 +92,7 @@ class RuntimeControl(_NodeMixinBase):
         try:
             change = judge_change(self.params if self.calibrator is not None else HacParams(),
                                   our_values(parameters))
-            if change.params.pose_source == 'tf':
+            if change.params.pose_source == PoseSource.TF:
                 transform_listener_class()  # ParameterError naming what to install
         except ParameterError as exc:
             return SetParametersResult(successful=False, reason=str(exc))

@@ -25,14 +25,15 @@ from typing import Any
 
 from rclpy.qos import qos_policy_name_from_kind
 
-from hac_ros.bridge.messages import input_msgtype
+from hac_ros.bridge.topics import InputKind, input_msgtype
 from hac_ros.core.basics.printable import printable
 from hac_ros.core.rules.health import Finding
 from hac_ros.core.rules.params import POSE_MSGTYPES
 from hac_ros.ros.qos import qos_hint
 
 GRAPH_CHECK_S = 2.0  # wall seconds between checks of the input topics' publisher types
-SINGLE_PUBLISHER = ('pose', 'joints', 'cloud')  # the inputs one source each must publish
+# the inputs one source each must publish
+SINGLE_PUBLISHER = (InputKind.POSE, InputKind.JOINTS, InputKind.CLOUD)
 # wall seconds between looks for another node of the same name: with DDS discovery on one host
 # (well under a second) both warn within 2 s of the second appearing
 NAME_CHECK_S = 0.25

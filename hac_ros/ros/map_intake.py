@@ -16,6 +16,7 @@ from concurrent.futures import Future
 
 from hac_ros.bridge.inputs import IndexBuilder, MapBuilder, MapBuilt
 from hac_ros.core.geometry.reference import MapIndex
+from hac_ros.core.rules.params import CloudMode
 from hac_ros.ros.intake import Inbox
 from msg_adapters import MessageError, RawCloud, parse_cloud_cdr
 
@@ -60,7 +61,7 @@ class MapIntake:
     def submit(self, cloud: RawCloud, cloud_mode: str) -> None:
         """Queue ``cloud`` for the builder; what ``cloud_mode`` no longer needs is superseded."""
         waiting = [f for f in self._building if not f.done()]
-        self._replace = cloud_mode == 'replace'
+        self._replace = cloud_mode == CloudMode.REPLACE
         if self._replace:
             superseded = waiting
         else:

@@ -52,7 +52,8 @@ from rclpy.node import Node
 from rclpy.serialization import deserialize_message
 
 from hac_ros.bridge.inputs import add_camera_info_msg, add_joints_msg, add_pose_msg
-from hac_ros.bridge.messages import DIAGNOSTICS, OUTPUT_TOPICS, OutputMessages, input_msgtype
+from hac_ros.bridge.messages import DIAGNOSTICS, OUTPUT_TOPICS, OutputMessages
+from hac_ros.bridge.topics import INPUTS, InputKind, input_msgtype, input_topic
 from hac_ros.core.basics.outputs import (
     DiagnosticsOut,
     NoticeOut,
@@ -66,7 +67,7 @@ from hac_ros.core.basics.printable import printable, printable_lines
 from hac_ros.core.calibrator import Calibrator
 from hac_ros.core.geometry.reference import MapIndex
 from hac_ros.core.rules.health import Finding
-from hac_ros.core.rules.params import NODE_NAME, POSE_MSGTYPES, HacParams, names
+from hac_ros.core.rules.params import NODE_NAME, POSE_MSGTYPES, HacParams, PoseSource, names
 from hac_ros.core.rules.reasons import REASONS
 from hac_ros.ros.arguments import run
 from hac_ros.ros.control import RuntimeControl
@@ -164,8 +165,8 @@ class HacShell(RuntimeControl):
         for topic, msgtype in OUTPUT_TOPICS:
             self._output_publishers[topic] = self.create_publisher(
                 TYPES.get(msgtype), topic, output_qos(topic), event_callbacks=NO_EVENTS)
-        for kind in ('pose', 'joints', 'camera_info', 'cloud'):
-            self._subscribe(kind)
+        for each in INPUTS:
+            self._subscribe(each.kind)
         self._hac_services = [self.create_service(TYPES.get('std_srvs/srv/Trigger'), '~/reset',
                                               self._on_reset),
                           self.create_service(TYPES.get('std_srvs/srv/SetBool'), '~/freeze',
@@ -177,7 +178,8 @@ class HacShell(RuntimeControl):
         self._stale_check = self.create_timer(STALE_CHECK_S, self._check_stale, clock=STEADY)
         self.active = True
         p = self.params
-        poses = (f'TF {p.slam_map_frame} -> {p.slam_pose_frame}' if p.pose_source == 'tf' else
+        tf = p.pose_source == PoseSource.TF
+        poses = (f'TF {p.slam_map_frame} -> {p.slam_pose_frame}' if tf else
                  f'{self.resolve_topic_name(p.pose_topic)} ({p.pose_type})')
         self.get_logger().info(printable(
             f'{self.get_name()}: {poses} + '
@@ -218,26 +220,27 @@ class HacShell(RuntimeControl):
         if old is not None:
             self.destroy_subscription(old)
         p = self.params
-        if kind == 'pose' and self.tf_input is not None:
+        if kind == InputKind.POSE and self.tf_input is not None:
             self.tf_input.close()
             self.tf_input = None
         self.story.inputs.pop(kind, None)
-        if kind == 'pose' and p.pose_source == 'tf':  # tf2_ros' listener instead of pose_topic
+        # pose_source tf: tf2_ros' listener instead of pose_topic
+        if kind == InputKind.POSE and p.pose_source == PoseSource.TF:
             self.tf_input = TfPoseInput(self, p, lambda: self.core, self._emit, self._queued)
             self.story.inputs[kind] = Input(f'TF {p.slam_map_frame} -> {p.slam_pose_frame}',
                                             'tf2_msgs/msg/TFMessage')
             return
-        topic = {'pose': p.pose_topic, 'joints': p.joints_topic,
-                 'camera_info': p.camera_info_topic, 'cloud': p.cloud_topic}[kind]
+        topic = input_topic(p, kind)
         msg_type = TYPES.get(input_msgtype(kind, p.pose_type))
-        qos = cloud_qos(p) if kind == 'cloud' else input_qos(p, kind)
-        raw = kind != 'camera_info'  # deserialized by rclpy only for CameraInfo
+        qos = cloud_qos(p) if kind == InputKind.CLOUD else input_qos(p, kind)
+        raw = kind != InputKind.CAMERA_INFO  # deserialized by rclpy only for CameraInfo
         if not topic:
             return  # camera_info_topic "" turns it off
         self.story.inputs[kind] = Input(self.resolve_topic_name(topic),
                                         input_msgtype(kind, p.pose_type))
-        callback = {'pose': self._on_pose, 'joints': self._on_joints,
-                    'camera_info': self._on_camera_info, 'cloud': self._on_cloud}[kind]
+        callback = {InputKind.POSE: self._on_pose, InputKind.JOINTS: self._on_joints,
+                    InputKind.CAMERA_INFO: self._on_camera_info,
+                    InputKind.CLOUD: self._on_cloud}[InputKind(kind)]
         events = SubscriptionEventCallbacks(
             incompatible_qos=functools.partial(self.graph.incompatible_qos, kind, topic),
             message_lost=functools.partial(self.graph.message_lost, kind),

@@ -13,6 +13,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from hac_ros.bridge.topics import INPUTS, InputKind
 from hac_ros.core.basics.errors import ParameterError
 from hac_ros.core.basics.param_fields import lengths_text
 from hac_ros.core.rules.params import HacParams, describe, names
@@ -30,11 +31,12 @@ INTEGERS_FOR_DOUBLES = True
 
 # What a runtime change does (docs/node.md, "Parameters at runtime"):
 # - these re-create the named subscriptions (topics and QoS cannot change on a live subscription);
+POSE, JOINTS, CAMERA_INFO, CLOUD = (InputKind.POSE, InputKind.JOINTS, InputKind.CAMERA_INFO,
+                                    InputKind.CLOUD)
 RESUBSCRIBE: dict[str, tuple[str, ...]] = {
-    'pose_topic': ('pose',), 'pose_type': ('pose',), 'pose_source': ('pose',),
-    'slam_map_frame': ('pose',), 'slam_pose_frame': ('pose',), 'joints_topic': ('joints',),
-    'camera_info_topic': ('camera_info',), 'cloud_topic': ('cloud',), 'cloud_qos': ('cloud',),
-    'input_qos': ('pose', 'joints', 'camera_info'),
+    **{each.topic_param: (each.kind,) for each in INPUTS},
+    'pose_type': (POSE,), 'pose_source': (POSE,), 'slam_map_frame': (POSE,),
+    'slam_pose_frame': (POSE,), 'cloud_qos': (CLOUD,), 'input_qos': (POSE, JOINTS, CAMERA_INFO),
 }
 # - these only change what the shell publishes (the calibrator does not read them);
 SHELL_ONLY = frozenset({'metric_frame', 'odom_frame', 'publish_markers', 'publish_tf',

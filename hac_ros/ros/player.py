@@ -236,7 +236,7 @@ class Player:
     long until every topic played has a subscriber (0: start at once, as ``ros2 bag play``
     does)."""
 
-    def __init__(self, path: str | Path, rate: float = 1.0, loop: bool = False,
+    def __init__(self, path: str | Path, *, rate: float = 1.0, loop: bool = False,
                  clock_hz: float = 0.0, topics: Sequence[str] | None = None,
                  remap: Mapping[str, str] | None = None, wait_s: float = 0.0,
                  context: Any = None, node_name: str = 'hac_play', camera: str | None = None,
@@ -268,10 +268,10 @@ class Player:
                 self.recording.close()
                 raise
         else:
-            self.frames = CameraFrames(path, self.kind, camera, fps,
-                                       DEFAULT_START_S if start is None else start,
-                                       DEFAULT_FRAME_ID if frame_id is None else frame_id,
-                                       compressed)
+            self.frames = CameraFrames(
+                path, self.kind, camera=camera, fps=fps,
+                start=DEFAULT_START_S if start is None else start,
+                frame_id=DEFAULT_FRAME_ID if frame_id is None else frame_id, compressed=compressed)
             try:
                 self.plan, self.skipped = plan_camera_topics(self.frames, topics, remap), []
             except BaseException:

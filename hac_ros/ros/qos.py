@@ -5,7 +5,7 @@ from __future__ import annotations
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from hac_ros.bridge.topics import BY_NAME, qos_rows
-from hac_ros.core.rules.params import HacParams
+from hac_ros.core.rules.params import CloudQos, HacParams, InputQos
 
 INPUT_DEPTH = 100  # joints/camera_info kept per subscription: > 3 s at 30 Hz, absorbs bursts
 POSE_DEPTH = 1000  # SLAM poses: 1 s at 1 kHz (a message costs the executor ~0.1 ms to take)
@@ -15,7 +15,7 @@ CLOUD_DEPTH = 2  # only the newest map matters; 2 lets one arrive while the prev
 def input_qos(params: HacParams, kind: str = 'joints') -> QoSProfile:
     """Pose, joints and CameraInfo (``kind``): best effort (matches every publisher) or
     reliable; a pose stream may come at 1 kHz, so its queue is deeper."""
-    reliability = (ReliabilityPolicy.RELIABLE if params.input_qos == 'reliable'
+    reliability = (ReliabilityPolicy.RELIABLE if params.input_qos == InputQos.RELIABLE
                    else ReliabilityPolicy.BEST_EFFORT)
     return QoSProfile(history=HistoryPolicy.KEEP_LAST,
                       depth=POSE_DEPTH if kind == 'pose' else INPUT_DEPTH,
@@ -24,7 +24,7 @@ def input_qos(params: HacParams, kind: str = 'joints') -> QoSProfile:
 
 def cloud_qos(params: HacParams) -> QoSProfile:
     """The map: reliable; transient_local receives a map latched before the node started."""
-    durability = (DurabilityPolicy.TRANSIENT_LOCAL if params.cloud_qos == 'transient_local'
+    durability = (DurabilityPolicy.TRANSIENT_LOCAL if params.cloud_qos == CloudQos.TRANSIENT_LOCAL
                   else DurabilityPolicy.VOLATILE)
     return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=CLOUD_DEPTH,
                       reliability=ReliabilityPolicy.RELIABLE, durability=durability)

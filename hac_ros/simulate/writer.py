@@ -21,7 +21,7 @@ from typing import Any
 from hac_ros.core.basics.errors import HacError
 from hac_ros.core.bodies.conventions import optical_transform
 from hac_ros.core.layouts import BUILT_IN
-from hac_ros.core.rules.params import POSE_MSGTYPES
+from hac_ros.core.rules.params import POSE_MSGTYPES, PoseSource, PoseType
 from hac_ros.recording.atomic import staged_output
 from hac_ros.recording.reader import layout_data
 from hac_ros.recording.writer import OutputWriter
@@ -93,13 +93,13 @@ def write_recording(sc: Any, out_path: str | Path, storage: str = 'mcap',
             R_bo, t_bo = base
             R = R @ R_bo.T
             c = c - R @ t_bo
-        if pose_source == 'tf':
+        if pose_source == PoseSource.TF:
             add(stamp, '/tf', tf_message(transforms=[
                 rt_to_transform_stamped(R, c, stamp, frame, child, types)]))
             if base is not None and i == 0:
                 add(stamp, '/tf_static', tf_message(transforms=[
                     rt_to_transform_stamped(*base, stamp, BASE_FRAME, sc.camera_frame, types)]))
-        elif pose_type == 'Odometry':
+        elif pose_type == PoseType.ODOMETRY:
             add(stamp, '/slam/pose', rt_to_odometry(R, c, stamp, frame, child, types))
         else:
             add(stamp, '/slam/pose', rt_to_pose_stamped(R, c, stamp, frame, types))

@@ -52,8 +52,8 @@ class MotionKeyframes:
     keyframes per second instead (None: by motion); ``max_gap_s``. Needs OpenCV (the [people]
     extra)."""
 
-    def __init__(self, fps: float, motion: float = DEFAULT_MOTION, rate_hz: float | None = None,
-                 max_gap_s: float = MAX_GAP_S) -> None:
+    def __init__(self, fps: float, *, motion: float = DEFAULT_MOTION,
+                 rate_hz: float | None = None, max_gap_s: float = MAX_GAP_S) -> None:
         from hac_ros.people.extra import opencv
 
         cv2 = opencv()

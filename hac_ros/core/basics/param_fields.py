@@ -11,11 +11,20 @@ import dataclasses
 import math
 from collections.abc import Mapping
 from dataclasses import field
+from enum import Enum
 from typing import Any, TypeVar
 
 from hac_ros.core.basics.errors import ParameterError
 
 Self = TypeVar('Self', bound='ParamSet')
+
+
+class Choice(str, Enum):
+    """One choice of a string parameter (its modes): equal to its string, printed as it
+    (enum.StrEnum from Python 3.11; hac_ros runs on 3.10)."""
+
+    def __str__(self) -> str:
+        return str(self.value)
 
 
 def param(default: Any, description: str, *, choices: tuple[str, ...] | None = None,

@@ -19,6 +19,7 @@ import numpy as np
 
 from hac_ros.core.basics.numeric import median_of
 from hac_ros.core.layouts import JointLayout
+from hac_ros.core.rules.params import ContactMode
 
 
 def candidate_joints(mode: str, layout: JointLayout, joints_cam: np.ndarray, R_wc: np.ndarray,
@@ -37,9 +38,9 @@ def candidate_joints(mode: str, layout: JointLayout, joints_cam: np.ndarray, R_w
     if fixed is not None:
         return [j for j in fixed if depth[j] > 0.0]
     allowed = layout.contact or range(len(depth))
-    if mode == 'max_ratio':
+    if mode == ContactMode.MAX_RATIO:
         return [j for j in allowed if depth[j] > 0.0]
-    if mode == 'lowest_gravity':
+    if mode == ContactMode.LOWEST_GRAVITY:
         if normal_map is None:
             return []
         height_down = (joints_cam @ (R_wc.T @ normal_map)).tolist()  # along gravity, camera-centred
@@ -108,7 +109,7 @@ def combine_ratios(mode: str, ratios: list[float]) -> float:
     finite = [r for r in ratios if math.isfinite(r)]
     if not finite:
         return float('nan')
-    if mode == 'max_ratio':
+    if mode == ContactMode.MAX_RATIO:
         return max(finite)
     return median_of(finite)
 

@@ -23,7 +23,7 @@ from hac_ros.core.bodies.contact import (
 from hac_ros.core.geometry.plane import Plane
 from hac_ros.core.geometry.reference import MapIndex
 from hac_ros.core.layouts import JointLayout
-from hac_ros.core.rules.params import HacParams
+from hac_ros.core.rules.params import ContactMode, HacParams, ReferenceMode
 
 
 @dataclass
@@ -71,7 +71,7 @@ def person_sample(params: HacParams, layout: JointLayout, scene: Scene, R_wc: np
     camera; NaN rows not seen), or :func:`no_sample` with the reason there is none."""
     if scene.map is None and scene.plane is None:
         return no_sample('no_map')
-    if scene.normal is None and params.contact_mode == 'lowest_gravity':
+    if scene.normal is None and params.contact_mode == ContactMode.LOWEST_GRAVITY:
         return no_sample('no_down')  # the lowest joint needs down (hac_ros.core.geometry.down_vote)
     candidates = candidate_joints(params.contact_mode, layout, joints, R_wc, scene.normal)
     if not candidates:
@@ -94,7 +94,8 @@ def person_sample(params: HacParams, layout: JointLayout, scene: Scene, R_wc: np
         direction_map = R_wc @ (point / distance_metric)
         plane_distance = plane.ray_distance(c_map, direction_map) if plane is not None else math.nan
         floor_ratios[k] = distance_metric / plane_distance
-        if visible[k] and scene.map is not None and params.reference_mode != 'floor_plane':
+        if (visible[k] and scene.map is not None
+                and params.reference_mode != ReferenceMode.FLOOR_PLANE):
             d_slam = _map_distance(params, scene, c_map, direction_map, distance_metric)
             if d_slam is not None and _plausible(params, scene, d_slam, distance_metric,
                                                  plane_distance):
@@ -106,7 +107,7 @@ def person_sample(params: HacParams, layout: JointLayout, scene: Scene, R_wc: np
     if not finite:
         return no_sample('no_map' if scene.map is None and plane is None else 'no_reference')
     chosen = 0
-    if len(ratios) > 1 and params.contact_mode == 'max_ratio':
+    if len(ratios) > 1 and params.contact_mode == ContactMode.MAX_RATIO:
         chosen = max(finite, key=ratios.__getitem__)  # the first of equals, as nanargmax
     return Sample(combine_ratios(params.contact_mode, ratios),
                   'map' if from_map[chosen] else 'ground', points[chosen],

@@ -34,6 +34,7 @@ from hac_ros.core.basics.numeric import median_of
 from hac_ros.core.geometry.down_vote import DownVote
 from hac_ros.core.geometry.plane import Plane, fit_plane_lsq, ransac_plane, robust_plane
 from hac_ros.core.geometry.reference import MapIndex
+from hac_ros.core.rules.params import GroundMode, HacParams
 
 BODY_MIN_FRAMES = 5  # body up axes needed before the hmr normal is trusted
 BODY_REFRESH_REL = 0.1  # the body normal is recomputed when the bodies seen grew by 10 %
@@ -113,7 +114,7 @@ def map_floor(map_index: MapIndex, body_normal: np.ndarray, previous: Plane | No
 class GroundModel:
     """Owns the ground-plane state of one SLAM map (reset with the estimator)."""
 
-    def __init__(self, mode: str, inlier_m: float, ransac_iters: int, seed: int = 0,
+    def __init__(self, mode: str, *, inlier_m: float, ransac_iters: int, seed: int = 0,
                  static_camera: bool = False) -> None:
         self.mode = mode
         # a fixed camera (static_camera): people stand upright, so down is against their up
@@ -124,6 +125,14 @@ class GroundModel:
         self._rng = np.random.default_rng(seed)
         self._seed = seed
         self.reset()
+
+    @classmethod
+    def from_params(cls, params: HacParams) -> GroundModel:
+        """The ground model ``params`` ask for (``ground_mode``, ``ground_inlier_m``,
+        ``ground_ransac_iters``, ``seed``, ``static_camera``)."""
+        return cls(params.ground_mode, inlier_m=params.ground_inlier_m,
+                   ransac_iters=params.ground_ransac_iters, seed=params.seed,
+                   static_camera=params.static_camera)
 
     def reset(self) -> None:
         # sums over the frames (unit vectors, map frame)
@@ -166,7 +175,7 @@ class GroundModel:
         """A contact joint placed in the map with the current scale (SLAM units, map frame).
 
         Every CONTACT_REFIT_EVERY contacts the plane is refitted (RANSAC, then least squares)."""
-        if self.mode != 'hmr' or not np.all(np.isfinite(contact_map)):
+        if self.mode != GroundMode.HMR or not np.all(np.isfinite(contact_map)):
             return
         self._contacts[self._contact_count % CONTACT_BUFFER] = contact_map
         self._contact_count += 1
@@ -181,7 +190,8 @@ class GroundModel:
         axes, from the camera (R_wc J: no scale needed). Every SOLE_REFIT_EVERY the floor's
         normal is refitted to them all (Tukey-weighted least squares, :func:`robust_plane`): its
         offset is the camera's height, but the estimate measures that, person by person."""
-        if not (self.static_camera and self.mode == 'hmr' and np.all(np.isfinite(sole_map))):
+        if not (self.static_camera and self.mode == GroundMode.HMR
+                and np.all(np.isfinite(sole_map))):
             return
         self._soles.append(np.asarray(sole_map, dtype=float))
         self._sole_people.append(person)
@@ -226,7 +236,7 @@ class GroundModel:
         found; nothing then says that a map hit before any scale is not on a table top or a step
         (``floor_unknown`` in /diagnostics, :meth:`Calibrator.conditions`)."""
         cache = self._floor_cache
-        return self.mode == 'hmr' and cache is not None and cache[2] is None
+        return self.mode == GroundMode.HMR and cache is not None and cache[2] is None
 
     def judge_window(self, floor_scale: float, estimate: float | None, window_samples: int,
                      needed: int, tolerance: float) -> bool:
@@ -252,13 +262,13 @@ class GroundModel:
 
     def normal(self) -> np.ndarray | None:
         """The current down-pointing unit normal in the map frame, or None (not enough evidence)."""
-        if self.mode == 'slam_y':
+        if self.mode == GroundMode.SLAM_Y:
             return np.array([0.0, 1.0, 0.0])
-        if self.mode == 'hmr' and self._floor is not None:
+        if self.mode == GroundMode.HMR and self._floor is not None:
             return self._floor.normal
-        if self.mode == 'hmr' and self._contact_normal is not None:
+        if self.mode == GroundMode.HMR and self._contact_normal is not None:
             return self._contact_normal
-        if self.mode in ('hmr', 'largest_plane'):
+        if self.mode in (GroundMode.HMR, GroundMode.LARGEST_PLANE):
             return self._body_normal()
         return None
 
@@ -284,18 +294,18 @@ class GroundModel:
         """The current plane for this map, cached per (map, normal); a fixed camera without a map:
         the plane one SLAM unit below the camera (the camera at the map's origin), across the
         normal the bodies and their contacts give."""
-        if self.static_camera and map_index is None and self.mode == 'hmr':
+        if self.static_camera and map_index is None and self.mode == GroundMode.HMR:
             normal = self.normal()
             centre = self.camera_map if self.camera_map is not None else np.zeros(3)
             return None if normal is None else Plane(normal, 1.0 + float(normal @ centre))
-        if self.mode == 'none' or map_index is None or len(map_index) < 3:
+        if self.mode == GroundMode.NONE or map_index is None or len(map_index) < 3:
             return None
-        if self.mode == 'hmr':
+        if self.mode == GroundMode.HMR:
             self._floor = self._map_floor(map_index)
             if self._floor is not None:
                 return self._floor
-        normal = None if self.mode == 'largest_plane' else self.normal()
-        if self.mode != 'largest_plane' and normal is None:
+        normal = None if self.mode == GroundMode.LARGEST_PLANE else self.normal()
+        if self.mode != GroundMode.LARGEST_PLANE and normal is None:
             return None
         key = b'' if normal is None else normal.tobytes()
         cache = self._plane_cache

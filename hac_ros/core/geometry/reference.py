@@ -33,6 +33,7 @@ from hac_ros.core.basics.errors import InputError
 from hac_ros.core.basics.numeric import median_of
 from hac_ros.core.geometry.map_shape import MapShape, Principal, map_shape, principal
 from hac_ros.core.geometry.plane import local_plane, lowest_segment_offset, ray_plane_distance
+from hac_ros.core.rules.params import ReferenceMode
 
 # The chain's balls advance geometrically by (1 + 2 tan θ): each ball then covers one cone segment
 # with about twice the segment's volume, a good trade between look-ups and excess points.
@@ -238,10 +239,10 @@ class MapIndex:
         count = len(dist)
         if count < min_points or count == 0:
             return None
-        if mode == 'nearest_to_ray':
+        if mode == ReferenceMode.NEAREST_TO_RAY:
             return RayHit(float(dist[int(np.argmax(cos))]), count)
         median = median_of(dist)
-        if mode == 'cone_plane':
+        if mode == ReferenceMode.CONE_PLANE:
             exact = self.surface_distance(origin_map, direction_map, median)
             if exact is not None:
                 return RayHit(exact, count)

@@ -27,6 +27,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 
 from hac_ros.core.basics.outputs import Status
+from hac_ros.core.rules.params import FrameAlignment
 from hac_ros.core.rules.reasons import warn_when_counted
 
 # diagnostic_msgs/DiagnosticStatus levels
@@ -87,7 +88,7 @@ def findings(status: Status, counted_since: dict[str, int], gravity_wanted: bool
     if status.suspects:
         out.append(Finding('inputs_suspect',
                            'inputs suspect: ' + ', '.join(sorted(status.suspects))))
-    if status.alignment == 'slam' and gravity_wanted:
+    if status.alignment == FrameAlignment.SLAM and gravity_wanted:
         out.append(Finding('alignment_slam', 'metric frame: SLAM axes (no usable ground normal)'))
     for reason, text in WARN_WHEN_COUNTED.items():
         if counted_since.get(reason, 0) > 0:

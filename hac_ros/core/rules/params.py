@@ -14,25 +14,104 @@ from dataclasses import dataclass
 from typing import Any
 
 from hac_ros.core.basics.errors import ParameterError
-from hac_ros.core.basics.param_fields import ParamSet
+from hac_ros.core.basics.param_fields import Choice, ParamSet
 from hac_ros.core.basics.param_fields import param as _p  # short: the fields below align on it
 from hac_ros.core.layouts import BUILT_IN, CUSTOM_ROLES, LAYOUTS, JointLayout, custom_layout
 
 NODE_NAME = 'hac_node'
 
-CONTACT_MODES = ('lowest', 'max_ratio', 'lowest_gravity', 'feet', 'pelvis', 'head')
-REFERENCE_MODES = ('cone_median', 'nearest_to_ray', 'cone_plane', 'floor_plane')
-GROUND_MODES = ('hmr', 'slam_y', 'largest_plane', 'none')
-POSE_TYPES = ('PoseStamped', 'Odometry')
-POSE_SOURCES = ('topic', 'tf')
-ALIGNMENTS = ('gravity', 'slam')
+class ContactMode(Choice):
+    """``contact_mode``: how the contact joint is chosen (docs/method.md)."""
+
+    LOWEST = 'lowest'
+    MAX_RATIO = 'max_ratio'
+    LOWEST_GRAVITY = 'lowest_gravity'
+    FEET = 'feet'
+    PELVIS = 'pelvis'
+    HEAD = 'head'
+
+
+class ReferenceMode(Choice):
+    """``reference_mode``: how a ray is measured in the map."""
+
+    CONE_MEDIAN = 'cone_median'
+    NEAREST_TO_RAY = 'nearest_to_ray'
+    CONE_PLANE = 'cone_plane'
+    FLOOR_PLANE = 'floor_plane'
+
+
+class GroundMode(Choice):
+    """``ground_mode``: where the floor's normal comes from."""
+
+    HMR = 'hmr'
+    SLAM_Y = 'slam_y'
+    LARGEST_PLANE = 'largest_plane'
+    NONE = 'none'
+
+
+class PoseType(Choice):
+    """``pose_type``: the message type of ``pose_topic``."""
+
+    POSE_STAMPED = 'PoseStamped'
+    ODOMETRY = 'Odometry'
+
+
+class PoseSource(Choice):
+    """``pose_source``: a topic, or TF."""
+
+    TOPIC = 'topic'
+    TF = 'tf'
+
+
+class FrameAlignment(Choice):
+    """``metric_frame_alignment``: the metric frame's axes."""
+
+    GRAVITY = 'gravity'
+    SLAM = 'slam'
+
+
+class CloudMode(Choice):
+    """``cloud_mode``: a new map replaces the one in use, or adds to it."""
+
+    REPLACE = 'replace'
+    ACCUMULATE = 'accumulate'
+
+
+class HumanFilter(Choice):
+    """``human_filter``: the world joints as measured, or smoothed."""
+
+    NONE = 'none'
+    SMOOTH = 'smooth'
+
+
+class InputQos(Choice):
+    """``input_qos``: the reliability of the pose and joints subscriptions."""
+
+    BEST_EFFORT = 'best_effort'
+    RELIABLE = 'reliable'
+
+
+class CloudQos(Choice):
+    """``cloud_qos``: the durability of the map subscription."""
+
+    TRANSIENT_LOCAL = 'transient_local'
+    VOLATILE = 'volatile'
+
+
+# each parameter's choices, in the order the docs list them
+CONTACT_MODES = tuple(m.value for m in ContactMode)
+REFERENCE_MODES = tuple(m.value for m in ReferenceMode)
+GROUND_MODES = tuple(m.value for m in GroundMode)
+POSE_TYPES = tuple(m.value for m in PoseType)
+POSE_SOURCES = tuple(m.value for m in PoseSource)
+ALIGNMENTS = tuple(m.value for m in FrameAlignment)
 # pose_type -> the ROS message type of pose_topic
-POSE_MSGTYPES = {'PoseStamped': 'geometry_msgs/msg/PoseStamped',
-                 'Odometry': 'nav_msgs/msg/Odometry'}
-CLOUD_MODES = ('replace', 'accumulate')
-HUMAN_FILTERS = ('none', 'smooth')
-INPUT_QOS = ('best_effort', 'reliable')
-CLOUD_QOS = ('transient_local', 'volatile')
+POSE_MSGTYPES = {PoseType.POSE_STAMPED.value: 'geometry_msgs/msg/PoseStamped',
+                 PoseType.ODOMETRY.value: 'nav_msgs/msg/Odometry'}
+CLOUD_MODES = tuple(m.value for m in CloudMode)
+HUMAN_FILTERS = tuple(m.value for m in HumanFilter)
+INPUT_QOS = tuple(m.value for m in InputQos)
+CLOUD_QOS = tuple(m.value for m in CloudQos)
 
 
 @dataclass
@@ -234,14 +313,14 @@ class HacParams(ParamSet):
     # ------------------------------------------------------------------ validation
     def check(self) -> None:
         """The checks between fields: raise :class:`ParameterError` naming the first invalid."""
-        if self.reference_mode == 'cone_median' and self.cone_min_points < 1:
+        if self.reference_mode == ReferenceMode.CONE_MEDIAN and self.cone_min_points < 1:
             raise ParameterError('cone_min_points: must be >= 1')
         if self.obstacle_min_height >= self.obstacle_max_height:
             raise ParameterError('obstacle_min_height: must be below obstacle_max_height')
-        if self.pose_source == 'tf' and not self.slam_pose_frame.strip('/'):
+        if self.pose_source == PoseSource.TF and not self.slam_pose_frame.strip('/'):
             raise ParameterError('slam_pose_frame: pose_source tf needs the frame whose pose the '
                                  'SLAM publishes in TF (its camera optical or body frame)')
-        if self.pose_source == 'tf' and (self.slam_pose_frame.strip('/')
+        if self.pose_source == PoseSource.TF and (self.slam_pose_frame.strip('/')
                                          == self.slam_map_frame.strip('/')):
             raise ParameterError('slam_pose_frame: must differ from slam_map_frame')
         if abs(math.sqrt(sum(x * x for x in self.pose_to_optical[-4:])) - 1.0) > 1e-3:

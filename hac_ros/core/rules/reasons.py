@@ -14,15 +14,22 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from hac_ros.core.basics.param_fields import Choice
 from hac_ros.core.layouts import counts_text
 
-# kinds: how the reason shows in /diagnostics
-REJECTED = 'rejected'  # an input (or an output) refused and counted: rejected.<key>
-EVENT = 'event'  # something that happened, counted: event.<key>
-CONDITION = 'condition'  # holds while it lasts: condition.<key>
-STATUS = 'status'  # the core's own finding about its estimate
-NODE = 'node'  # a finding only hac_node can make (its clock, its queues, the graph)
-KINDS = (REJECTED, EVENT, CONDITION, STATUS, NODE)
+
+class ReasonKind(Choice):
+    """How a reason shows in /diagnostics."""
+
+    REJECTED = 'rejected'  # an input (or an output) refused and counted: rejected.<key>
+    EVENT = 'event'  # something that happened, counted: event.<key>
+    CONDITION = 'condition'  # holds while it lasts: condition.<key>
+    STATUS = 'status'  # the core's own finding about its estimate
+    NODE = 'node'  # a finding only hac_node can make (its clock, its queues, the graph)
+
+
+REJECTED, EVENT, CONDITION, STATUS, NODE = ReasonKind  # short names for the table below
+KINDS = tuple(ReasonKind)
 
 
 @dataclass(frozen=True)
@@ -32,7 +39,7 @@ class Reason:
     always do while they hold); ``counted``: a condition whose inputs are also counted under
     ``rejected.<key>``; ``remedy``: what the user can do about it, or ``none``."""
 
-    kind: str
+    kind: ReasonKind
     text: str
     warns: bool = False
     remedy: str = ''

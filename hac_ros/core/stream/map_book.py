@@ -21,7 +21,7 @@ from hac_ros.core.basics.numeric import NS
 from hac_ros.core.geometry.map_shape import MapShape, map_shape
 from hac_ros.core.geometry.plausibility import CLOUD_IMPLAUSIBLE_SHARE, implausible
 from hac_ros.core.geometry.reference import MapIndex
-from hac_ros.core.rules.params import HacParams
+from hac_ros.core.rules.params import CloudMode, HacParams
 
 PENDING_MAPS_MAX = 8  # maps waiting for a frame of their stamp
 
@@ -125,7 +125,7 @@ class MapBook:
         if chosen is None:
             return None, False, ''
         p, old = self.params, self.in_use
-        chosen = chosen.composed(old if p.cloud_mode == 'accumulate' else None,
+        chosen = chosen.composed(old if p.cloud_mode == CloudMode.ACCUMULATE else None,
                                  p.cloud_max_points, p.index_max_points)
         shape = chosen.shape
         why = plane_problem(chosen, shape)
@@ -135,7 +135,7 @@ class MapBook:
         # the maps share too few points either way (within a scene-relative radius;
         # MapIndex.overlap_fraction): a map that grew around the old one keeps the old points,
         # one that was pruned keeps its points near the old ones
-        lost = (old is not None and not self.expect_new and p.cloud_mode == 'replace'
+        lost = (old is not None and not self.expect_new and p.cloud_mode == CloudMode.REPLACE
                 and p.map_overlap_min > 0
                 and chosen.overlap_fraction(old) < p.map_overlap_min
                 and old.overlap_fraction(chosen) < p.map_overlap_min)

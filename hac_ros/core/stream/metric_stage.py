@@ -51,7 +51,7 @@ from hac_ros.core.geometry import alignment as align
 from hac_ros.core.geometry.alignment import Alignment
 from hac_ros.core.geometry.plane import Plane
 from hac_ros.core.geometry.plausibility import sane, sane_rows
-from hac_ros.core.rules.params import HacParams
+from hac_ros.core.rules.params import FrameAlignment, HacParams
 from hac_ros.core.stream.odometry import POSITION_VARIANCE_FLOOR, ContinuousOdometry
 from hac_ros.core.stream.pending import (
     PENDING,
@@ -222,7 +222,7 @@ class MetricStage:
             anchor, variance = self.last_pose[:2], self.last_pose[2]
         self.segments[pending.index] = _Segment(np.asarray(pending.R_wc), np.asarray(pending.c_map),
                                                 anchor, variance or 0.0,
-                                                slam=self.config.alignment == 'slam')
+                                                slam=self.config.alignment == FrameAlignment.SLAM)
         self.segment = pending.index
         if pending.index > 0:
             self.odometry.new_segment()

@@ -29,8 +29,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hac_ros.core.basics.numeric import median_of
+from hac_ros.core.basics.numeric import NS, median_of
 from hac_ros.core.basics.transforms import interpolate_pose
+from hac_ros.core.rules.params import HacParams
 
 JUMP_HISTORY = 30  # recent pose speeds whose median is the "normal" speed
 JUMP_MIN_HISTORY = 5  # steps needed before a jump can be told from normal motion
@@ -74,8 +75,8 @@ class PoseTrack:
     gap a joints stamp may be interpolated across.
     """
 
-    def __init__(self, buffer: int, jump_factor: float, jump_min_rel: float, confirm_poses: int,
-                 slop_ns: int, max_gap_ns: float) -> None:
+    def __init__(self, *, buffer: int, jump_factor: float, jump_min_rel: float,
+                 confirm_poses: int, slop_ns: int, max_gap_ns: float) -> None:
         self.jump_factor = jump_factor
         self.jump_min_rel = jump_min_rel
         self.confirm_poses = confirm_poses
@@ -92,6 +93,14 @@ class PoseTrack:
         self.vetting = True  # the stream's first poses are still to be judged (start)
         self.candidates: list[Pose] = []  # ... the poses so far
         self.repeated_since_ns: int | None = None  # the stamp a bit-for-bit repetition began
+
+    @classmethod
+    def from_params(cls, params: HacParams, buffer: int | None = None) -> PoseTrack:
+        """The track ``params`` ask for (``pose_buffer`` poses, or ``buffer``)."""
+        return cls(buffer=params.pose_buffer if buffer is None else buffer,
+                   jump_factor=params.reset_jump_factor, jump_min_rel=params.reset_jump_min_rel,
+                   confirm_poses=params.reset_confirm_poses,
+                   slop_ns=int(params.sync_slop_s * NS), max_gap_ns=params.interp_max_gap_s * NS)
 
     @property
     def last(self) -> Pose | None:
