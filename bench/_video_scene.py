@@ -122,16 +122,18 @@ def billboard(person: Person, facing: np.ndarray) -> Plane:
     return Plane(origin, across, np.array([0.0, 0.0, -1.0]), (width, person.stature), texture)
 
 
-def room(width: float = 8.0, depth: float = 9.0, height: float = 3.0) -> list[Plane]:
+def room(width: float = 8.0, depth: float = 9.0, height: float = 3.0, textures: int = 0
+         ) -> list[Plane]:
     """The floor (z = 0, x in [-width/2, width/2], y in [-2, depth - 2]) and the left, back and
-    right walls, each a mosaic of about 1.2 m tiles."""
+    right walls, each a mosaic of about 1.2 m tiles (``textures``: another number, another
+    room: no tile alike)."""
     x0, x1, y0, y1 = -width / 2, width / 2, -2.0, depth - 2.0
     ex, ey, ez = np.eye(3)
     tile = 1.2
 
     def plane(origin: list[float], across: np.ndarray, down: np.ndarray, w: float, h: float,
               seed: int) -> Plane:
-        texture = _mosaic(seed, max(1, round(w / tile)), max(1, round(h / tile)))
+        texture = _mosaic(seed + 100 * textures, max(1, round(w / tile)), max(1, round(h / tile)))
         return Plane(np.array(origin, float), across, down, (w, h), texture)
 
     return [plane([x0, y1, 0.0], ex, -ey, width, depth, 0),        # the floor
@@ -303,11 +305,12 @@ def camera_path(kind: str, frames: int, seed: int, near: float = 0.0
 
 def build(path: str = 'sweep', frames: int = 30, size: tuple[int, int] = (640, 480),
           statures: tuple[float, ...] = (1.62, 1.62), fps: float = 5.0, seed: int = 0,
-          blur: int = 1, noise: float = 0.0, near: float = 0.0) -> VideoScene:
+          blur: int = 1, noise: float = 0.0, near: float = 0.0, textures: int = 0) -> VideoScene:
     """The scene: the camera on ``path`` (:func:`camera_path`) over ``frames`` frames at ``fps``,
     K with the focal 0.78 of the width (a 65° field of view); one billboard per stature (metres),
     from PEOPLE in turn, about 4 m ahead; ``blur`` sub-frames averaged toward the next pose (1:
-    sharp); ``noise`` the sensor's Gaussian sigma in grey levels; ``near``: :func:`camera_path`'s."""
+    sharp); ``noise`` the sensor's Gaussian sigma in grey levels; ``near``: :func:`camera_path`'s;
+    ``textures``: :func:`room`'s."""
     width, height = size
     focal = 0.78 * width
     K = np.array([[focal, 0.0, width / 2], [0.0, focal, height / 2], [0.0, 0.0, 1.0]])
@@ -317,7 +320,7 @@ def build(path: str = 'sweep', frames: int = 30, size: tuple[int, int] = (640, 4
     people = [Person(PEOPLE[i % len(PEOPLE)], spots[i % len(spots)], stature)
               for i, stature in enumerate(statures)]
     middle = centres[len(centres) // 2, :2]
-    planes = room() + [billboard(p, middle) for p in people]
+    planes = room(textures=textures) + [billboard(p, middle) for p in people]
     rng = np.random.default_rng(seed + 1000)
     images = []
     for i in range(frames):

@@ -196,6 +196,29 @@ def test_a_self_calibration_built_to_fool_it_is_refused(video_extra, tmp_path, c
         assert abs(model.K[0, 0] / built.K[0, 0] - 1) > 0.2
 
 
+def test_a_video_that_cuts_to_another_room_uses_the_largest_model_and_says_so(video_extra,
+                                                                            tmp_path, capsys):
+    """A hard cut: 12 frames of one room, then 6 of another (no tile alike), each swept by the
+    camera. Nothing joins the two parts, so the reconstruction breaks into two models: the
+    largest is used, the log says so, and so does the summary; the path has its frames only."""
+    first = vs.build('sweep', frames=12, size=SIZE, statures=STATURES, fps=FPS, seed=3,
+                     near=1.5)
+    second = vs.build('sweep', frames=6, size=SIZE, statures=STATURES[:1], fps=FPS, seed=4,
+                      near=1.5, textures=1)
+    first.frames = np.concatenate([first.frames, second.frames])
+    frames = first.write_folder(tmp_path / 'frames')
+    assert hac(hac_video(frames, tmp_path / 'out', tmp_path / 'cache')) == 0
+    captured = capsys.readouterr()
+    assert re.search(r'broke into 2 models \((\d+), (\d+) keyframes\): the largest is used',
+                     captured.err)
+    largest, smaller = map(int, re.search(r'broke into 2 models \((\d+), (\d+)',
+                                          captured.err).groups())
+    assert largest >= smaller and largest <= 12 and smaller <= 6
+    assert 'smaller models left out' in captured.out
+    path = np.loadtxt(tmp_path / 'out' / 'camera_slam.tum', ndmin=2)
+    assert len(path) == largest and path[:, 0].max() < 12 / FPS  # the first room's stamps
+
+
 def test_the_options_are_checked_before_any_work(video_extra, scene, tmp_path, capsys):
     _, frames = scene
     assert hac(['video', str(frames), '-o', str(tmp_path / 'a'), '--fps', '2',
