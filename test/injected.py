@@ -1,4 +1,4 @@
-"""Faults injected into real recordings, for the fault suite (test_faults.py).
+"""Faults injected into real recordings, for the fault suite (test_faults*.py).
 
 A recording of the simulator is copied message by message with an edit applied: the recording
 played twice (header stamps go back), one SLAM pose glitched or stamped far ahead, the SLAM frozen,

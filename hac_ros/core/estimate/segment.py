@@ -200,7 +200,7 @@ def follow_shape(stamps_ns: np.ndarray, log_scales: np.ndarray, weights: np.ndar
     segment's samples were brought to one unit through their ratios, whose errors add up), its
     size (RMS over the blocks) must also exceed SHAPE_NOISES times a sample's own noise: a slower
     wander of that size is the correlated noise an HMR model has (a 3 % wander over 10 s among
-    2.5 % samples: test_replay), not the SLAM's scale."""
+    2.5 % samples: test_replay_offline), not the SLAM's scale."""
     if len(stamps_ns) < 2 * FEW_SAMPLES_MIN:
         return None
     t = stamps_ns.astype(np.float64)
