@@ -82,10 +82,11 @@ def test_a_recording_looped_into_the_node_calibrates_its_second_loop(walk, live)
     assert not any('pose_out_of_order' in values for _, _, values in statuses)
 
 
-def test_the_inbox_drops_the_oldest_joints_frames_never_a_pose():
+def test_the_inbox_drops_the_oldest_joints_frames_and_the_poses_left_side_by_side():
     """Input faster than processing, in the node's inbox (joints_backlog_max 2, a node that
-    takes a second a frame): of six joints frames waiting, the four oldest are dropped, in order;
-    every pose stays, in arrival order."""
+    takes a second a frame): of six joints frames waiting, the four oldest are dropped, in order,
+    and with each the older of the two poses it leaves side by side (coalesced: no frame needs
+    it); the newest poses and frames are processed in arrival order, and every input is counted."""
     from hac_ros.ros.intake import Inbox
 
     inbox = Inbox(backlog_max=2)
@@ -93,18 +94,19 @@ def test_the_inbox_drops_the_oldest_joints_frames_never_a_pose():
     for k in range(6):
         inbox.put('pose', k)
         inbox.put('joints', k)
-    taken, dropped = [], []
+    taken, dropped, coalesced = [], [], []
     while True:
         took = inbox.get()
         item, waiting = took.item, took.waiting
         assert item is not None
         dropped += [frame.data for frame in took.dropped]
+        coalesced += [pose.data for pose in took.coalesced]
         taken.append((item.kind, item.data))
         assert waiting <= 2
         if (item.kind, item.data) == ('joints', 5):
             break
-    assert taken == [('pose', k) for k in range(5)] + [('joints', 4), ('pose', 5), ('joints', 5)]
-    assert dropped == [0, 1, 2, 3]
+    assert taken == [('pose', 4), ('joints', 4), ('pose', 5), ('joints', 5)]
+    assert dropped == [0, 1, 2, 3] and coalesced == [0, 1, 2, 3]
     assert inbox.received == {'pose': 6, 'joints': 6}
 
 

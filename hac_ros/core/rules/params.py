@@ -205,7 +205,8 @@ class HacParams(ParamSet):
     joints_backlog_max: int = _p(2, 'node: joints frames that may wait to be processed, in input '
                                  'periods of work: beyond this many frames, the oldest are dropped '
                                  '(frames_dropped) when the frames waiting would take longer than '
-                                 'this many input periods to process (never poses); larger trades '
+                                 'this many input periods to process (with the older of two poses '
+                                 'left side by side); larger trades '
                                  'drops for latency', low=1, high=100_000)
     latency_warn_s: float = _p(0.1, 'node: /diagnostics warns when the node is behind by more '
                                'than this (now minus the arrival of the oldest input waiting, or '
