@@ -17,19 +17,19 @@ calibrator sees exactly the messages, in exactly the order, of the replay's feed
   within 1.5 ms) is processed, not dropped, since the node takes milliseconds for what the input
   took 30 ms a frame to send. Until the cost and the period are measured (a first frame
   processed, five arrived), STARTUP_FRAMES may wait.
-- **Poses** are not dropped for themselves, but a stream faster than 1 / ``pose_coalesce_s``
-  (100 Hz by default) is thinned: a pose stamped within ``pose_coalesce_s`` after the last pose
-  queued for the calibrator is held back, and the next pose replaces it (the held one is
-  coalesced, counted) while it too is within ``pose_coalesce_s`` of the last one queued; otherwise, or when another
-  input comes (a joints frame needs its poses first), or when no input comes for
-  ``pose_coalesce_s`` of wall time, the held pose goes into the queue. So the calibrator gets a
-  pose at least every ``pose_coalesce_s`` of stamp time, the newest always, and the pose just
-  before each joints frame; at camera rates (poses further apart) nothing is held or coalesced.
-  At 1 kHz the node processes about 100 poses a second whatever the machine's load, so it keeps
-  up with the stream instead of falling behind it (the odometry of the coalesced poses is not
-  published: a documented difference from the replay, which processes every pose). Which poses
-  are kept depends on their stamps and arrival order, not on how busy the processing thread is
-  (only a pause of the input releases the newest pose early).
+- **Poses** are not dropped for themselves, but a stream faster than 1 / ``pose_coalesce_s`` (100 Hz
+  by default) is thinned: a pose stamped within ``pose_coalesce_s`` after the last pose queued for
+  the calibrator is held back, and the next pose replaces it (the held one is coalesced, counted)
+  while it too is within ``pose_coalesce_s`` of the last one queued; otherwise, or when another
+  input comes (a joints frame needs its poses first), or when no input comes for ``pose_coalesce_s``
+  of wall time, the held pose goes into the queue. So the calibrator gets a pose at least every
+  ``pose_coalesce_s`` of stamp time, the newest always, and the pose just before each joints frame;
+  at camera rates (poses further apart) nothing is held or coalesced. At 1 kHz the node processes
+  about 100 poses a second whatever the machine's load, so it keeps up with the stream instead of
+  falling behind it (the odometry of the coalesced poses is not published: a documented difference
+  from the replay, which processes every pose). Which poses are kept depends on their stamps and
+  arrival order, not on how busy the processing thread is (only a pause of the input releases the
+  newest pose early).
 
 - **Maps** (``cloud_mode: replace``): a map put into the inbox supersedes the maps still waiting
   that no joints frame waits behind (the calibrator would replace each by the next before any
