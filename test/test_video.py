@@ -165,6 +165,18 @@ def test_a_camera_that_does_not_move_is_refused_pointing_to_static_camera(video_
     assert not (tmp_path / 'out').exists()
 
 
+def test_too_few_frames_are_refused_before_the_people(video_extra, tmp_path, capsys):
+    """Two frames (a moving camera, people in view): under the three keyframes a reconstruction
+    needs, refused at once, naming --keyframe-rate; no people looked for, nothing written."""
+    built = vs.build('sweep', frames=2, size=SIZE, statures=STATURES[:1], fps=FPS, near=1.5)
+    frames = built.write_folder(tmp_path / 'frames')
+    assert hac(hac_video(frames, tmp_path / 'out', tmp_path / 'cache')) == 2
+    error = capsys.readouterr().err
+    assert '2 keyframes from 2 frames: at least 3 are needed' in error
+    assert '--keyframe-rate' in error
+    assert not (tmp_path / 'out').exists() and not list((tmp_path / 'cache').glob('*/people-*'))
+
+
 def test_nobody_in_view_is_refused_before_the_reconstruction(video_extra, tmp_path, capsys):
     built = vs.build('sweep', frames=6, size=SIZE, statures=(), fps=FPS)
     frames = built.write_folder(tmp_path / 'frames')

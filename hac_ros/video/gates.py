@@ -5,7 +5,8 @@ self-calibration converged to a focal of 72 px where the truth was 536. Each gat
 it measured and the bound it broke; ``hac video`` refuses (exit 2) when any fails, and says so
 rather than write a trajectory it cannot stand behind.
 
-- ``registered``: at least ``MIN_REGISTERED`` of the keyframes in the model kept;
+- ``registered``: at least ``MIN_REGISTERED`` of the keyframes registered, in the model kept or
+  another (a video that cuts to another scene breaks into models: the largest is used, and said);
 - ``reprojection``: the mean reprojection error at most ``MAX_REPROJECTION_PX``;
 - ``baseline``: the cameras' spread at least ``MIN_BASELINE`` of the median distance to the map
   (a camera that only turns, or stands still, sees no depth: that is ``static_camera``'s case);
@@ -68,9 +69,12 @@ def baseline(model: Reconstruction) -> float:
 def judge(model: Reconstruction) -> list[Gate]:
     """Every gate of the module docstring, measured on ``model``."""
     gates = []
-    share = len(model.names) / max(1, model.keyframes)
+    registered = sum(model.model_sizes)
+    share = registered / max(1, model.keyframes)
+    models = (f' ({len(model.names)} in the model used, {registered - len(model.names)} in '
+              f'{len(model.model_sizes) - 1} other(s))' if len(model.model_sizes) > 1 else '')
     gates.append(Gate('registered', share, share >= MIN_REGISTERED,
-                      f'{len(model.names)} of {model.keyframes} keyframes in the model '
+                      f'{registered} of {model.keyframes} keyframes registered{models} '
                       f'({share:.0%}; at least {MIN_REGISTERED:.0%})'))
     error = model.reprojection_px
     gates.append(Gate('reprojection', error, math.isfinite(error) and error <= MAX_REPROJECTION_PX,
