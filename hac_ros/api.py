@@ -1,14 +1,13 @@
 """``from hac_ros import calibrate``: the whole calibration in one call on numpy arrays.
 
 For research code that holds a SLAM trajectory, a map and HMR joints as arrays (the HAC authors'
-``masked_droid_slam.npz`` and SMPL joints, a DROID-SLAM or DPVO run, ...): :func:`calibrate`
-gives what ``hac import`` + ``hac replay`` give on the same arrays, without recordings on disk.
-The inputs are fed to the node's :class:`~hac_ros.core.calibrator.Calibrator` exactly as the
-replay feeds a recording written by ``hac import`` (stamps to nanoseconds by round(t × 1e9), the
-map once at the first stamp, poses and joints matched within ``sync_slop_s`` or interpolated, an
-absent person left out), and resolved as the replay resolves them (offline by default). With
-``literal=True`` it is the authors' method (:mod:`hac_ros.core.estimate.literal`) on the same
-frames.
+``masked_droid_slam.npz`` and SMPL joints, a DROID-SLAM or DPVO run, ...): :func:`calibrate` gives
+what ``hac import`` + ``hac replay`` give on the same arrays, without recordings on disk. The inputs
+are fed to the node's :class:`~hac_ros.core.calibrator.Calibrator` exactly as the replay feeds a
+recording written by ``hac import`` (stamps to nanoseconds by round(t × 1e9), the map once at the
+first stamp, poses and joints matched within ``sync_slop_s`` or interpolated, an absent person left
+out), and resolved as the replay resolves them (offline by default). With ``literal=True`` it is the
+authors' method (:mod:`hac_ros.core.estimate.literal`) on the same frames.
 
 Everything is validated first: an :class:`~hac_ros.core.basics.errors.InputError` names the
 argument, the shape and the unit it expects. Imports no ROS.

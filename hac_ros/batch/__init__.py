@@ -24,6 +24,5 @@ identical. Per recording:
 Usage errors (:class:`~hac_ros.core.basics.errors.HacError`, raised before any recording is started;
 :class:`~hac_ros.core.basics.errors.ArgumentError` where an argument is to blame): no or missing
 inputs, two inputs with the same name, an existing output without ``resume``, ``ray`` without Ray or
-with
-an address where no Ray cluster answers.
+with an address where no Ray cluster answers.
 """

@@ -165,10 +165,9 @@ class JobLogFormatter(logging.Formatter):
 @contextlib.contextmanager
 def job_log(path: Path) -> Iterator[None]:
     """Everything hac_ros logs meanwhile (the replay's notices, the summaries) goes to ``path``
-    (replaced), through a handler on the package's logger, at level INFO, every character a
-    terminal would obey escaped (:mod:`hac_ros.core.basics.printable`); the process's streams are
-    left
-    alone. Used in a pool worker or a Ray task, one job at a time."""
+    (replaced), through a handler on the package's logger, at level INFO, every character a terminal
+    would obey escaped (:mod:`hac_ros.core.basics.printable`); the process's streams are left alone.
+    Used in a pool worker or a Ray task, one job at a time."""
     path.parent.mkdir(parents=True, exist_ok=True)
     handler = logging.FileHandler(path, mode='w', encoding='utf-8')
     handler.setFormatter(JobLogFormatter(JOB_LOG_FORMAT))

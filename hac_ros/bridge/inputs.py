@@ -51,8 +51,7 @@ def add_tf_msg(calibrator: Calibrator, tf: TfPoses, msg: Any, static: bool,
                taken: TfTaken | None = None) -> TfTaken:
     """A ``tf2_msgs/TFMessage`` of /tf (or /tf_static: ``static``), or None when its bytes did not
     deserialize, through ``tf`` (:mod:`hac_ros.core.stream.tf_tree`) into the calibrator: each
-    message
-    of the SLAM's own transform is a pose at its stamp; rejections are counted by reason."""
+    message of the SLAM's own transform is a pose at its stamp; rejections are counted by reason."""
     taken = taken or TfTaken([], [], [])
     if msg is None:
         taken.outputs += calibrator.reject('tf_invalid', -1)

@@ -120,8 +120,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 def show(text: object, file: TextIO | None = None) -> None:
     """Print ``text`` for the user (stdout, or ``file``): every character a terminal would obey
     rather than show escaped, line by line (:func:`~hac_ros.core.basics.printable.printable_lines`):
-    what
-    a command prints holds names and paths from recordings and files."""
+    what a command prints holds names and paths from recordings and files."""
     print(printable_lines(text), file=file if file is not None else sys.stdout, flush=True)
 
 

@@ -148,9 +148,8 @@ class PersonStep:
     def _vote_down(self, stamp: int, R_wc: np.ndarray, c_map: np.ndarray, joints: np.ndarray,
                    up_cam: np.ndarray) -> list[Record]:
         """Every person (standing or not) tells which way is down while the scene has not said
-        (hac_ros.core.geometry.down_vote); when it says that down is along the bodies' up (people
-        on their
-        hands), the samples taken with the bodies' own down are dropped."""
+        (hac_ros.core.geometry.down_vote); when it says that down is along the bodies' up (people on
+        their hands), the samples taken with the bodies' own down are dropped."""
         up_norm = float(np.linalg.norm(up_cam))
         if not (self.ground.down.wanted and self.map is not None and math.isfinite(up_norm)
                 and up_norm > 0.0):

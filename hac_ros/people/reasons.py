@@ -1,10 +1,9 @@
 """Every reason ``hac_people_node`` gives for an image it did not turn into people, or a person
-it dropped: its one table (the core's is :mod:`hac_ros.core.rules.reasons`, hac_node's). Keys
-appear in its ``/diagnostics`` as ``rejected.<key>``; the people the lifting left out as
+it dropped: its one table (the core's is :mod:`hac_ros.core.rules.reasons`, hac_node's). Keys appear
+in its ``/diagnostics`` as ``rejected.<key>``; the people the lifting left out as
 ``people_dropped.<key>`` (:data:`PEOPLE_DROPPED`); images skipped on purpose as
-``dropped.rate_cap``, ``dropped.overload`` and ``dropped.lost``; images processed with a
-warning under the key of :data:`WARNINGS` (docs/people.md, "What the node does with each
-image").
+``dropped.rate_cap``, ``dropped.overload`` and ``dropped.lost``; images processed with a warning
+under the key of :data:`WARNINGS` (docs/people.md, "What the node does with each image").
 """
 from __future__ import annotations
 

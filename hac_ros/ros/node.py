@@ -19,12 +19,11 @@ the map at its stamp. Output serializers are made at configure (:mod:`hac_ros.ro
 
 Status. ``/diagnostics`` follows stamp time as in the replay (:mod:`hac_ros.core.rules.health`),
 with what only the node knows added (:mod:`hac_ros.ros.liveness`): how far behind it is, its
-backlog,
-and warnings when one kind of input stopped coming. A timer on the steady clock (it runs under
-``use_sim_time`` without ``/clock`` too, as the input-type check does) publishes STALE when no
-input at all has come for ``stale_after_s``: a last OK never stands for a live status. The log
-tells the story of the run at INFO (:mod:`hac_ros.ros.story`); services and runtime parameter
-changes are :mod:`hac_ros.ros.control`'s.
+backlog, and warnings when one kind of input stopped coming. A timer on the steady clock (it runs
+under ``use_sim_time`` without ``/clock`` too, as the input-type check does) publishes STALE when no
+input at all has come for ``stale_after_s``: a last OK never stands for a live status. The log tells
+the story of the run at INFO (:mod:`hac_ros.ros.story`); services and runtime parameter changes are
+:mod:`hac_ros.ros.control`'s.
 
 Names. Topics are relative (``slam/pose`` in, ``hac/pose`` out: a namespace moves them all),
 ``/diagnostics`` and ``/tf`` absolute, the services private: ``~/reset``, ``~/freeze``.

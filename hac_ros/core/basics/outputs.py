@@ -156,9 +156,8 @@ class ResetOut:
 @dataclass(slots=True)
 class MapRescaleOut:
     """A new map came into use with another scale than the map before it (the map's own word:
-    hac_ros.core.geometry.reference.MapIndex.rescale_against): the scale is ``factor`` times what
-    it was (new over old, metres per SLAM unit); the samples before it were measured in the old
-    unit.
+    hac_ros.core.geometry.reference.MapIndex.rescale_against): the scale is ``factor`` times what it
+    was (new over old, metres per SLAM unit); the samples before it were measured in the old unit.
     ``since_ns``: the stamp of the map it replaced (the change came about in between)."""
 
     stamp_ns: int

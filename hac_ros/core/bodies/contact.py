@@ -5,10 +5,9 @@ The paper takes the lowest joint along the camera's y axis (y points down): ``ar
 ``lowest_gravity`` takes the lowest joint along the scene's down (the ground normal, or before it
 the bodies' votes: :mod:`hac_ros.core.geometry.down_vote`); without either it has no candidate. The
 authors' code instead computes a scale for every joint and keeps the per-frame maximum ratio
-(``max_ratio``):
-a joint can never lie behind the surface its ray hits, so every ratio is at most the true scale and
-the largest is the contact. ``feet``, ``pelvis`` and ``head`` are the paper's fixed-joint ablations
-(Tab. 1). Which joint is which is the
+(``max_ratio``): a joint can never lie behind the surface its ray hits, so every ratio is at most
+the true scale and the largest is the contact. ``feet``, ``pelvis`` and ``head`` are the paper's
+fixed-joint ablations (Tab. 1). Which joint is which is the
 :class:`~hac_ros.core.layouts.JointLayout`'s (``joint_layout``).
 """
 from __future__ import annotations

@@ -5,12 +5,11 @@ checks that say whether the evidence still backs the estimate (docs/method.md, "
 **The window.** The per-frame scales of the latest ``window_s`` stamp seconds of samples (at most
 ``window_max_samples``), each weighing the stamp time it covers
 (hac_ros.core.estimate.stamp_weights: a burst of repeated frames counts for the time it spans), kept
-sorted
-(:class:`hac_ros.core.estimate.sorted_window.SortedWindow`): their weighted median is the robust
-level while the scale holds still, and the gate's reference: once the window holds ``min_samples``,
-a sample
-further than ``gate_k`` robust sigmas from it (and than ``gate_min_rel`` of it) is gated out. The
-window keeps its newest samples however old they grow: their age is a doubt of its own (below).
+sorted (:class:`hac_ros.core.estimate.sorted_window.SortedWindow`): their weighted median is the
+robust level while the scale holds still, and the gate's reference: once the window holds
+``min_samples``, a sample further than ``gate_k`` robust sigmas from it (and than ``gate_min_rel``
+of it) is gated out. The window keeps its newest samples however old they grow: their age is a doubt
+of its own (below).
 
 **The filter** (:class:`hac_ros.core.estimate.scale_filter.LogScaleFilter`) is fed every accepted
 sample itself: its level and rate, its noise measured on the samples, the probability ``p`` that the

@@ -1,14 +1,12 @@
 """One segment's offline scale: the best estimate of each moment from all its samples at once.
 
-A segment is one SLAM map between re-initialisations (hac_ros.core.offline cuts the recording at
-the resets). Its samples are first brought to one unit: a map that changed its scale within the
-segment (the calibrator's :class:`~hac_ros.core.basics.outputs.MapRescaleOut`, docs/method.md)
-measured the samples before it in the old unit, so each sample is multiplied by the rescales after
-it, and
-the schedule found is divided by them again where it is read (:meth:`SegmentScale.at`): there as
-a ramp from the map before to the map that said so, since the SLAM's scale changed in between
-while its poses went on (the samples, measured against the old map, could not see it). Then, in
-that unit:
+A segment is one SLAM map between re-initialisations (hac_ros.core.offline cuts the recording at the
+resets). Its samples are first brought to one unit: a map that changed its scale within the segment
+(the calibrator's :class:`~hac_ros.core.basics.outputs.MapRescaleOut`, docs/method.md) measured the
+samples before it in the old unit, so each sample is multiplied by the rescales after it, and the
+schedule found is divided by them again where it is read (:meth:`SegmentScale.at`): there as a ramp
+from the map before to the map that said so, since the SLAM's scale changed in between while its
+poses went on (the samples, measured against the old map, could not see it). Then, in that unit:
 
 - **the level** is the median of the samples weighed by the stamp time each covers
   (hac_ros.core.estimate.stamp_weights): a burst of repeated frames counts for the time it spans,
@@ -252,10 +250,9 @@ def follow_shape(stamps_ns: np.ndarray, log_scales: np.ndarray, weights: np.ndar
 
 def segment_drift(stamps_ns: np.ndarray, log_scales: np.ndarray) -> float:
     """The probability that a segment's scale drifts, from all its samples at once: the
-    least-squares slope of the log scale over the segment, its variance 12 N² / T³ (T the span,
-    N² the noise density of the residuals about the line: hac_ros.core.estimate.scale_filter),
-    weighed by the online estimator's prior (scale_filter.drift_probability). stamps_ns (n,) sorted
-    int;
+    least-squares slope of the log scale over the segment, its variance 12 N² / T³ (T the span, N²
+    the noise density of the residuals about the line: hac_ros.core.estimate.scale_filter), weighed
+    by the online estimator's prior (scale_filter.drift_probability). stamps_ns (n,) sorted int;
     log_scales (n,) natural log of metres per SLAM unit."""
     t = (stamps_ns - stamps_ns[0]) / NS
     span = float(t[-1]) if len(t) else 0.0

@@ -7,18 +7,15 @@ gravity) and ``b`` in SLAM units; a point with ``n·p > b`` is below it.
 neck) of many frames rotated into the map (the principal axis of their scatter, so a handstand still
 gives the axis; which end is down from the scene, :mod:`hac_ros.core.geometry.down_vote`: never the
 camera's axes): a degree or so off, as people lean. Then **the map's floor** (:func:`map_floor`):
-the lowest
-dense surface across that axis, a plane fitted robustly to its points, gives the normal to about a
-tenth of a degree and the offset ``b`` to about a centimetre; the floor is then *trusted*
+the lowest dense surface across that axis, a plane fitted robustly to its points, gives the normal
+to about a tenth of a degree and the offset ``b`` to about a centimetre; the floor is then *trusted*
 (:attr:`GroundModel.trusted`): a map hit far above it is not a contact before any scale exists (a
 table top between the camera and the feet, :mod:`hac_ros.core.bodies.sample`). Where the map shows
 no floor, the contact joints placed in the map with the scale refine the body's normal: RANSAC
-(3-point
-samples, a metric inlier distance), then a least-squares refit on the inliers; contacts along a line
-(a straight walk) fix the normal only across the line, so the body normal is kept, made
+(3-point samples, a metric inlier distance), then a least-squares refit on the inliers; contacts
+along a line (a straight walk) fix the normal only across the line, so the body normal is kept, made
 perpendicular to the line; the offset is the lowest dense segment of the points along ``n`` (a
-histogram, not the single lowest point;
-:meth:`MapIndex.floor_offset`).
+histogram, not the single lowest point; :meth:`MapIndex.floor_offset`).
 
 Ablations: ``slam_y`` (the SLAM map's y axis as the normal), ``largest_plane`` (RANSAC's largest
 plane of the map), ``none``.

@@ -1,10 +1,9 @@
 """The maps of one stream: which map a frame uses, and when the map changed beyond recognition.
 
 A frame uses the latest map whose stamp is not after its own (docs/interface.md, "Processing
-order"): maps wait in :class:`MapBook` until a frame of their stamp activates them. A map is
-judged before it waits (:meth:`MapBook.judge`, hac_ros.core.geometry.plausibility): one of values
-no SLAM produces is refused, one with a few such points is used without them. On activation, a map
-that
+order"): maps wait in :class:`MapBook` until a frame of their stamp activates them. A map is judged
+before it waits (:meth:`MapBook.judge`, hac_ros.core.geometry.plausibility): one of values no SLAM
+produces is refused, one with a few such points is used without them. On activation, a map that
 overlaps the one in use too little (``map_overlap_min``, both ways) says the SLAM re-initialised;
 the calibrator resets. The map in use goes to the metric stage (/hac/cloud) at most once per
 ``cloud_min_period_s`` of stamp time. Maps are :class:`~hac_ros.core.geometry.reference.MapIndex`,

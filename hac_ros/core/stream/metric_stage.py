@@ -182,9 +182,8 @@ class MetricStage:
         """The outputs with nothing non-finite or beyond ``output_max_m`` metres
         (hac_ros.core.geometry.plausibility): such a pose, odometry, scale or joints message is
         suppressed and a cloud loses those points, each counted as ``output_implausible``; in the
-        joints a
-        NaN joint is one not seen and stays NaN, and a person with an infinite joint (counted as
-        such) or none seen is left out."""
+        joints a NaN joint is one not seen and stays NaN, and a person with an infinite joint
+        (counted as such) or none seen is left out."""
         bound, out = self.config.output_max_m, []
         for output in outputs:
             ok = True

@@ -2,9 +2,8 @@
 
 The :class:`~hac_ros.core.calibrator.Calibrator` makes one of these wherever a metric output
 (odometry and pose, world joints and scale, the cloud, a status) is due, with its SLAM-unit
-quantities; the :class:`~hac_ros.core.stream.metric_stage.MetricStage` turns it into the output
-with the published scale. Online that happens at once; offline (``Calibrator(offline=True)``) the
-records
+quantities; the :class:`~hac_ros.core.stream.metric_stage.MetricStage` turns it into the output with
+the published scale. Online that happens at once; offline (``Calibrator(offline=True)``) the records
 wait in the calibrator's journal until the whole recording's schedule is known
 (:func:`hac_ros.core.offline.resolve_offline`). They never leave the core.
 """

@@ -17,10 +17,9 @@ newest stamp of the stream so far:
 While a jump back is suspect, joints frames older than the stream by more than the tolerance are
 *held*: they belong to the new stream if it is confirmed (so that its first frames are calibrated
 too) and are late otherwise. A map never decides a jump in time: maps are slow by nature (stamped
-with the keyframe they came from, built or carried for seconds), so a map older than the stream
-is used by the current stream when it is the newest one (hac_ros.core.stream.map_book) and also
-held, in case the poses confirm a jump back (a looped recording's latched map arrives before its
-poses).
+with the keyframe they came from, built or carried for seconds), so a map older than the stream is
+used by the current stream when it is the newest one (hac_ros.core.stream.map_book) and also held,
+in case the poses confirm a jump back (a looped recording's latched map arrives before its poses).
 Stamps are int nanoseconds.
 """
 from __future__ import annotations
